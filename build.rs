@@ -1,0 +1,140 @@
+//! Compiles every `shaders/*.comp` to SPIR-V with shaderc and embeds it.
+//!
+//! `trace.comp` is compiled once per (structure, geometry) variant: a scene without
+//! spheres gets a kernel that declares no sphere buffer at all, one without triangles
+//! declares no mesh buffers. Every other `.comp` is compiled once. Binding numbers and
+//! tunables come from `src/gpu/bindings.rs` as macros. On a shader error the build
+//! fails with `file:line: message` from the compiler.
+
+use std::cell::RefCell;
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+#[allow(dead_code)]
+mod bindings {
+    include!("src/gpu/bindings.rs");
+}
+
+/// Geometry variants of the trace kernel: (suffix, HAS_TRIANGLES, HAS_SPHERES).
+const GEOMETRY: &[(&str, u32, u32)] = &[("tris", 1, 0), ("spheres", 0, 1), ("all", 1, 1)];
+
+fn main() {
+    let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
+    let shader_dir = root.join("shaders");
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    println!("cargo:rerun-if-changed=src/gpu/bindings.rs");
+    println!("cargo:rerun-if-changed=shaders");
+
+    let opened: Rc<RefCell<BTreeSet<PathBuf>>> = Rc::default();
+    let compiler = shaderc::Compiler::new().expect("shaderc compiler");
+    let mut table = String::from("/// (name, SPIR-V bytes) of every compiled kernel.\npub const SHADERS: &[(&str, &[u8])] = &[\n");
+    let mut failures = Vec::new();
+
+    let mut comps: Vec<PathBuf> = read_dir_sorted(&shader_dir)
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "comp"))
+        .collect();
+    comps.sort();
+    let accels: Vec<String> = read_dir_sorted(&shader_dir.join("accel"))
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "glsl"))
+        .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .collect();
+
+    for comp in &comps {
+        let stem = comp.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        let source = match std::fs::read_to_string(comp) {
+            Ok(s) => s,
+            Err(e) => {
+                failures.push(format!("{}: {e}", comp.display()));
+                continue;
+            }
+        };
+        opened.borrow_mut().insert(comp.clone());
+        let mut variants: Vec<(String, Vec<(String, String)>)> = Vec::new();
+        if stem == "trace" {
+            for accel in &accels {
+                for (geo, tris, spheres) in GEOMETRY {
+                    variants.push((
+                        format!("trace_{accel}_{geo}"),
+                        vec![
+                            (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                            ("HAS_TRIANGLES".into(), tris.to_string()),
+                            ("HAS_SPHERES".into(), spheres.to_string()),
+                        ],
+                    ));
+                }
+            }
+        } else {
+            variants.push((stem.clone(), Vec::new()));
+        }
+        for (name, defines) in variants {
+            match compile(&compiler, &shader_dir, comp, &source, &defines, &opened) {
+                Ok(words) => {
+                    let path = out_dir.join(format!("{name}.spv"));
+                    std::fs::write(&path, words).expect("write SPIR-V to OUT_DIR");
+                    let _ = writeln!(table, "    ({name:?}, include_bytes!({:?})),", path.display().to_string());
+                }
+                Err(msg) => failures.push(format!("variant {name}:\n{msg}")),
+            }
+        }
+    }
+    table.push_str("];\n");
+    for f in opened.borrow().iter() {
+        println!("cargo:rerun-if-changed={}", f.display());
+    }
+    if !failures.is_empty() {
+        eprintln!("shader compilation failed:\n{}", failures.join("\n"));
+        std::process::exit(1);
+    }
+    std::fs::write(out_dir.join("shaders.rs"), table).expect("write shaders.rs");
+}
+
+fn read_dir_sorted(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn compile(
+    compiler: &shaderc::Compiler,
+    shader_dir: &Path,
+    file: &Path,
+    source: &str,
+    defines: &[(String, String)],
+    opened: &Rc<RefCell<BTreeSet<PathBuf>>>,
+) -> Result<Vec<u8>, String> {
+    let mut opts = shaderc::CompileOptions::new().ok_or("shaderc options")?;
+    opts.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+    opts.set_target_spirv(shaderc::SpirvVersion::V1_5);
+    opts.set_optimization_level(shaderc::OptimizationLevel::Performance);
+    opts.set_warnings_as_errors();
+    for (k, v) in bindings::SHADER_DEFINES {
+        opts.add_macro_definition(k, Some(&v.to_string()));
+    }
+    for (k, v) in defines {
+        opts.add_macro_definition(k, Some(v));
+    }
+    let dir = shader_dir.to_path_buf();
+    let opened_cb = Rc::clone(opened);
+    opts.set_include_callback(move |requested, _ty, requester, _depth| {
+        // Includes resolve against shaders/ first, then against the including file.
+        let candidates = [dir.join(requested), Path::new(requester).parent().unwrap_or(&dir).join(requested)];
+        for c in candidates {
+            if let Ok(content) = std::fs::read_to_string(&c) {
+                opened_cb.borrow_mut().insert(c.clone());
+                return Ok(shaderc::ResolvedInclude { resolved_name: c.display().to_string(), content });
+            }
+        }
+        Err(format!("cannot find include \"{requested}\" (looked in {})", dir.display()))
+    });
+    let name = file.display().to_string();
+    compiler
+        .compile_into_spirv(source, shaderc::ShaderKind::Compute, &name, "main", Some(&opts))
+        .map(|a| a.as_binary_u8().to_vec())
+        .map_err(|e| e.to_string())
+}

@@ -1,0 +1,68 @@
+// Brute force with a scene-box early-out: every primitive against every ray.
+// Interface shared by every shaders/accel/*.glsl:
+//   bool trace_closest(Ray r, inout Hit h);   // nearest hit in (tmin, tmax)
+//   bool trace_any(Ray r);                    // any hit in (tmin, tmax)
+// Both count into g_nodes / g_tests.
+//
+// llvmpipe (lavapipe) allows each shader invocation 65535 loop iterations in total,
+// over all loops, and silently breaks the invocation beyond that. The primitive
+// loops are therefore unrolled by hand BRUTE_UNROLL times (no loop in the IR for the
+// inner step), and the host bounds the iterations per dispatch (see
+// src/render/gpu.rs, `loop_iterations`).
+
+#define TEST_TRI(k) if (b + k < n) { if (intersect_triangle(b + k, r, h)) { found = true; ANY_EXIT } }
+#define TEST_SPH(k) if (b + k < n) { if (intersect_sphere(b + k, r, h)) { found = true; ANY_EXIT } }
+#define UNROLLED_16(T) T(0u) T(1u) T(2u) T(3u) T(4u) T(5u) T(6u) T(7u) \
+    T(8u) T(9u) T(10u) T(11u) T(12u) T(13u) T(14u) T(15u)
+#define UNROLLED(T) UNROLLED_16(T) \
+    T(16u) T(17u) T(18u) T(19u) T(20u) T(21u) T(22u) T(23u) \
+    T(24u) T(25u) T(26u) T(27u) T(28u) T(29u) T(30u) T(31u)
+
+bool scene_box(Ray r) {
+    float enter, exit_t;
+    g_nodes += 1u;
+    return ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, safe_rcp3(r.dir), r.tmin, r.tmax, enter, exit_t);
+}
+
+bool trace_closest(Ray r, inout Hit h) {
+    if (!scene_box(r)) return false;
+    bool found = false;
+#define ANY_EXIT
+#if HAS_TRIANGLES
+    {
+        uint n = params.dims.z;
+        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_TRI) }
+    }
+#endif
+#if HAS_SPHERES
+    {
+        uint n = params.dims.w;
+        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_SPH) }
+    }
+#endif
+#undef ANY_EXIT
+    return found;
+}
+
+bool trace_any(Ray r) {
+    if (!scene_box(r)) return false;
+    Hit h;
+    h.t = r.tmax;
+    h.prim = NO_PRIM;
+    bool found = false;
+#define ANY_EXIT return true;
+#if HAS_TRIANGLES
+    {
+        uint n = params.dims.z;
+        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_TRI) }
+    }
+#endif
+#if HAS_SPHERES
+    {
+        uint n = params.dims.w;
+        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_SPH) }
+    }
+#endif
+#undef ANY_EXIT
+    return found;
+}

@@ -1,0 +1,65 @@
+// std430 / std140 mirror of src/accel/gpu_layout.rs. Byte offsets in comments must
+// match the Rust side; tests/gpu_layout.rs checks it on the device.
+#ifndef ARBOR_LAYOUT_GLSL
+#define ARBOR_LAYOUT_GLSL
+
+struct Vertex {
+    vec4 position;   // 0..12 position, 12..16 unused
+    vec4 normal;     // 16..28 normal, 28..32 valid flag (1.0 / 0.0)
+};                   // 32 bytes
+
+struct Sphere {
+    vec4 center_radius; // 0..12 centre, 12..16 radius
+    uvec4 material;     // 16..20 material index
+};                      // 32 bytes
+
+struct Pixel {
+    vec4 radiance;      // 0..12 summed radiance, 12..16 sample count
+    vec4 normal_depth;  // 16..28 normal, 28..32 depth
+    uvec4 prim_cost;    // 32..36 prim, 36..40 nodes visited, 40..44 prims tested
+};                      // 48 bytes
+
+// Material = 4 vec4 rows of the shading buffer:
+//   row 0: rgb colour, a = kind (uint bits)
+//   row 1: rgb specular, a = shininess
+//   row 2: rgb emission, a = ior
+//   row 3: unused
+// Light = 2 vec4 rows, after all materials:
+//   row 0: xyz position (w = 1) or travel direction (w = 0)
+//   row 1: rgb radiance / intensity
+#define MATERIAL_ROWS 4
+#define LIGHT_ROWS 2
+#define MAT_LAMBERT 0u
+#define MAT_PHONG 1u
+#define MAT_MIRROR 2u
+#define MAT_GLASS 3u
+#define MAT_EMISSIVE 4u
+
+layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
+    vec4 cam_eye;      // 0   xyz eye, w tan(vfov/2)
+    vec4 cam_right;    // 16  xyz right, w aspect
+    vec4 cam_up;       // 32
+    vec4 cam_forward;  // 48
+    vec4 scene_min;    // 64
+    vec4 scene_max;    // 80
+    uvec4 dims;        // 96  width, height, triangles, spheres
+    uvec4 counts;      // 112 lights, materials, seed, flags
+    vec4 background;   // 128 rgb, a ambient factor
+} params;
+
+layout(push_constant) uniform DispatchBlock {
+    uvec4 range;  // 0  first pixel, pixel count, first sample, end sample
+    uvec4 chunk;  // 16 x: first pixel held by the pixel buffer
+} dispatch_info;
+
+#if HAS_TRIANGLES
+layout(std430, set = 0, binding = BINDING_VERTICES) readonly buffer VertexBuffer { Vertex vertices[]; };
+layout(std430, set = 0, binding = BINDING_TRIANGLES) readonly buffer TriangleBuffer { uvec4 triangles[]; };
+#endif
+#if HAS_SPHERES
+layout(std430, set = 0, binding = BINDING_SPHERES) readonly buffer SphereBuffer { Sphere spheres[]; };
+#endif
+layout(std430, set = 0, binding = BINDING_SHADING) readonly buffer ShadingBuffer { vec4 shading[]; };
+layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer { Pixel pixels[]; };
+
+#endif

@@ -1,0 +1,34 @@
+#version 460
+// Copies every field of every struct in common/layout.glsl back out as raw words,
+// in Rust declaration order, so tests/gpu_layout.rs can prove Rust and GLSL agree.
+#extension GL_GOOGLE_include_directive : require
+layout(local_size_x = 1) in;
+#define HAS_TRIANGLES 1
+#define HAS_SPHERES 1
+#include "common/layout.glsl"
+
+
+layout(std430, set = 0, binding = BINDING_ACCEL_NODES) buffer ProbeOut { uint words[]; };
+
+void w4(inout uint o, uvec4 v) { words[o] = v.x; words[o + 1u] = v.y; words[o + 2u] = v.z; words[o + 3u] = v.w; o += 4u; }
+void f4(inout uint o, vec4 v) { w4(o, floatBitsToUint(v)); }
+
+void main() {
+    uint o = 0u;
+    // GpuParams
+    f4(o, params.cam_eye); f4(o, params.cam_right); f4(o, params.cam_up); f4(o, params.cam_forward);
+    f4(o, params.scene_min); f4(o, params.scene_max); w4(o, params.dims); w4(o, params.counts);
+    f4(o, params.background);
+    // GpuDispatch
+    w4(o, dispatch_info.range); w4(o, dispatch_info.chunk);
+    // GpuVertex[0..2]
+    for (uint k = 0u; k < 2u; k++) { f4(o, vertices[k].position); f4(o, vertices[k].normal); }
+    // GpuTriangle[0..2]
+    for (uint k = 0u; k < 2u; k++) { w4(o, triangles[k]); }
+    // GpuSphere[0..2]
+    for (uint k = 0u; k < 2u; k++) { f4(o, spheres[k].center_radius); w4(o, spheres[k].material); }
+    // shading rows: one GpuMaterial + one GpuLight = 6 rows
+    for (uint k = 0u; k < 6u; k++) { f4(o, shading[k]); }
+    // GpuPixel[0..2] (read)
+    for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); }
+}

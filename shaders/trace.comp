@@ -1,0 +1,218 @@
+#version 460
+// The trace kernel: camera rays, hard shadows, mirror and glass bounces; one thread
+// per pixel, samples [range.z, range.w) of pixels [range.x, range.x + range.y).
+// Compiled once per (structure, geometry) variant by build.rs: exactly one
+// ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist.
+#extension GL_GOOGLE_include_directive : require
+
+layout(local_size_x = WORKGROUP_SIZE) in;
+
+layout(constant_id = SPEC_SHADOWS) const bool USE_LIGHTS = true;
+layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
+
+#include "common/layout.glsl"
+#include "common/ray.glsl"
+#include "common/camera.glsl"
+#include "common/rng.glsl"
+
+uint g_nodes = 0u;
+uint g_tests = 0u;
+uint g_rays = 0u;
+
+#if HAS_TRIANGLES
+bool intersect_triangle(uint i, Ray r, inout Hit h) {
+    g_tests += 1u;
+    uvec4 tri = triangles[i];
+    float t, u, v;
+    Ray rr = r;
+    rr.tmax = h.t;
+    if (ray_triangle(rr, vertices[tri.x].position.xyz, vertices[tri.y].position.xyz, vertices[tri.z].position.xyz, t, u, v)) {
+        h.t = t; h.prim = i; h.u = u; h.v = v;
+        return true;
+    }
+    return false;
+}
+#endif
+
+#if HAS_SPHERES
+bool intersect_sphere(uint i, Ray r, inout Hit h) {
+    g_tests += 1u;
+    vec4 s = spheres[i].center_radius;
+    float t;
+    Ray rr = r;
+    rr.tmax = h.t;
+    if (ray_sphere(rr, s.xyz, s.w, t)) {
+        h.t = t; h.prim = params.dims.z + i; h.u = 0.0; h.v = 0.0;
+        return true;
+    }
+    return false;
+}
+#endif
+
+#if defined(ACCEL_NONE)
+#include "accel/none.glsl"
+#endif
+
+const float PI = 3.14159265358979;
+
+// Shading frame at a hit: geometric normal, shading normal, material index.
+void surface(Hit h, vec3 p, out vec3 gn, out vec3 sn, out uint mat) {
+    gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u;
+#if HAS_TRIANGLES
+    if (h.prim < params.dims.z) {
+        uvec4 tri = triangles[h.prim];
+        Vertex a = vertices[tri.x];
+        Vertex b = vertices[tri.y];
+        Vertex c = vertices[tri.z];
+        gn = normalize(cross(b.position.xyz - a.position.xyz, c.position.xyz - a.position.xyz));
+        sn = gn;
+        if (a.normal.w > 0.5 && b.normal.w > 0.5 && c.normal.w > 0.5) {
+            vec3 n = a.normal.xyz * (1.0 - h.u - h.v) + b.normal.xyz * h.u + c.normal.xyz * h.v;
+            if (dot(n, n) > 0.0) sn = normalize(n);
+        }
+        mat = tri.w;
+        return;
+    }
+#endif
+#if HAS_SPHERES
+    Sphere s = spheres[h.prim - params.dims.z];
+    gn = (p - s.center_radius.xyz) / s.center_radius.w;
+    gn = normalize(gn);
+    sn = gn;
+    mat = s.material.x;
+#endif
+}
+
+vec4 mat_row(uint mat, uint row) { return shading[mat * MATERIAL_ROWS + row]; }
+
+// Direct light from every light at p (normal n facing the viewer, geometric gn
+// facing the viewer) toward view direction v.
+vec3 direct_light(vec3 p, vec3 n, vec3 gn, vec3 v, uint mat) {
+    vec3 total = vec3(0.0);
+    if (!USE_LIGHTS) return total;
+    vec4 c = mat_row(mat, 0u);
+    vec4 spec = mat_row(mat, 1u);
+    uint kind = floatBitsToUint(c.w);
+    uint base = params.counts.y * MATERIAL_ROWS;
+    vec3 origin = offset_ray_origin(p, gn);
+    for (uint l = 0u; l < params.counts.x; l++) {
+        vec4 a = shading[base + l * LIGHT_ROWS];
+        vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
+        vec3 wi;
+        float dist;
+        if (a.w > 0.5) {
+            vec3 to = a.xyz - origin;
+            dist = length(to);
+            wi = to / dist;
+            li /= max(dist * dist, 1e-30);
+        } else {
+            wi = -a.xyz;
+            dist = 3.0e38;
+        }
+        float ndotl = dot(n, wi);
+        if (ndotl <= 0.0 || dot(gn, wi) <= 0.0) continue;
+        Ray sr;
+        sr.origin = origin; sr.dir = wi; sr.tmin = 0.0; sr.tmax = dist;
+        g_rays += 1u;
+        if (trace_any(sr)) continue;
+        vec3 f = c.rgb / PI;
+        if (kind == MAT_PHONG) {
+            float rv = max(dot(reflect(-wi, n), v), 0.0);
+            f += spec.rgb * (spec.w + 2.0) / (2.0 * PI) * pow(rv, spec.w);
+        }
+        total += f * li * ndotl;
+    }
+    return total;
+}
+
+void main() {
+    uint gid = gl_GlobalInvocationID.x;
+    if (gid >= dispatch_info.range.y) return;
+    uint pixel = dispatch_info.range.x + gid;
+    uint slot = pixel - dispatch_info.chunk.x;
+    uint width = params.dims.x;
+    uint i = pixel % width;
+    uint j = pixel / width;
+
+    Pixel out_px;
+    if (dispatch_info.range.z == 0u) {
+        out_px.radiance = vec4(0.0);
+        out_px.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+        out_px.prim_cost = uvec4(NO_PRIM, 0u, 0u, 0u);
+    } else {
+        out_px = pixels[slot];
+    }
+
+    g_rays = 0u;
+    for (uint s = dispatch_info.range.z; s < dispatch_info.range.w; s++) {
+        uint rng = rng_init(pixel, s, params.counts.z);
+        // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
+        float fx = 0.5, fy = 0.5;
+        if (s > 0u) { fx = rng_next(rng); fy = rng_next(rng); }
+        Ray r;
+        r.origin = params.cam_eye.xyz;
+        r.dir = camera_ray_dir(i, j, fx, fy);
+        r.tmin = 0.0;
+        r.tmax = uintBitsToFloat(0x7f800000u);
+        vec3 L = vec3(0.0);
+        vec3 beta = vec3(1.0);
+        for (uint depth = 0u; depth < MAX_DEPTH; depth++) {
+            Hit h;
+            h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+            g_nodes = 0u; g_tests = 0u;
+            g_rays += 1u;
+            bool hit = trace_closest(r, h);
+            vec3 p = r.origin + r.dir * h.t;
+            vec3 gn, sn;
+            uint mat;
+            if (hit) surface(h, p, gn, sn, mat);
+            if (s == 0u && depth == 0u) {
+                out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+                out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+            }
+            if (!hit) { L += beta * params.background.rgb; break; }
+            vec4 c = mat_row(mat, 0u);
+            vec4 em = mat_row(mat, 2u);
+            uint kind = floatBitsToUint(c.w);
+            L += beta * em.rgb;
+            bool front = dot(gn, r.dir) < 0.0;
+            vec3 gnf = front ? gn : -gn;
+            vec3 snf = dot(sn, r.dir) < 0.0 ? sn : -sn;
+            if (kind == MAT_LAMBERT || kind == MAT_PHONG) {
+                L += beta * (c.rgb * params.background.a * params.background.rgb
+                             + direct_light(p, snf, gnf, -r.dir, mat));
+                break;
+            } else if (kind == MAT_MIRROR) {
+                beta *= c.rgb;
+                r.dir = normalize(reflect(r.dir, snf));
+                r.origin = offset_ray_origin(p, gnf);
+            } else if (kind == MAT_GLASS) {
+                float eta = front ? 1.0 / em.a : em.a;
+                float cos_i = min(dot(-r.dir, snf), 1.0);
+                float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
+                float fresnel = 1.0;
+                if (sin2_t < 1.0) {
+                    float cos_t = sqrt(1.0 - sin2_t);
+                    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+                    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+                    fresnel = 0.5 * (rs * rs + rp * rp);
+                }
+                if (rng_next(rng) < fresnel) {
+                    r.dir = normalize(reflect(r.dir, snf));
+                    r.origin = offset_ray_origin(p, gnf);
+                } else {
+                    beta *= c.rgb;
+                    r.dir = normalize(refract(r.dir, snf, eta));
+                    r.origin = offset_ray_origin(p, -gnf);
+                }
+            } else {
+                break; // emissive
+            }
+            r.tmin = 0.0;
+            r.tmax = uintBitsToFloat(0x7f800000u);
+        }
+        out_px.radiance += vec4(L, 1.0);
+    }
+    out_px.prim_cost.w += g_rays;
+    pixels[slot] = out_px;
+}

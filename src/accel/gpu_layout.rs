@@ -1,0 +1,123 @@
+//! Every struct the shaders read, declared once in Rust. Each has a twin in
+//! `shaders/common/layout.glsl` (std430 for storage, std140 for the uniform block)
+//! with byte offsets in comments; `tests/gpu_layout.rs` proves on the device that
+//! the two agree by copying every field back through a probe kernel.
+//!
+//! Rules: 4-byte scalars in 16-byte groups, no bool, no `Vec3A`, sizes asserted at
+//! compile time.
+
+use bytemuck::{Pod, Zeroable};
+
+/// One vertex: position and shading normal, interleaved so that one storage buffer
+/// holds both. `normal[3]` is 1.0 when the normal is valid, 0.0 when the triangle
+/// should use its geometric normal.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// bytes 0..12 position, 12..16 unused (0)
+    pub position: [f32; 4],
+    /// bytes 16..28 normal, 28..32 valid flag (1.0 or 0.0)
+    pub normal: [f32; 4],
+}
+
+/// One triangle: three vertex indices and the material index.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuTriangle {
+    /// `[v0, v1, v2, material]`
+    pub v: [u32; 4],
+}
+
+/// One analytic sphere.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSphere {
+    /// bytes 0..12 centre, 12..16 radius
+    pub center_radius: [f32; 4],
+    /// bytes 16..20 material index, 20..32 unused (0)
+    pub material: [u32; 4],
+}
+
+/// One material: four vec4 rows of the shading buffer.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    /// bytes 0..12 colour (albedo / tint), 12..16 kind as float-encoded integer bits
+    /// (`f32::from_bits(kind)`) so the row stays a vec4
+    pub color_kind: [f32; 4],
+    /// bytes 16..28 Phong specular colour, 28..32 shininess
+    pub specular: [f32; 4],
+    /// bytes 32..44 emitted radiance, 44..48 index of refraction
+    pub emission_ior: [f32; 4],
+    /// bytes 48..64 unused (0)
+    pub pad: [f32; 4],
+}
+
+/// One light: two vec4 rows of the shading buffer, after all materials.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    /// Directional: bytes 0..12 direction the light travels (unit), 12..16 = 0.0.
+    /// Point: bytes 0..12 position, 12..16 = 1.0.
+    pub position_or_direction: [f32; 4],
+    /// bytes 16..28 radiance (directional) or intensity (point), 28..32 unused
+    pub radiance: [f32; 4],
+}
+
+/// Per-pixel output of the trace kernel.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPixel {
+    /// bytes 0..12 summed radiance over the samples traced so far, 12..16 sample count
+    pub radiance: [f32; 4],
+    /// bytes 16..28 shading normal at the camera ray's hit (zero on a miss),
+    /// 28..32 depth (t of the camera ray's hit, +inf on a miss)
+    pub normal_depth: [f32; 4],
+    /// bytes 32..36 primitive index (u32::MAX on a miss), 36..40 nodes visited,
+    /// 40..44 primitives tested, 44..48 unused; all for the pixel-centre camera ray
+    pub prim_cost: [u32; 4],
+}
+
+/// The uniform block (std140; every member a 16-byte vec4/uvec4).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuParams {
+    /// bytes 0..12 eye, 12..16 tan(vfov / 2)
+    pub cam_eye: [f32; 4],
+    /// bytes 16..28 camera right (unit), 28..32 aspect (width / height)
+    pub cam_right: [f32; 4],
+    /// bytes 32..44 camera up (unit), 44..48 unused
+    pub cam_up: [f32; 4],
+    /// bytes 48..60 camera forward (unit), 60..64 unused
+    pub cam_forward: [f32; 4],
+    /// bytes 64..76 scene box min, 76..80 unused
+    pub scene_min: [f32; 4],
+    /// bytes 80..92 scene box max, 92..96 unused
+    pub scene_max: [f32; 4],
+    /// bytes 96..112: width, height, triangles, spheres
+    pub dims: [u32; 4],
+    /// bytes 112..128: lights, materials, seed, flags (unused, 0)
+    pub counts: [u32; 4],
+    /// bytes 128..140 background radiance, 140..144 ambient factor
+    pub background: [f32; 4],
+}
+
+/// Push constants of one trace dispatch.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuDispatch {
+    /// first pixel (linear index, row-major from the top row) of this dispatch,
+    /// pixel count, first sample, end sample (exclusive)
+    pub range: [u32; 4],
+    /// first pixel held by the pixel buffer (the chunk base), rest unused
+    pub chunk: [u32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<GpuVertex>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 16);
+const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuLight>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuPixel>() == 48);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
+const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 32);

@@ -1,0 +1,55 @@
+// Binding numbers and kernel tunables: the one source for Rust and GLSL.
+// build.rs `include!`s this file and passes every entry of `SHADER_DEFINES` to
+// shaderc as a macro, so no GLSL file contains a literal binding number.
+// Keep this file free of `use` statements and attributes other than doc comments.
+
+/// Descriptor set 0, binding of the per-render uniform block (`Params`).
+pub const BINDING_PARAMS: u32 = 0;
+/// Storage: interleaved vertices (`GpuVertex`: position + normal).
+pub const BINDING_VERTICES: u32 = 1;
+/// Storage: triangles as `uvec4(v0, v1, v2, material)`.
+pub const BINDING_TRIANGLES: u32 = 2;
+/// Storage: spheres (`GpuSphere`).
+pub const BINDING_SPHERES: u32 = 3;
+/// Storage: materials followed by lights, as vec4 rows (`GpuMaterial`, `GpuLight`).
+pub const BINDING_SHADING: u32 = 4;
+/// Storage: per-pixel output (`GpuPixel`: radiance, normal + depth, prim + cost).
+pub const BINDING_PIXELS: u32 = 5;
+/// Storage: acceleration-structure nodes (layout owned by each accel's `to_gpu`).
+pub const BINDING_ACCEL_NODES: u32 = 6;
+/// Storage: acceleration-structure primitive indices.
+pub const BINDING_ACCEL_INDICES: u32 = 7;
+
+/// Threads per workgroup of the trace kernel (1D).
+pub const WORKGROUP_SIZE: u32 = 64;
+/// Upper bound on path depth (camera ray + bounces) the kernel will ever follow.
+pub const MAX_PATH_DEPTH: u32 = 16;
+/// Primitives tested per loop iteration by the brute-force kernel (unrolled by hand
+/// in shaders/accel/none.glsl; must stay 32 to match the UNROLLED macro).
+pub const BRUTE_UNROLL: u32 = 32;
+/// Loop iterations one invocation may run in total on llvmpipe (its hard limit is
+/// 65535; beyond it the invocation silently stops); the host keeps dispatches under it.
+pub const LLVMPIPE_LOOP_BUDGET: u64 = 60_000;
+/// Most storage buffers any pipeline may bind per shader stage.
+pub const MAX_STORAGE_BUFFERS_PER_STAGE: u32 = 8;
+
+/// Specialization constant ids.
+pub const SPEC_SHADOWS: u32 = 0;
+pub const SPEC_MAX_DEPTH: u32 = 1;
+
+/// Every value above that shaders see, by macro name.
+pub const SHADER_DEFINES: &[(&str, u32)] = &[
+    ("BINDING_PARAMS", BINDING_PARAMS),
+    ("BINDING_VERTICES", BINDING_VERTICES),
+    ("BINDING_TRIANGLES", BINDING_TRIANGLES),
+    ("BINDING_SPHERES", BINDING_SPHERES),
+    ("BINDING_SHADING", BINDING_SHADING),
+    ("BINDING_PIXELS", BINDING_PIXELS),
+    ("BINDING_ACCEL_NODES", BINDING_ACCEL_NODES),
+    ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
+    ("WORKGROUP_SIZE", WORKGROUP_SIZE),
+    ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
+    ("BRUTE_UNROLL", BRUTE_UNROLL),
+    ("SPEC_SHADOWS", SPEC_SHADOWS),
+    ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
+];

@@ -1,0 +1,491 @@
+//! Vulkan instance, device and queue; validation and debug names.
+
+use std::ffi::{c_void, CStr, CString};
+use std::sync::{Arc, Mutex};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use crate::error::{Error, Result};
+
+/// Maps a failed Vulkan call to [`Error::Vulkan`].
+pub(crate) fn vk_err(what: &str) -> impl FnOnce(vk::Result) -> Error + '_ {
+    move |r| Error::Vulkan { what: what.to_string(), result: format!("{r:?}") }
+}
+
+/// Maps an allocator failure to [`Error::Vulkan`].
+pub(crate) fn alloc_err(what: &str) -> impl FnOnce(gpu_allocator::AllocationError) -> Error + '_ {
+    move |e| Error::Vulkan { what: what.to_string(), result: e.to_string() }
+}
+
+/// How to create a [`Context`].
+#[derive(Debug, Clone, Default)]
+pub struct ContextOptions {
+    /// `INDEX` or a case-insensitive substring of the device name; `None` picks a
+    /// discrete GPU if there is one, else the first device.
+    pub device: Option<String>,
+    /// Enable VK_LAYER_KHRONOS_validation and fail on any error message.
+    pub validation: bool,
+    /// Override (lower) the storage-buffer range limit, for tests and for users who
+    /// want to check a scene fits a smaller device.
+    pub max_storage_range: Option<u64>,
+}
+
+/// What the user sees of a physical device.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct DeviceInfo {
+    pub index: usize,
+    pub name: String,
+    pub kind: String,
+    pub api_version: String,
+    pub driver: String,
+    pub max_storage_buffer_range: u64,
+    pub timestamp_period_ns: f32,
+    /// Mesa's llvmpipe (lavapipe), which caps loop iterations per invocation.
+    pub is_llvmpipe: bool,
+}
+
+/// State shared by the context and every object it created; dropped last.
+pub(crate) struct Shared {
+    pub entry: ash::Entry,
+    pub instance: ash::Instance,
+    pub device: ash::Device,
+    pub allocator: Mutex<Option<Allocator>>,
+    pub debug_instance: Option<ash::ext::debug_utils::Instance>,
+    pub debug_device: Option<ash::ext::debug_utils::Device>,
+    pub messenger: vk::DebugUtilsMessengerEXT,
+    /// Validation errors collected by the messenger. Boxed so its address, passed
+    /// to the driver as user data, stays fixed.
+    pub messages: Box<Mutex<Vec<String>>>,
+}
+
+impl Shared {
+    /// Gives `handle` the debug name `name` (no-op without VK_EXT_debug_utils).
+    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
+        if let Some(d) = &self.debug_device {
+            let cname = CString::new(name.replace('\0', " ")).unwrap_or_default();
+            let info = vk::DebugUtilsObjectNameInfoEXT::default().object_handle(handle).object_name(&cname);
+            // SAFETY: `handle` is a live object of `self.device`; the name outlives the call.
+            let _ = unsafe { d.set_debug_utils_object_name(&info) };
+        }
+    }
+}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        // SAFETY: every object created from this device holds an Arc<Shared>, so none is
+        // alive here; the allocator is dropped (freeing its memory) before the device.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            if let Ok(mut a) = self.allocator.lock() {
+                a.take();
+            }
+            self.device.destroy_device(None);
+            if let Some(d) = &self.debug_instance {
+                if self.messenger != vk::DebugUtilsMessengerEXT::null() {
+                    d.destroy_debug_utils_messenger(self.messenger, None);
+                }
+            }
+            self.instance.destroy_instance(None);
+        }
+        let _ = &self.entry;
+    }
+}
+
+/// An open Vulkan device with one compute queue.
+pub struct Context {
+    pub(crate) shared: Arc<Shared>,
+    pub(crate) queue: vk::Queue,
+    pub(crate) command_pool: vk::CommandPool,
+    pub(crate) query_pool: vk::QueryPool,
+    pub(crate) timestamps: bool,
+    pub(crate) max_storage_range: u64,
+    pub(crate) max_workgroups_x: u32,
+    info: DeviceInfo,
+}
+
+/// Validation messages of severity error go to the context's list; others are dropped.
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) && !data.is_null() && !user.is_null() {
+        // SAFETY: the driver passes a valid callback-data struct; `user` is the boxed
+        // Mutex in `Shared`, alive until the messenger is destroyed.
+        let msg = unsafe {
+            let d = &*data;
+            if d.p_message.is_null() {
+                String::from("(no message)")
+            } else {
+                CStr::from_ptr(d.p_message).to_string_lossy().into_owned()
+            }
+        };
+        // SAFETY: see above.
+        let list = unsafe { &*(user as *const Mutex<Vec<String>>) };
+        if let Ok(mut l) = list.lock() {
+            l.push(msg);
+        }
+    }
+    vk::FALSE
+}
+
+fn version_string(v: u32) -> String {
+    format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
+}
+
+impl Context {
+    fn load_entry() -> Result<ash::Entry> {
+        // SAFETY: loading the system Vulkan loader; no other loader state exists yet.
+        unsafe { ash::Entry::load() }
+            .map_err(|e| Error::NoDevice(format!("cannot load the Vulkan loader (libvulkan.so.1): {e}")))
+    }
+
+    fn create_instance(entry: &ash::Entry, validation: bool) -> Result<(ash::Instance, bool)> {
+        // SAFETY: plain queries on a loaded entry.
+        let exts = unsafe { entry.enumerate_instance_extension_properties(None) }.unwrap_or_default();
+        let has_debug = exts
+            .iter()
+            .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == ash::ext::debug_utils::NAME));
+        // SAFETY: as above.
+        let layers = unsafe { entry.enumerate_instance_layer_properties() }.unwrap_or_default();
+        let layer_name = c"VK_LAYER_KHRONOS_validation";
+        let has_layer = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer_name));
+        if validation && !has_layer {
+            return Err(Error::NoDevice(
+                "validation was requested but VK_LAYER_KHRONOS_validation is not installed (apt-get install vulkan-validationlayers)".into(),
+            ));
+        }
+        let app = vk::ApplicationInfo::default()
+            .application_name(c"arbor")
+            .engine_name(c"arbor")
+            .api_version(vk::API_VERSION_1_2);
+        let mut ext_ptrs = Vec::new();
+        if has_debug {
+            ext_ptrs.push(ash::ext::debug_utils::NAME.as_ptr());
+        }
+        let layer_ptrs = if validation { vec![layer_name.as_ptr()] } else { vec![] };
+        let info = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_extension_names(&ext_ptrs)
+            .enabled_layer_names(&layer_ptrs);
+        // SAFETY: all pointers in `info` point at data alive for this call.
+        let instance = unsafe { entry.create_instance(&info, None) }.map_err(vk_err("vkCreateInstance"))?;
+        Ok((instance, has_debug))
+    }
+
+    fn describe(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> DeviceInfo {
+        // SAFETY: `pd` was enumerated from `instance`.
+        let props = unsafe { instance.get_physical_device_properties(pd) };
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: as above; Vulkan 1.1+ query with a valid chain.
+        unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
+        DeviceInfo {
+            index,
+            name: props.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            kind: format!("{:?}", props.device_type).to_lowercase(),
+            api_version: version_string(props.api_version),
+            driver: driver.driver_info_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            max_storage_buffer_range: u64::from(props.limits.max_storage_buffer_range),
+            timestamp_period_ns: props.limits.timestamp_period,
+            is_llvmpipe: driver.driver_id == vk::DriverId::MESA_LLVMPIPE,
+        }
+    }
+
+    /// Lists the Vulkan 1.2+ devices with a compute queue, in enumeration order.
+    pub fn list_devices() -> Result<Vec<DeviceInfo>> {
+        let entry = Self::load_entry()?;
+        let (instance, _) = Self::create_instance(&entry, false)?;
+        let list = Self::usable(&instance).into_iter().map(|(i, pd, _)| Self::describe(&instance, pd, i)).collect();
+        // SAFETY: nothing was created from this instance.
+        unsafe { instance.destroy_instance(None) };
+        Ok(list)
+    }
+
+    fn usable(instance: &ash::Instance) -> Vec<(usize, vk::PhysicalDevice, u32)> {
+        // SAFETY: plain enumeration on a live instance.
+        let pds = unsafe { instance.enumerate_physical_devices() }.unwrap_or_default();
+        let mut out = Vec::new();
+        for (i, pd) in pds.into_iter().enumerate() {
+            // SAFETY: `pd` comes from this instance.
+            let props = unsafe { instance.get_physical_device_properties(pd) };
+            if props.api_version < vk::API_VERSION_1_2 {
+                continue;
+            }
+            // SAFETY: as above.
+            let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+            if let Some(q) = families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)) {
+                out.push((i, pd, q as u32));
+            }
+        }
+        out
+    }
+
+    /// Opens a device as `opts` says.
+    pub fn new(opts: &ContextOptions) -> Result<Context> {
+        let entry = Self::load_entry()?;
+        let (instance, has_debug) = Self::create_instance(&entry, opts.validation)?;
+        let candidates = Self::usable(&instance);
+        let pick = |instance: &ash::Instance| -> Result<(usize, vk::PhysicalDevice, u32)> {
+            if candidates.is_empty() {
+                return Err(Error::NoDevice("the Vulkan loader found no device supporting Vulkan 1.2 with a compute queue (install mesa-vulkan-drivers for lavapipe)".into()));
+            }
+            match &opts.device {
+                Some(sel) => {
+                    if let Ok(idx) = sel.parse::<usize>() {
+                        candidates.iter().find(|c| c.0 == idx).copied().ok_or_else(|| {
+                            Error::NoDevice(format!("--device {idx}: no such device index (run `arbor devices`)"))
+                        })
+                    } else {
+                        let s = sel.to_lowercase();
+                        candidates
+                            .iter()
+                            .find(|c| Self::describe(instance, c.1, c.0).name.to_lowercase().contains(&s))
+                            .copied()
+                            .ok_or_else(|| {
+                                Error::NoDevice(format!("--device {sel:?}: no device name contains it (run `arbor devices`)"))
+                            })
+                    }
+                }
+                None => Ok(candidates
+                    .iter()
+                    .find(|c| {
+                        // SAFETY: c.1 is from this instance.
+                        unsafe { instance.get_physical_device_properties(c.1) }.device_type
+                            == vk::PhysicalDeviceType::DISCRETE_GPU
+                    })
+                    .copied()
+                    .unwrap_or(candidates[0])),
+            }
+        };
+        let (index, physical, queue_family) = match pick(&instance) {
+            Ok(p) => p,
+            Err(e) => {
+                // SAFETY: nothing was created from this instance.
+                unsafe { instance.destroy_instance(None) };
+                return Err(e);
+            }
+        };
+        let mut info = Self::describe(&instance, physical, index);
+
+        let priorities = [1.0f32];
+        let qinfo = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
+        let dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
+        // SAFETY: `physical` is from `instance`; pointers in dev_info live for the call.
+        let device = match unsafe { instance.create_device(physical, &dev_info, None) } {
+            Ok(d) => d,
+            Err(e) => {
+                // SAFETY: nothing else was created.
+                unsafe { instance.destroy_instance(None) };
+                return Err(vk_err("vkCreateDevice")(e));
+            }
+        };
+        let messages: Box<Mutex<Vec<String>>> = Box::default();
+        let (debug_instance, debug_device, messenger) = if has_debug {
+            let di = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let dd = ash::ext::debug_utils::Device::new(&instance, &device);
+            let messenger = if opts.validation {
+                let ci = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                    .message_severity(
+                        vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                    )
+                    .message_type(
+                        vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                            | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                            | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+                    )
+                    .pfn_user_callback(Some(debug_callback))
+                    .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
+                // SAFETY: the callback and its user data outlive the messenger (both owned by Shared).
+                unsafe { di.create_debug_utils_messenger(&ci, None) }.map_err(vk_err("vkCreateDebugUtilsMessengerEXT"))?
+            } else {
+                vk::DebugUtilsMessengerEXT::null()
+            };
+            (Some(di), Some(dd), messenger)
+        } else {
+            (None, None, vk::DebugUtilsMessengerEXT::null())
+        };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })
+        .map_err(alloc_err("create allocator"))?;
+        let shared = Arc::new(Shared {
+            entry,
+            instance,
+            device,
+            allocator: Mutex::new(Some(allocator)),
+            debug_instance,
+            debug_device,
+            messenger,
+            messages,
+        });
+        let dev = &shared.device;
+        // SAFETY: queue family/index were requested at device creation.
+        let queue = unsafe { dev.get_device_queue(queue_family, 0) };
+        shared.set_name(queue, "arbor.compute_queue");
+        // SAFETY: valid device and family.
+        let command_pool = unsafe {
+            dev.create_command_pool(
+                &vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(queue_family)
+                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                None,
+            )
+        }
+        .map_err(vk_err("vkCreateCommandPool"))?;
+        shared.set_name(command_pool, "arbor.command_pool");
+        // SAFETY: physical/instance valid.
+        let families = unsafe { shared.instance.get_physical_device_queue_family_properties(physical) };
+        let props = unsafe { shared.instance.get_physical_device_properties(physical) };
+        let timestamps = families[queue_family as usize].timestamp_valid_bits > 0 && props.limits.timestamp_period > 0.0;
+        // SAFETY: valid device.
+        let query_pool = unsafe {
+            dev.create_query_pool(
+                &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2),
+                None,
+            )
+        }
+        .map_err(vk_err("vkCreateQueryPool"))?;
+        shared.set_name(query_pool, "arbor.timestamps");
+        let mut max_storage_range = info.max_storage_buffer_range;
+        if let Some(lim) = opts.max_storage_range {
+            max_storage_range = max_storage_range.min(lim);
+            info.max_storage_buffer_range = max_storage_range;
+        }
+        Ok(Context {
+            shared,
+            queue,
+            command_pool,
+            query_pool,
+            timestamps,
+            max_storage_range,
+            max_workgroups_x: props.limits.max_compute_work_group_count[0],
+            info,
+        })
+    }
+
+    /// The chosen device.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.info
+    }
+
+    /// Whether dispatch times come from GPU timestamps.
+    pub fn has_timestamps(&self) -> bool {
+        self.timestamps
+    }
+
+    /// Loop iterations one invocation may run in total, where the driver limits it
+    /// (llvmpipe); None where it does not.
+    pub fn loop_budget(&self) -> Option<u64> {
+        self.info.is_llvmpipe.then_some(super::bindings::LLVMPIPE_LOOP_BUDGET)
+    }
+
+    /// Most bytes one storage-buffer binding may cover.
+    pub fn max_storage_range(&self) -> u64 {
+        self.max_storage_range
+    }
+
+    /// Fails with [`Error::Validation`] if the validation layer reported any error so far.
+    pub fn check_validation(&self) -> Result<()> {
+        let list = self.shared.messages.lock().map_err(|_| Error::Validation { count: 1, first: "poisoned".into() })?;
+        match list.first() {
+            None => Ok(()),
+            Some(first) => Err(Error::Validation { count: list.len(), first: first.clone() }),
+        }
+    }
+
+    /// Records `record` into a one-time command buffer, submits it, waits, and returns
+    /// the GPU time between the two timestamps written around it (ms), if supported.
+    pub(crate) fn submit(
+        &self,
+        label: &str,
+        record: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<Option<f64>> {
+        let dev = &self.shared.device;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(self.command_pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: pool belongs to this device; used from one thread (&self methods are
+        // not called concurrently: Context is not Sync-shared across threads here).
+        let cb = unsafe { dev.allocate_command_buffers(&alloc) }.map_err(vk_err("vkAllocateCommandBuffers"))?[0];
+        self.shared.set_name(cb, label);
+        // SAFETY: valid device.
+        let fence = unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.map_err(vk_err("vkCreateFence"))?;
+        self.shared.set_name(fence, label);
+        let result = (|| -> Result<Option<f64>> {
+            // SAFETY: `cb` is a fresh primary command buffer of this device.
+            unsafe {
+                dev.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
+                    .map_err(vk_err("vkBeginCommandBuffer"))?;
+                let cname = CString::new(label.replace('\0', " ")).unwrap_or_default();
+                if let Some(d) = &self.shared.debug_device {
+                    d.cmd_begin_debug_utils_label(cb, &vk::DebugUtilsLabelEXT::default().label_name(&cname));
+                }
+                if self.timestamps {
+                    dev.cmd_reset_query_pool(cb, self.query_pool, 0, 2);
+                    dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::TOP_OF_PIPE, self.query_pool, 0);
+                }
+            }
+            record(dev, cb);
+            // SAFETY: recording state; handles belong to this device.
+            unsafe {
+                if self.timestamps {
+                    dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.query_pool, 1);
+                }
+                if let Some(d) = &self.shared.debug_device {
+                    d.cmd_end_debug_utils_label(cb);
+                }
+                dev.end_command_buffer(cb).map_err(vk_err("vkEndCommandBuffer"))?;
+                let cbs = [cb];
+                let submit = [vk::SubmitInfo::default().command_buffers(&cbs)];
+                dev.queue_submit(self.queue, &submit, fence).map_err(vk_err("vkQueueSubmit"))?;
+                dev.wait_for_fences(&[fence], true, u64::MAX).map_err(vk_err("vkWaitForFences"))?;
+            }
+            if !self.timestamps {
+                return Ok(None);
+            }
+            let mut ts = [0u64; 2];
+            // SAFETY: both queries were written by the completed submission.
+            unsafe {
+                dev.get_query_pool_results(self.query_pool, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+            }
+            .map_err(vk_err("vkGetQueryPoolResults"))?;
+            let ticks = ts[1].wrapping_sub(ts[0]) as f64;
+            Ok(Some(ticks * f64::from(self.info.timestamp_period_ns) * 1e-6))
+        })();
+        // SAFETY: the fence was waited on (or the submission failed); nothing uses them now.
+        unsafe {
+            let _ = dev.queue_wait_idle(self.queue);
+            dev.destroy_fence(fence, None);
+            dev.free_command_buffers(self.command_pool, &[cb]);
+        }
+        let r = result?;
+        self.check_validation()?;
+        Ok(r)
+    }
+}
+
+impl std::fmt::Debug for Context {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Context").field("device", &self.info.name).finish()
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        // SAFETY: submissions always wait for completion, so the pools are idle.
+        unsafe {
+            let _ = self.shared.device.device_wait_idle();
+            self.shared.device.destroy_query_pool(self.query_pool, None);
+            self.shared.device.destroy_command_pool(self.command_pool, None);
+        }
+    }
+}

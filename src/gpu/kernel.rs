@@ -1,0 +1,277 @@
+//! Compute pipelines with explicit descriptor-set layouts and specialization constants.
+
+use std::ffi::CString;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
+use super::buffer::{Buffer, BufferKind};
+use super::context::{vk_err, Context, Shared};
+use crate::error::{Error, Result};
+
+/// The kind of one descriptor binding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BindingKind {
+    Uniform,
+    Storage,
+}
+
+/// One binding of a kernel's descriptor set 0.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BindingDesc {
+    pub binding: u32,
+    pub kind: BindingKind,
+    /// What the binding holds, for errors and debug output.
+    pub name: &'static str,
+}
+
+/// A compute pipeline, its layouts and one descriptor set; all destroyed on drop.
+pub struct Kernel {
+    shared: Arc<Shared>,
+    name: String,
+    bindings: Vec<BindingDesc>,
+    module: vk::ShaderModule,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    push_size: u32,
+    bound: Vec<Option<u64>>,
+}
+
+impl Kernel {
+    /// The bindings of its descriptor set, in order.
+    pub fn bindings(&self) -> &[BindingDesc] {
+        &self.bindings
+    }
+    /// The label given at creation.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Checks the project rule: at most [`MAX_STORAGE_BUFFERS_PER_STAGE`] storage buffers.
+    pub fn check_storage_limit(name: &str, bindings: &[BindingDesc]) -> Result<()> {
+        let count = bindings.iter().filter(|b| b.kind == BindingKind::Storage).count();
+        if count > MAX_STORAGE_BUFFERS_PER_STAGE as usize {
+            return Err(Error::TooManyStorageBuffers {
+                name: name.to_string(),
+                count,
+                limit: MAX_STORAGE_BUFFERS_PER_STAGE as usize,
+            });
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for Kernel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kernel").field("name", &self.name).field("bindings", &self.bindings).finish()
+    }
+}
+
+impl Drop for Kernel {
+    fn drop(&mut self) {
+        // SAFETY: submissions complete before returning, so nothing uses these objects.
+        unsafe {
+            let d = &self.shared.device;
+            d.destroy_descriptor_pool(self.pool, None);
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+            d.destroy_shader_module(self.module, None);
+        }
+    }
+}
+
+impl Context {
+    /// Builds kernel `name` from SPIR-V with the given bindings, `(constant_id, u32 value)`
+    /// specialization constants and push-constant size in bytes.
+    pub fn create_kernel(
+        &self,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[BindingDesc],
+        spec: &[(u32, u32)],
+        push_size: u32,
+    ) -> Result<Kernel> {
+        Kernel::check_storage_limit(name, bindings)?;
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
+            .map_err(|e| Error::Vulkan { what: format!("read SPIR-V of '{name}'"), result: e.to_string() })?;
+        let dev = &self.shared.device;
+        let shared = Arc::clone(&self.shared);
+        // Objects are created in order and wrapped immediately so that an error part
+        // way through destroys what exists.
+        let mut k = Kernel {
+            shared,
+            name: name.to_string(),
+            bindings: bindings.to_vec(),
+            module: vk::ShaderModule::null(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+            pool: vk::DescriptorPool::null(),
+            set: vk::DescriptorSet::null(),
+            push_size,
+            bound: vec![None; bindings.len()],
+        };
+        // SAFETY: `words` is SPIR-V produced by shaderc at build time.
+        k.module = unsafe { dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
+            .map_err(vk_err("vkCreateShaderModule"))?;
+        self.shared.set_name(k.module, name);
+        let vk_bindings: Vec<vk::DescriptorSetLayoutBinding> = bindings
+            .iter()
+            .map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b.binding)
+                    .descriptor_type(match b.kind {
+                        BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
+                        BindingKind::Storage => vk::DescriptorType::STORAGE_BUFFER,
+                    })
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        // SAFETY: valid create infos on a live device (same for the calls below).
+        k.set_layout = unsafe {
+            dev.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&vk_bindings), None)
+        }
+        .map_err(vk_err("vkCreateDescriptorSetLayout"))?;
+        self.shared.set_name(k.set_layout, name);
+        let set_layouts = [k.set_layout];
+        let ranges = [vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).offset(0).size(push_size)];
+        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+        if push_size > 0 {
+            layout_info = layout_info.push_constant_ranges(&ranges);
+        }
+        // SAFETY: as above.
+        k.layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
+        self.shared.set_name(k.layout, name);
+        let entries: Vec<vk::SpecializationMapEntry> = spec
+            .iter()
+            .enumerate()
+            .map(|(i, (id, _))| vk::SpecializationMapEntry { constant_id: *id, offset: (i * 4) as u32, size: 4 })
+            .collect();
+        let data: Vec<u8> = spec.iter().flat_map(|(_, v)| v.to_ne_bytes()).collect();
+        let spec_info = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let entry = CString::new("main").unwrap_or_default();
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(k.module)
+            .name(&entry)
+            .specialization_info(&spec_info);
+        let pinfo = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(k.layout)];
+        // SAFETY: as above.
+        k.pipeline = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &pinfo, None) }
+            .map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?[0];
+        self.shared.set_name(k.pipeline, name);
+        let storage = bindings.iter().filter(|b| b.kind == BindingKind::Storage).count() as u32;
+        let uniform = bindings.len() as u32 - storage;
+        let mut sizes = Vec::new();
+        if storage > 0 {
+            sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: storage });
+        }
+        if uniform > 0 {
+            sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: uniform });
+        }
+        // SAFETY: as above.
+        k.pool = unsafe {
+            dev.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
+        }
+        .map_err(vk_err("vkCreateDescriptorPool"))?;
+        self.shared.set_name(k.pool, name);
+        // SAFETY: as above.
+        k.set = unsafe {
+            dev.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default().descriptor_pool(k.pool).set_layouts(&set_layouts),
+            )
+        }
+        .map_err(vk_err("vkAllocateDescriptorSets"))?[0];
+        self.shared.set_name(k.set, name);
+        Ok(k)
+    }
+
+    /// Points `binding` of `kernel` at the whole of `buffer`, checking the device's
+    /// storage-buffer range limit and the buffer's kind.
+    pub fn bind(&self, kernel: &mut Kernel, binding: u32, buffer: &Buffer) -> Result<()> {
+        let idx = kernel.bindings.iter().position(|b| b.binding == binding).ok_or_else(|| Error::Vulkan {
+            what: format!("bind '{}' to kernel '{}'", buffer.name(), kernel.name),
+            result: format!("the kernel has no binding {binding}"),
+        })?;
+        let desc = &kernel.bindings[idx];
+        let (ty, ok_kind) = match desc.kind {
+            BindingKind::Storage => (vk::DescriptorType::STORAGE_BUFFER, buffer.kind() == BufferKind::Storage),
+            BindingKind::Uniform => (vk::DescriptorType::UNIFORM_BUFFER, buffer.kind() == BufferKind::Uniform),
+        };
+        if !ok_kind {
+            return Err(Error::Vulkan {
+                what: format!("bind '{}' as {}", buffer.name(), desc.name),
+                result: "wrong buffer kind".into(),
+            });
+        }
+        if desc.kind == BindingKind::Storage && buffer.size() > self.max_storage_range {
+            return Err(Error::BufferTooLarge {
+                name: buffer.name().to_string(),
+                size: buffer.size(),
+                limit: self.max_storage_range,
+            });
+        }
+        let info = [vk::DescriptorBufferInfo { buffer: buffer.raw, offset: 0, range: vk::WHOLE_SIZE }];
+        let write = [vk::WriteDescriptorSet::default()
+            .dst_set(kernel.set)
+            .dst_binding(binding)
+            .descriptor_type(ty)
+            .buffer_info(&info)];
+        // SAFETY: the set is not in use by a pending submission (all submissions wait).
+        unsafe { self.shared.device.update_descriptor_sets(&write, &[]) };
+        kernel.bound[idx] = Some(buffer.size());
+        Ok(())
+    }
+
+    /// Runs `kernel` over `groups` workgroups with `push` constants in one submission
+    /// bracketed by timestamps; returns the GPU milliseconds (None without timestamps).
+    pub fn dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3], label: &str) -> Result<Option<f64>> {
+        if let Some(i) = kernel.bound.iter().position(Option::is_none) {
+            return Err(Error::Vulkan {
+                what: format!("dispatch '{}'", kernel.name),
+                result: format!("binding {} ({}) has no buffer", kernel.bindings[i].binding, kernel.bindings[i].name),
+            });
+        }
+        if push.len() as u32 != kernel.push_size {
+            return Err(Error::Vulkan {
+                what: format!("dispatch '{}'", kernel.name),
+                result: format!("push constants are {} bytes, expected {}", push.len(), kernel.push_size),
+            });
+        }
+        if groups[0] > self.max_workgroups_x {
+            return Err(Error::Vulkan {
+                what: format!("dispatch '{}'", kernel.name),
+                result: format!("{} workgroups exceed the device limit {}", groups[0], self.max_workgroups_x),
+            });
+        }
+        self.submit(label, |dev, cb| {
+            let barrier = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::UNIFORM_READ)];
+            // SAFETY: recording scope; all handles belong to this device and are live.
+            unsafe {
+                dev.cmd_pipeline_barrier(
+                    cb,
+                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::HOST,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &barrier,
+                    &[],
+                    &[],
+                );
+                dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+                dev.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, kernel.layout, 0, &[kernel.set], &[]);
+                if !push.is_empty() {
+                    dev.cmd_push_constants(cb, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+                }
+                dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]);
+            }
+        })
+    }
+}

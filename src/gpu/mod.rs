@@ -1,0 +1,29 @@
+//! The only module with `unsafe`: a small, safe façade over raw Vulkan (`ash`) and
+//! `gpu-allocator`. No `vk::` type leaves this module.
+//!
+//! - [`Context`]: instance (no surface), device choice, queue, allocator, optional
+//!   Khronos validation with errors collected and turned into [`crate::Error::Validation`].
+//! - [`Buffer`]: a named buffer with its allocation, freed on drop.
+//! - [`Kernel`]: a compute pipeline with an explicit descriptor-set layout, at most
+//!   [`bindings::MAX_STORAGE_BUFFERS_PER_STAGE`] storage buffers, every bound range
+//!   checked against `maxStorageBufferRange`.
+//! - Every dispatch is bracketed by timestamp queries and reports its GPU time.
+
+pub mod bindings;
+mod buffer;
+mod context;
+mod kernel;
+
+pub use buffer::{Buffer, BufferKind};
+pub use context::{Context, ContextOptions, DeviceInfo};
+pub use kernel::{BindingDesc, BindingKind, Kernel};
+
+/// Embedded SPIR-V of every kernel, by name (`trace_none_all`, `layout_probe`, ...).
+pub mod spirv {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+
+    /// The SPIR-V bytes of kernel `name`, if it was compiled.
+    pub fn get(name: &str) -> Option<&'static [u8]> {
+        SHADERS.iter().find(|(n, _)| *n == name).map(|(_, b)| *b)
+    }
+}

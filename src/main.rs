@@ -1,0 +1,364 @@
+//! The `arbor` command line: render, info, devices, bench.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context as _, Result};
+use arbor::accel::AccelKind;
+use arbor::gpu::{Context, ContextOptions};
+use arbor::render::{self, output, KernelChoice, RenderSettings};
+use arbor::scene::Scene;
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+#[derive(Parser)]
+#[command(
+    name = "arbor",
+    version,
+    about = "Headless Vulkan compute ray tracer for triangle meshes and spheres",
+    long_about = "Headless Vulkan compute ray tracer for triangle meshes and spheres, built around \
+spatial data structures. Scenes: a .toml scene file, a mesh (.obj/.ply/.off, camera framed \
+automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N.\n\n\
+Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error fails the run); \
+ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
+VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe)."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(clap::Args, Clone)]
+struct DeviceArgs {
+    /// Vulkan device: an index from `arbor devices` or a substring of its name
+    /// (default: a discrete GPU if present, else the first device).
+    #[arg(long, value_name = "INDEX|NAME")]
+    device: Option<String>,
+    /// Enable the Khronos validation layer; any validation error fails the run.
+    #[arg(long)]
+    validation: bool,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to PNG (8-bit sRGB) or EXR (linear float).
+    Render {
+        /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
+        #[arg(default_value = "builtin:default")]
+        scene: String,
+        /// Output image; the extension picks the format (.png or .exr).
+        #[arg(short, long, default_value = "render.png")]
+        output: PathBuf,
+        /// Image size WIDTHxHEIGHT (default: the scene's film size).
+        #[arg(long, value_name = "WxH")]
+        size: Option<String>,
+        /// Samples per pixel (jittered; sample 0 goes through the pixel centre).
+        #[arg(long, default_value_t = 1)]
+        spp: u32,
+        /// Acceleration structure.
+        #[arg(long, default_value = "none")]
+        accel: AccelKind,
+        /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
+        /// cost (primitives tested). PFM or EXR by extension.
+        #[arg(long, value_name = "NAME=PATH,...")]
+        aov: Vec<String>,
+        /// Write statistics JSON here.
+        #[arg(long, value_name = "PATH")]
+        stats: Option<PathBuf>,
+        #[command(flatten)]
+        device: DeviceArgs,
+        /// Random seed for sample jitter and glass.
+        #[arg(long, default_value_t = 0)]
+        seed: u32,
+        /// Kernel variant: `specialized` (only what the scene needs) or `general`.
+        #[arg(long, default_value = "specialized", value_parser = ["specialized", "general"])]
+        kernel: String,
+        /// Primitive tests per dispatch (smaller = shorter dispatches, for devices
+        /// with a watchdog); the output is identical for any value.
+        #[arg(long, default_value_t = render::DEFAULT_DISPATCH_BUDGET, value_name = "TESTS")]
+        dispatch_budget: u64,
+        /// No progress bar, no summary line.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// Print scene and structure statistics (no rendering).
+    Info {
+        /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
+        scene: String,
+        /// Acceleration structure to build and describe.
+        #[arg(long, default_value = "none")]
+        accel: AccelKind,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// List the Vulkan devices arbor can use.
+    Devices,
+    /// Benchmark primary rays of the brute-force kernel on procedural meshes.
+    Bench {
+        /// Triangle counts of the procedural meshes.
+        #[arg(long, value_delimiter = ',', default_values_t = [1000usize, 10_000, 100_000])]
+        tris: Vec<usize>,
+        /// Image size WIDTHxHEIGHT.
+        #[arg(long, default_value = "128x128", value_name = "WxH")]
+        size: String,
+        /// Timed repeats per case (after one warm-up run).
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+        /// Write all figures as JSON here.
+        #[arg(long, value_name = "PATH")]
+        json: Option<PathBuf>,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli) {
+        eprintln!("arbor: error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn context(d: &DeviceArgs) -> Result<Context> {
+    let validation = d.validation || std::env::var("ARBOR_VALIDATION").is_ok_and(|v| v == "1");
+    let max_storage_range = match std::env::var("ARBOR_MAX_STORAGE_RANGE") {
+        Ok(v) => Some(v.parse::<u64>().with_context(|| format!("ARBOR_MAX_STORAGE_RANGE={v:?} is not a byte count"))?),
+        Err(_) => None,
+    };
+    Ok(Context::new(&ContextOptions { device: d.device.clone(), validation, max_storage_range })?)
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size {s:?}: bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size {s:?}: bad height"))?;
+    if w == 0 || h == 0 || w > arbor::scene::MAX_FILM_SIDE || h > arbor::scene::MAX_FILM_SIDE {
+        bail!("--size {s}: each side must be 1..={}", arbor::scene::MAX_FILM_SIDE);
+    }
+    Ok((w, h))
+}
+
+const AOV_NAMES: [&str; 4] = ["depth", "normal", "prim", "cost"];
+
+fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
+    let mut out: Vec<(String, PathBuf)> = Vec::new();
+    for item in args.iter().flat_map(|a| a.split(',')).filter(|s| !s.is_empty()) {
+        let (name, path) = item.split_once('=').with_context(|| format!("--aov {item:?}: expected NAME=PATH"))?;
+        if !AOV_NAMES.contains(&name) {
+            bail!("--aov {item:?}: unknown AOV '{name}' (known: {})", AOV_NAMES.join(", "));
+        }
+        if out.iter().any(|(n, _)| n == name) {
+            bail!("--aov: '{name}' given twice");
+        }
+        let path = PathBuf::from(path);
+        output::format_of(&path, "aov")?;
+        out.push((name.to_string(), path));
+    }
+    Ok(out)
+}
+
+/// Fails early (before any work) if `path` cannot be written later.
+fn check_writable(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!("{}: the directory {} does not exist", path.display(), dir.display());
+    }
+    if path.is_dir() {
+        bail!("{}: is a directory", path.display());
+    }
+    Ok(())
+}
+
+fn progress_bar(quiet: bool) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {percent}% eta {eta}") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    if quiet || !std::io::stderr().is_terminal() {
+        return pb;
+    }
+    pb
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render { scene, output, size, spp, accel, aov, stats, device, seed, kernel, dispatch_budget, quiet } => {
+            let aovs = parse_aovs(&aov)?;
+            output::format_of(&output, "image")?;
+            check_writable(&output)?;
+            for (_, p) in &aovs {
+                check_writable(p)?;
+            }
+            if let Some(p) = &stats {
+                check_writable(p)?;
+            }
+            let scene = Scene::load(&scene)?;
+            let (w, h) = match &size {
+                Some(s) => parse_size(s)?,
+                None => (scene.width, scene.height),
+            };
+            let ctx = context(&device)?;
+            let mut settings = RenderSettings::for_size(w, h);
+            settings.spp = spp;
+            settings.seed = seed;
+            settings.accel = accel;
+            settings.dispatch_budget = dispatch_budget.max(1);
+            settings.kernel = if kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
+            let pb = progress_bar(quiet);
+            let interactive = !quiet && std::io::stderr().is_terminal();
+            pb.set_message(format!("tracing {}", scene.name));
+            let start = Instant::now();
+            let mut shown = false;
+            let (frame, st) = render::gpu::render(&ctx, &scene, &settings, |done, total| {
+                pb.set_length(total);
+                pb.set_position(done);
+                if interactive && !shown && start.elapsed().as_secs_f64() > 1.0 {
+                    pb.set_draw_target(ProgressDrawTarget::stderr());
+                    shown = true;
+                }
+            })?;
+            pb.finish_and_clear();
+            output::write_image(&output, w, h, &frame.radiance)?;
+            for (name, path) in &aovs {
+                match name.as_str() {
+                    "depth" => output::write_aov(path, w, h, 1, &frame.depth)?,
+                    "normal" => {
+                        let n: Vec<f32> = frame.normal.iter().flatten().copied().collect();
+                        output::write_aov(path, w, h, 3, &n)?
+                    }
+                    "prim" => {
+                        let p: Vec<f32> = frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect();
+                        output::write_aov(path, w, h, 1, &p)?
+                    }
+                    _ => {
+                        let c: Vec<f32> = frame.tests.iter().map(|&t| t as f32).collect();
+                        output::write_aov(path, w, h, 1, &c)?
+                    }
+                }
+            }
+            if let Some(p) = &stats {
+                let json = serde_json::to_vec_pretty(&st)?;
+                output::write_atomic(p, &json)?;
+            }
+            if !quiet {
+                let trace = st.trace_ms.map(|t| format!("{t:.1} ms GPU")).unwrap_or_else(|| "no GPU timestamps".into());
+                let mr = st.mrays_per_s.map(|m| format!(", {m:.2} Mrays/s")).unwrap_or_default();
+                eprintln!(
+                    "wrote {} ({w}x{h}, {spp} spp, {} triangles, {} spheres, accel {}) on {}: trace {trace}{mr}, {} dispatches, {:.0} ms wall",
+                    output.display(),
+                    st.triangles,
+                    st.spheres,
+                    st.accel,
+                    st.device,
+                    st.dispatches,
+                    st.wall_ms
+                );
+            }
+            Ok(())
+        }
+        Command::Info { scene, accel, json } => {
+            let scene = Scene::load(&scene)?;
+            let b = arbor::accel::none::BruteForce::build(&scene);
+            let bounds = scene.bounds();
+            let info = serde_json::json!({
+                "scene": scene.name,
+                "triangles": scene.triangles.len(),
+                "degenerate_triangles": scene.degenerate_triangles,
+                "vertices": scene.positions.len(),
+                "spheres": scene.spheres.len(),
+                "materials": scene.materials.len(),
+                "lights": scene.lights.len(),
+                "film": [scene.width, scene.height],
+                "bounds_min": bounds.min.to_array(),
+                "bounds_max": bounds.max.to_array(),
+                "accel": accel.name(),
+                "build": b.stats(),
+                "kernel": format!("trace_{}_{}", accel.name(), render::gpu::geometry_suffix(&scene, KernelChoice::Specialized)),
+                "buffers": render::gpu::trace_bindings(render::gpu::geometry_suffix(&scene, KernelChoice::Specialized)).iter().map(|b| b.name).collect::<Vec<_>>(),
+            });
+            if json {
+                println!("{}", serde_json::to_string_pretty(&info)?);
+            } else {
+                println!("scene       {}", scene.name);
+                println!("triangles   {} ({} degenerate, kept and never hit)", scene.triangles.len(), scene.degenerate_triangles);
+                println!("vertices    {}", scene.positions.len());
+                println!("spheres     {}", scene.spheres.len());
+                println!("materials   {}", scene.materials.len());
+                println!("lights      {}", scene.lights.len());
+                println!("film        {}x{}", scene.width, scene.height);
+                println!("bounds      {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
+                println!("accel       {} (build {:.3} ms, {} bytes)", accel.name(), b.stats().build_ms, b.stats().bytes);
+                println!("kernel      {}", info["kernel"].as_str().unwrap_or_default());
+                println!("buffers     {}", info["buffers"]);
+            }
+            Ok(())
+        }
+        Command::Devices => {
+            let list = Context::list_devices()?;
+            if list.is_empty() {
+                bail!("no Vulkan 1.2 device with a compute queue");
+            }
+            for d in list {
+                println!(
+                    "{}: {} ({}, Vulkan {}, {}), maxStorageBufferRange {} bytes, timestampPeriod {} ns",
+                    d.index, d.name, d.kind, d.api_version, d.driver, d.max_storage_buffer_range, d.timestamp_period_ns
+                );
+            }
+            Ok(())
+        }
+        Command::Bench { tris, size, repeat, json, device } => bench(&tris, &size, repeat.max(1), json.as_deref(), &device),
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device: &DeviceArgs) -> Result<()> {
+    if let Some(p) = json {
+        check_writable(p)?;
+    }
+    let (w, h) = parse_size(size)?;
+    let ctx = context(device)?;
+    eprintln!("device: {} ({}); {w}x{h} primary rays, {repeat} repeats after 1 warm-up", ctx.info().name, ctx.info().kind);
+    println!("{:>10} {:>8} {:>12} {:>12} {:>12} {:>10}", "triangles", "accel", "trace_ms", "spread_ms", "Mrays/s", "dispatches");
+    let mut rows = Vec::new();
+    for &n in tris {
+        let scene = Scene::load(&format!("builtin:blob:{n}"))?;
+        let mut settings = RenderSettings::for_size(w, h);
+        settings.primary_only = true;
+        let mut times = Vec::new();
+        let mut rates = Vec::new();
+        let mut dispatches = 0;
+        for r in 0..=repeat {
+            let (_, st) = render::gpu::render(&ctx, &scene, &settings, |_, _| {})?;
+            dispatches = st.dispatches;
+            if r == 0 {
+                continue; // warm-up
+            }
+            let ms = st.trace_ms.unwrap_or(st.wall_ms);
+            times.push(ms);
+            rates.push(st.rays as f64 / (ms * 1e3));
+        }
+        let spread = times.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - times.iter().cloned().fold(f64::INFINITY, f64::min);
+        let (mt, mr) = (median(&mut times), median(&mut rates));
+        println!("{:>10} {:>8} {:>12.2} {:>12.2} {:>12.3} {:>10}", scene.triangles.len(), "none", mt, spread, mr, dispatches);
+        rows.push(serde_json::json!({
+            "triangles": scene.triangles.len(), "accel": "none", "width": w, "height": h,
+            "trace_ms_median": mt, "trace_ms_spread": spread, "mrays_per_s_median": mr,
+            "trace_ms_all": times, "device": ctx.info().name,
+        }));
+    }
+    if let Some(p) = json {
+        output::write_atomic(p, &serde_json::to_vec_pretty(&rows)?)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,55 @@
+//! Axis-aligned boxes and the robust slab test.
+
+use glam::Vec3;
+
+use super::float::{gamma, safe_rcp};
+
+/// An axis-aligned box; `Aabb::EMPTY` has min > max.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+
+    /// Grows the box to contain `p`.
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    /// The smallest box containing both.
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+    /// True when min > max on some axis.
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    /// Slab test (Kay & Kajiya) with a NaN-free reciprocal (`safe_rcp`) and the far
+    /// distance padded by 1 + 2·gamma(3) (Ize, "Robust BVH Ray Traversal", JCGT 2013)
+    /// so that a hit on a face is never culled. Returns the entry/exit interval
+    /// clipped to [tmin, tmax], or None. Twin: `ray_box` in ray.glsl.
+    pub fn ray_box(&self, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32)> {
+        let t0 = (self.min - origin) * inv_dir;
+        let t1 = (self.max - origin) * inv_dir;
+        let near = t0.min(t1);
+        let far = t0.max(t1) * (1.0 + 2.0 * gamma(3));
+        let enter = near.max_element().max(tmin);
+        let exit = far.min_element().min(tmax);
+        (enter <= exit).then_some((enter, exit))
+    }
+
+    /// The reciprocal direction `ray_box` expects.
+    pub fn inv_dir(dir: Vec3) -> Vec3 {
+        Vec3::new(safe_rcp(dir.x), safe_rcp(dir.y), safe_rcp(dir.z))
+    }
+}

@@ -1,0 +1,61 @@
+//! Triangle mesh data as the loaders produce it, before it joins a scene.
+
+use glam::Vec3;
+
+/// How a surface scatters light. The numeric values are the GPU's material kind codes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[repr(u32)]
+pub enum MaterialKind {
+    Lambert = 0,
+    Phong = 1,
+    Mirror = 2,
+    Glass = 3,
+    Emissive = 4,
+}
+
+/// A material. `color` is the diffuse albedo (Lambert, Phong), the reflectance tint
+/// (mirror) or the transmission tint (glass).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub kind: MaterialKind,
+    pub color: Vec3,
+    /// Phong specular colour.
+    pub specular: Vec3,
+    /// Phong exponent.
+    pub shininess: f32,
+    /// Index of refraction (glass).
+    pub ior: f32,
+    /// Emitted radiance (emissive; also added for any kind where non-zero).
+    pub emission: Vec3,
+}
+
+impl Material {
+    /// A grey Lambertian material, the default for meshes without materials.
+    pub fn lambert(name: &str, color: Vec3) -> Self {
+        Material {
+            name: name.to_string(),
+            kind: MaterialKind::Lambert,
+            color,
+            specular: Vec3::ZERO,
+            shininess: 1.0,
+            ior: 1.5,
+            emission: Vec3::ZERO,
+        }
+    }
+}
+
+/// A triangle mesh as read from a file: indexed triangles, optional per-vertex normals
+/// and the materials its file declared (empty when the file has none).
+#[derive(Debug, Clone, Default)]
+pub struct MeshData {
+    pub positions: Vec<Vec3>,
+    /// Per-vertex normals, the same length as `positions`, when the file has them.
+    pub normals: Option<Vec<Vec3>>,
+    /// Vertex indices of each triangle (polygons already triangulated as fans).
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-triangle index into `materials`; empty when `materials` is empty.
+    pub tri_material: Vec<u32>,
+    pub materials: Vec<Material>,
+}

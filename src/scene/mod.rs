@@ -1,0 +1,307 @@
+//! Scenes: flat triangle lists and analytic spheres with materials, lights, camera
+//! and film, validated once when built. Sources: a TOML scene file, a mesh file
+//! (OBJ, PLY, OFF; auto-framed camera), or a built-in scene (`builtin:NAME`).
+
+#![forbid(unsafe_code)]
+
+pub mod builtin;
+pub mod camera;
+pub mod mesh;
+pub mod obj;
+pub mod off;
+pub mod ply;
+pub mod procedural;
+pub mod scene_file;
+
+use std::path::Path;
+
+use glam::Vec3;
+
+pub use camera::{Camera, CameraBasis};
+pub use mesh::{Material, MaterialKind, MeshData};
+
+use crate::error::{Error, Result};
+use crate::math::Aabb;
+
+/// An analytic sphere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+    pub material: u32,
+}
+
+/// A light source.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Light {
+    /// Light travelling along `direction` (unit) with the given radiance.
+    Directional { direction: Vec3, radiance: Vec3 },
+    /// A point light; irradiance falls off as intensity / distance².
+    Point { position: Vec3, intensity: Vec3 },
+}
+
+/// Largest image side accepted.
+pub const MAX_FILM_SIDE: u32 = 16384;
+
+/// A validated scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Where it came from (file path or `builtin:NAME`), for messages.
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals; `Vec3::ZERO` where a vertex has none.
+    pub normals: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-triangle material index.
+    pub tri_material: Vec<u32>,
+    pub spheres: Vec<Sphere>,
+    /// Index 0 is always the default grey Lambert material.
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    pub camera: Camera,
+    pub width: u32,
+    pub height: u32,
+    /// Radiance of rays that leave the scene.
+    pub background: Vec3,
+    /// Fraction of the albedo added as ambient light to Lambert and Phong surfaces.
+    pub ambient: f32,
+    /// Longest path followed (camera ray + mirror/glass bounces), 1..=MAX_PATH_DEPTH.
+    pub max_depth: u32,
+    /// Zero-area triangles (kept; never hit).
+    pub degenerate_triangles: usize,
+}
+
+/// Builds a scene piece by piece; `finish` validates.
+#[derive(Debug, Clone)]
+pub struct SceneBuilder {
+    pub scene: Scene,
+}
+
+impl SceneBuilder {
+    /// An empty scene with default settings and the default material.
+    pub fn new(name: &str) -> Self {
+        SceneBuilder {
+            scene: Scene {
+                name: name.to_string(),
+                positions: Vec::new(),
+                normals: Vec::new(),
+                triangles: Vec::new(),
+                tri_material: Vec::new(),
+                spheres: Vec::new(),
+                materials: vec![Material::lambert("default", Vec3::splat(0.7))],
+                lights: Vec::new(),
+                camera: Camera { eye: Vec3::new(0.0, 0.0, 3.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 45.0 },
+                width: 512,
+                height: 512,
+                background: Vec3::new(0.05, 0.06, 0.08),
+                ambient: 0.05,
+                max_depth: 8,
+                degenerate_triangles: 0,
+            },
+        }
+    }
+
+    /// Adds a material and returns its index.
+    pub fn material(&mut self, m: Material) -> u32 {
+        self.scene.materials.push(m);
+        (self.scene.materials.len() - 1) as u32
+    }
+
+    /// Index of the material named `name`, if any.
+    pub fn find_material(&self, name: &str) -> Option<u32> {
+        self.scene.materials.iter().position(|m| m.name == name).map(|i| i as u32)
+    }
+
+    /// Appends a mesh transformed by `scale` then `translate`. `material` overrides the
+    /// mesh's own materials; without either, triangles get the default material.
+    pub fn mesh(&mut self, mesh: &MeshData, scale: f32, translate: Vec3, material: Option<u32>) {
+        let s = &mut self.scene;
+        let base = s.positions.len() as u32;
+        s.positions.extend(mesh.positions.iter().map(|p| *p * scale + translate));
+        match &mesh.normals {
+            Some(n) if n.len() == mesh.positions.len() => {
+                let flip = if scale < 0.0 { -1.0 } else { 1.0 };
+                s.normals.extend(n.iter().map(|v| (*v * flip).try_normalize().unwrap_or(Vec3::ZERO)))
+            }
+            _ => s.normals.extend(std::iter::repeat_n(Vec3::ZERO, mesh.positions.len())),
+        }
+        let mat_base = s.materials.len() as u32;
+        if material.is_none() {
+            s.materials.extend(mesh.materials.iter().cloned());
+        }
+        for (k, t) in mesh.triangles.iter().enumerate() {
+            s.triangles.push(t.map(|i| i + base));
+            let m = match material {
+                Some(m) => m,
+                None if !mesh.materials.is_empty() => mat_base + mesh.tri_material.get(k).copied().unwrap_or(0),
+                None => 0,
+            };
+            s.tri_material.push(m);
+        }
+    }
+
+    /// Validates everything once and returns the scene.
+    pub fn finish(self) -> Result<Scene> {
+        let mut s = self.scene;
+        let err = |msg: String| Error::scene(s.name.clone(), msg);
+        if s.triangles.is_empty() && s.spheres.is_empty() {
+            return Err(err("the scene is empty: it has no triangles and no spheres".into()));
+        }
+        if s.width == 0 || s.height == 0 || s.width > MAX_FILM_SIDE || s.height > MAX_FILM_SIDE {
+            return Err(err(format!(
+                "image size {}x{} is invalid: each side must be 1..={MAX_FILM_SIDE}",
+                s.width, s.height
+            )));
+        }
+        if let Err(e) = s.camera.check() {
+            return Err(err(e));
+        }
+        if s.triangles.len() >= (u32::MAX / 2) as usize || s.spheres.len() >= (u32::MAX / 2) as usize {
+            return Err(err("too many primitives".into()));
+        }
+        if let Some(i) = s.positions.iter().position(|p| !p.is_finite()) {
+            return Err(err(format!("vertex {i} has a non-finite coordinate")));
+        }
+        for n in &mut s.normals {
+            if !n.is_finite() {
+                *n = Vec3::ZERO;
+            }
+        }
+        let nv = s.positions.len() as u32;
+        for (k, t) in s.triangles.iter().enumerate() {
+            if let Some(&bad) = t.iter().find(|&&i| i >= nv) {
+                return Err(err(format!("triangle {k} references vertex {bad} but there are {nv} vertices")));
+            }
+        }
+        let nm = s.materials.len() as u32;
+        if let Some(k) = s.tri_material.iter().position(|&m| m >= nm) {
+            return Err(err(format!("triangle {k} has material index {} of {nm}", s.tri_material[k])));
+        }
+        for (k, sp) in s.spheres.iter().enumerate() {
+            if !(sp.center.is_finite() && sp.radius.is_finite() && sp.radius > 0.0) {
+                return Err(err(format!("sphere {k} needs a finite centre and a finite radius > 0")));
+            }
+            if sp.material >= nm {
+                return Err(err(format!("sphere {k} has material index {} of {nm}", sp.material)));
+            }
+        }
+        for (k, m) in s.materials.iter().enumerate() {
+            let ok = m.color.is_finite() && m.specular.is_finite() && m.emission.is_finite() && m.shininess.is_finite() && m.ior.is_finite();
+            if !ok || m.ior <= 0.0 {
+                return Err(err(format!("material {k} ('{}') has a non-finite value or ior <= 0", m.name)));
+            }
+        }
+        for (k, l) in s.lights.iter_mut().enumerate() {
+            match l {
+                Light::Directional { direction, radiance } => {
+                    let d = direction.try_normalize();
+                    if d.is_none() || !radiance.is_finite() {
+                        return Err(err(format!("light {k}: direction must be non-zero and finite, radiance finite")));
+                    }
+                    *direction = d.unwrap_or(Vec3::NEG_Y);
+                }
+                Light::Point { position, intensity } => {
+                    if !position.is_finite() || !intensity.is_finite() {
+                        return Err(err(format!("light {k}: position and intensity must be finite")));
+                    }
+                }
+            }
+        }
+        if !(s.background.is_finite() && s.ambient.is_finite()) {
+            return Err(err("background and ambient must be finite".into()));
+        }
+        s.max_depth = s.max_depth.clamp(1, crate::gpu::bindings::MAX_PATH_DEPTH);
+        s.degenerate_triangles = s
+            .triangles
+            .iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|i| s.positions[i as usize]);
+                (b - a).cross(c - a).length_squared() == 0.0
+            })
+            .count();
+        Ok(s)
+    }
+}
+
+impl Scene {
+    /// Loads a scene from `builtin:NAME`, a `.toml` scene file, or a mesh file.
+    pub fn load(source: &str) -> Result<Scene> {
+        if let Some(name) = source.strip_prefix("builtin:") {
+            return builtin::load(name);
+        }
+        let path = Path::new(source);
+        let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+        match ext.as_str() {
+            "toml" => scene_file::load(path),
+            "obj" | "ply" | "off" => {
+                let mesh = load_mesh(path)?;
+                Self::from_mesh(source, &mesh)
+            }
+            _ => Err(Error::invalid(
+                path,
+                "unknown scene type: expected a .toml scene file, a .obj/.ply/.off mesh, or builtin:default|cornell|blob:N",
+            )),
+        }
+    }
+
+    /// A scene of one mesh with the camera framed on its bounding box (eye on +z of
+    /// the box centre looking down -z, vfov 45°, the bounding sphere fitting the
+    /// image height) and one directional light.
+    pub fn from_mesh(name: &str, mesh: &MeshData) -> Result<Scene> {
+        let mut b = SceneBuilder::new(name);
+        b.mesh(mesh, 1.0, Vec3::ZERO, None);
+        let mut bounds = Aabb::EMPTY;
+        for p in &b.scene.positions {
+            bounds.grow(*p);
+        }
+        if !bounds.is_empty() && bounds.min.is_finite() && bounds.max.is_finite() {
+            b.scene.camera = framed_camera(&bounds, 45.0);
+        }
+        b.scene.lights.push(default_light());
+        b.finish()
+    }
+
+    /// The bounding box of every primitive.
+    pub fn bounds(&self) -> Aabb {
+        let mut b = Aabb::EMPTY;
+        for t in &self.triangles {
+            for &i in t {
+                b.grow(self.positions[i as usize]);
+            }
+        }
+        for s in &self.spheres {
+            b.grow(s.center - Vec3::splat(s.radius));
+            b.grow(s.center + Vec3::splat(s.radius));
+        }
+        b
+    }
+
+    /// Number of primitives (triangles, then spheres).
+    pub fn prim_count(&self) -> usize {
+        self.triangles.len() + self.spheres.len()
+    }
+}
+
+/// The light a mesh-only scene gets.
+pub fn default_light() -> Light {
+    Light::Directional { direction: Vec3::new(-1.0, -1.0, -1.0).normalize(), radiance: Vec3::splat(2.5) }
+}
+
+/// A camera on +z of the box centre, far enough that the bounding sphere fits.
+pub fn framed_camera(bounds: &Aabb, vfov: f32) -> Camera {
+    let c = bounds.center();
+    let r = (bounds.extent().length() * 0.5).max(1e-20);
+    let dist = r / (vfov.to_radians() * 0.5).sin();
+    Camera { eye: c + Vec3::new(0.0, 0.0, dist), look_at: c, up: Vec3::Y, vfov }
+}
+
+/// Loads a mesh file by extension.
+pub fn load_mesh(path: &Path) -> Result<MeshData> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "obj" => obj::load(path),
+        "ply" => ply::load(path),
+        "off" => off::load(path),
+        _ => Err(Error::invalid(path, "unknown mesh type: expected .obj, .ply or .off")),
+    }
+}

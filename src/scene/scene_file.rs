@@ -1,0 +1,259 @@
+//! The TOML scene format (keys are a contract; see README "Scene files").
+//! Unknown keys are errors; every error names the file and line.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::mesh::{Material, MaterialKind};
+use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
+use crate::error::{Error, Result};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    camera: Option<CameraDef>,
+    film: Option<FilmDef>,
+    render: Option<RenderDef>,
+    #[serde(default)]
+    mesh: Vec<Spanned<MeshDef>>,
+    #[serde(default)]
+    sphere: Vec<Spanned<SphereDef>>,
+    #[serde(default)]
+    material: Vec<Spanned<MaterialDef>>,
+    #[serde(default)]
+    light: Vec<Spanned<LightDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDef {
+    eye: [f32; 3],
+    look_at: [f32; 3],
+    #[serde(default = "default_up")]
+    up: [f32; 3],
+    #[serde(default = "default_vfov")]
+    vfov: f32,
+}
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_vfov() -> f32 {
+    45.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FilmDef {
+    width: u32,
+    height: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDef {
+    background: Option<[f32; 3]>,
+    ambient: Option<f32>,
+    max_depth: Option<u32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshDef {
+    file: String,
+    #[serde(default = "one")]
+    scale: f32,
+    #[serde(default)]
+    translate: [f32; 3],
+    material: Option<String>,
+}
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereDef {
+    center: [f32; 3],
+    radius: f32,
+    material: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialDef {
+    name: String,
+    #[serde(rename = "type")]
+    kind: MaterialKind,
+    color: Option<[f32; 3]>,
+    specular: Option<[f32; 3]>,
+    shininess: Option<f32>,
+    ior: Option<f32>,
+    emission: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum LightKind {
+    Directional,
+    Point,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightDef {
+    #[serde(rename = "type")]
+    kind: LightKind,
+    direction: Option<[f32; 3]>,
+    radiance: Option<[f32; 3]>,
+    position: Option<[f32; 3]>,
+    intensity: Option<[f32; 3]>,
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+fn v3(a: [f32; 3]) -> Vec3 {
+    Vec3::from_array(a)
+}
+
+/// Loads a TOML scene file; mesh paths are relative to it.
+pub fn load(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let file: SceneFile = toml::from_str(&text).map_err(|e| {
+        let line = e.span().map(|s| line_of(&text, s.start)).unwrap_or(1);
+        Error::parse(path, line, e.message().trim().to_string())
+    })?;
+    let at = |span: std::ops::Range<usize>, msg: String| Error::parse(path, line_of(&text, span.start), msg);
+    let dir: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut b = SceneBuilder::new(&path.display().to_string());
+
+    for m in &file.material {
+        let d = m.get_ref();
+        if b.find_material(&d.name).is_some() {
+            return Err(at(m.span(), format!("material '{}' is defined twice", d.name)));
+        }
+        let base = Material::lambert(&d.name, Vec3::splat(0.7));
+        let default_color = match d.kind {
+            MaterialKind::Mirror | MaterialKind::Glass | MaterialKind::Emissive => Vec3::ONE,
+            _ => base.color,
+        };
+        let mat = Material {
+            kind: d.kind,
+            color: d.color.map(v3).unwrap_or(default_color),
+            specular: d.specular.map(v3).unwrap_or(if d.kind == MaterialKind::Phong { Vec3::splat(0.5) } else { Vec3::ZERO }),
+            shininess: d.shininess.unwrap_or(32.0),
+            ior: d.ior.unwrap_or(1.5),
+            emission: d.emission.map(v3).unwrap_or(if d.kind == MaterialKind::Emissive { Vec3::ONE } else { Vec3::ZERO }),
+            ..base
+        };
+        let bad = !(mat.color.is_finite() && mat.specular.is_finite() && mat.emission.is_finite() && mat.shininess.is_finite() && mat.ior.is_finite());
+        if bad || mat.ior <= 0.0 {
+            return Err(at(m.span(), format!("material '{}' has a non-finite value or ior <= 0", d.name)));
+        }
+        b.material(mat);
+    }
+    let lookup = |b: &SceneBuilder, name: &Option<String>, span: std::ops::Range<usize>| -> Result<Option<u32>> {
+        match name {
+            None => Ok(None),
+            Some(n) => b.find_material(n).map(Some).ok_or_else(|| {
+                at(span, format!("unknown material '{n}' (define it in a [[material]] table)"))
+            }),
+        }
+    };
+    for m in &file.mesh {
+        let d = m.get_ref();
+        let mat = lookup(&b, &d.material, m.span())?;
+        if !(d.scale.is_finite() && d.scale != 0.0 && v3(d.translate).is_finite()) {
+            return Err(at(m.span(), "mesh scale must be finite and non-zero, translate finite".into()));
+        }
+        let mesh_path = dir.join(&d.file);
+        let mesh = load_mesh(&mesh_path).map_err(|e| match e {
+            Error::Io { path, source } if source.kind() == std::io::ErrorKind::NotFound => at(
+                m.span(),
+                format!("mesh file '{}' not found ({})", d.file, path.display()),
+            ),
+            other => other,
+        })?;
+        b.mesh(&mesh, d.scale, v3(d.translate), mat);
+    }
+    for s in &file.sphere {
+        let d = s.get_ref();
+        let mat = lookup(&b, &d.material, s.span())?.unwrap_or(0);
+        let c = v3(d.center);
+        if !(c.is_finite() && d.radius.is_finite() && d.radius > 0.0) {
+            return Err(at(s.span(), "sphere needs a finite center and a finite radius > 0".into()));
+        }
+        b.scene.spheres.push(Sphere { center: c, radius: d.radius, material: mat });
+    }
+    for l in &file.light {
+        let d = l.get_ref();
+        let light = match d.kind {
+            LightKind::Directional => {
+                if d.position.is_some() || d.intensity.is_some() {
+                    return Err(at(l.span(), "a directional light takes direction and radiance, not position/intensity".into()));
+                }
+                let dir = d.direction.map(v3).ok_or_else(|| at(l.span(), "directional light needs direction".into()))?;
+                Light::Directional { direction: dir, radiance: d.radiance.map(v3).unwrap_or(Vec3::ONE) }
+            }
+            LightKind::Point => {
+                if d.direction.is_some() || d.radiance.is_some() {
+                    return Err(at(l.span(), "a point light takes position and intensity, not direction/radiance".into()));
+                }
+                let p = d.position.map(v3).ok_or_else(|| at(l.span(), "point light needs position".into()))?;
+                Light::Point { position: p, intensity: d.intensity.map(v3).unwrap_or(Vec3::ONE) }
+            }
+        };
+        let ok = match light {
+            Light::Directional { direction, radiance } => direction.is_finite() && direction.length_squared() > 0.0 && radiance.is_finite(),
+            Light::Point { position, intensity } => position.is_finite() && intensity.is_finite(),
+        };
+        if !ok {
+            return Err(at(l.span(), "light values must be finite (and a direction non-zero)".into()));
+        }
+        b.scene.lights.push(light);
+    }
+    if let Some(f) = &file.film {
+        b.scene.width = f.width;
+        b.scene.height = f.height;
+    }
+    if let Some(r) = &file.render {
+        if let Some(bg) = r.background {
+            b.scene.background = v3(bg);
+        }
+        if let Some(a) = r.ambient {
+            b.scene.ambient = a;
+        }
+        if let Some(d) = r.max_depth {
+            b.scene.max_depth = d;
+        }
+    }
+    match &file.camera {
+        Some(c) => {
+            b.scene.camera = Camera { eye: v3(c.eye), look_at: v3(c.look_at), up: v3(c.up), vfov: c.vfov };
+        }
+        None => {
+            let mut bounds = crate::math::Aabb::EMPTY;
+            for p in &b.scene.positions {
+                bounds.grow(*p);
+            }
+            for s in &b.scene.spheres {
+                bounds.grow(s.center - Vec3::splat(s.radius));
+                bounds.grow(s.center + Vec3::splat(s.radius));
+            }
+            if !bounds.is_empty() && bounds.min.is_finite() && bounds.max.is_finite() {
+                b.scene.camera = super::framed_camera(&bounds, 45.0);
+            }
+        }
+    }
+    if b.scene.lights.is_empty() && file.light.is_empty() && !b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO) {
+        b.scene.lights.push(super::default_light());
+    }
+    b.finish().map_err(|e| match e {
+        Error::Scene { msg, .. } => Error::invalid(path, msg),
+        other => other,
+    })
+}
