@@ -1,0 +1,89 @@
+//! Proves on the device that src/accel/gpu_layout.rs and shaders/common/layout.glsl
+//! agree: a probe kernel reads every struct through its GLSL declaration and writes
+//! the words back in Rust declaration order.
+
+mod common;
+
+use arbor::accel::gpu_layout::*;
+use arbor::gpu::bindings::*;
+use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind};
+
+fn words<T: bytemuck::Pod>(v: &T) -> Vec<u32> {
+    bytemuck::cast_slice::<u8, u32>(bytemuck::bytes_of(v)).to_vec()
+}
+
+#[test]
+fn rust_and_glsl_layouts_agree_on_the_device() {
+    let Some(ctx) = common::gpu() else { return };
+    // Distinct bit patterns everywhere.
+    let mut next = 1u32;
+    let mut fill = |n: usize| -> Vec<u32> {
+        (0..n)
+            .map(|_| {
+                next += 1;
+                0x3f80_0000 + next // small positive floats, never NaN
+            })
+            .collect()
+    };
+    let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(36)));
+    let dispatch: GpuDispatch = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
+    let vertices: Vec<GpuVertex> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
+    let triangles: Vec<GpuTriangle> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(4)))).collect();
+    let spheres: Vec<GpuSphere> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
+    let material: GpuMaterial = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)));
+    let light: GpuLight = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
+    let pixels: Vec<GpuPixel> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(12)))).collect();
+
+    let mut expected = words(&params);
+    expected.extend(words(&dispatch));
+    for v in &vertices {
+        expected.extend(words(v));
+    }
+    for t in &triangles {
+        expected.extend(words(t));
+    }
+    for s in &spheres {
+        expected.extend(words(s));
+    }
+    expected.extend(words(&material));
+    expected.extend(words(&light));
+    for p in &pixels {
+        expected.extend(words(p));
+    }
+
+    let bindings = [
+        BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
+        BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Storage, name: "vertices" },
+        BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Storage, name: "triangles" },
+        BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Storage, name: "spheres" },
+        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" },
+        BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" },
+        BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_out" },
+    ];
+    let spv = spirv::get("layout_probe").expect("probe kernel compiled");
+    let mut k = ctx.create_kernel("layout_probe", spv, &bindings, &[], std::mem::size_of::<GpuDispatch>() as u32).expect("kernel");
+    let u = ctx.upload_uniform("params", bytemuck::bytes_of(&params)).expect("u");
+    let vb = ctx.upload_storage("vertices", bytemuck::cast_slice(&vertices)).expect("v");
+    let tb = ctx.upload_storage("triangles", bytemuck::cast_slice(&triangles)).expect("t");
+    let sb = ctx.upload_storage("spheres", bytemuck::cast_slice(&spheres)).expect("s");
+    let mut shading = bytemuck::bytes_of(&material).to_vec();
+    shading.extend_from_slice(bytemuck::bytes_of(&light));
+    let shb = ctx.upload_storage("shading", &shading).expect("sh");
+    let pb = ctx.upload_storage("pixels", bytemuck::cast_slice(&pixels)).expect("p");
+    let out = ctx.create_buffer("probe_out", (expected.len() * 4) as u64, BufferKind::Storage).expect("out");
+    ctx.fill_zero(&out).expect("clear");
+    ctx.bind(&mut k, BINDING_PARAMS, &u).expect("bind");
+    ctx.bind(&mut k, BINDING_VERTICES, &vb).expect("bind");
+    ctx.bind(&mut k, BINDING_TRIANGLES, &tb).expect("bind");
+    ctx.bind(&mut k, BINDING_SPHERES, &sb).expect("bind");
+    ctx.bind(&mut k, BINDING_SHADING, &shb).expect("bind");
+    ctx.bind(&mut k, BINDING_PIXELS, &pb).expect("bind");
+    ctx.bind(&mut k, BINDING_ACCEL_NODES, &out).expect("bind");
+    ctx.dispatch(&k, bytemuck::bytes_of(&dispatch), [1, 1, 1], "layout probe").expect("dispatch");
+    let back = ctx.read_storage(&out, 0, (expected.len() * 4) as u64).expect("read");
+    let got: &[u32] = bytemuck::cast_slice(&back);
+    for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
+        assert_eq!(g, e, "word {i} differs: the GLSL and Rust layouts disagree");
+    }
+    ctx.check_validation().expect("no validation errors");
+}

@@ -1,0 +1,192 @@
+//! GPU against the CPU reference, kernel specialisation and dispatch splitting, on
+//! whatever Vulkan device is present (lavapipe in CI) with validation on.
+
+mod common;
+
+use arbor::accel::AccelKind;
+use arbor::gpu::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
+use arbor::gpu::{BindingDesc, BindingKind, Context, Kernel};
+use arbor::render::{cpu, gpu, Frame, KernelChoice, RenderSettings};
+use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, Scene, SceneBuilder, Sphere};
+use glam::Vec3;
+
+fn render(ctx: &Context, scene: &Scene, w: u32, h: u32, f: impl FnOnce(&mut RenderSettings)) -> Frame {
+    let mut s = RenderSettings::for_size(w, h);
+    f(&mut s);
+    let (frame, _) = gpu::render(ctx, scene, &s, |_, _| {}).expect("render");
+    ctx.check_validation().expect("no validation errors");
+    frame
+}
+
+/// A blob and a few spheres of every material, with two lights.
+fn mixed_scene(eye: Vec3) -> Scene {
+    let mut b = SceneBuilder::new("mixed");
+    let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("m", Vec3::splat(0.9)) });
+    let glass = b.material(Material { kind: MaterialKind::Glass, ..Material::lambert("g", Vec3::ONE) });
+    b.mesh(&procedural::blob(3000, 0.15, 5), 0.8, Vec3::new(0.0, 0.2, 0.0), None);
+    b.mesh(
+        &procedural::quad([
+            Vec3::new(-3.0, -0.8, 3.0),
+            Vec3::new(3.0, -0.8, 3.0),
+            Vec3::new(3.0, -0.8, -3.0),
+            Vec3::new(-3.0, -0.8, -3.0),
+        ]),
+        1.0,
+        Vec3::ZERO,
+        None,
+    );
+    b.scene.spheres.push(Sphere { center: Vec3::new(-1.3, -0.4, 0.3), radius: 0.4, material: mirror });
+    b.scene.spheres.push(Sphere { center: Vec3::new(1.2, -0.4, 0.5), radius: 0.4, material: glass });
+    b.scene.spheres.push(Sphere { center: Vec3::new(0.2, 1.2, -0.8), radius: 0.25, material: 0 });
+    b.scene.lights.push(Light::Directional { direction: Vec3::new(-1.0, -1.0, -0.5), radiance: Vec3::splat(2.0) });
+    b.scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 2.0), intensity: Vec3::splat(3.0) });
+    b.scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
+    b.finish().expect("valid scene")
+}
+
+fn assert_aovs_match(name: &str, gpu: &Frame, cpu: &Frame) {
+    let mut prim_bad = Vec::new();
+    let mut depth_bad = Vec::new();
+    for k in 0..gpu.prim.len() {
+        if gpu.prim[k] != cpu.prim[k] {
+            prim_bad.push((k, gpu.prim[k], cpu.prim[k]));
+        }
+        let (g, c) = (gpu.depth[k], cpu.depth[k]);
+        let ok = if c.is_infinite() { g.is_infinite() && g > 0.0 } else { (g - c).abs() <= 1e-5 * c.abs() };
+        if !ok {
+            depth_bad.push((k, g, c));
+        }
+    }
+    assert!(prim_bad.is_empty(), "{name}: {} pixels with a different prim, first {:?}", prim_bad.len(), &prim_bad[..prim_bad.len().min(5)]);
+    assert!(depth_bad.is_empty(), "{name}: {} pixels with depth off by > 1e-5 relative, first {:?}", depth_bad.len(), &depth_bad[..depth_bad.len().min(5)]);
+    let hits = cpu.prim.iter().filter(|&&p| p != u32::MAX).count();
+    assert!(hits > 0 && hits < cpu.prim.len(), "{name}: the test image must contain hits and misses ({hits})");
+}
+
+#[test]
+fn gpu_aovs_equal_cpu_reference() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut cases: Vec<(String, Scene)> = Vec::new();
+    for (k, eye) in [Vec3::new(0.0, 0.5, 4.0), Vec3::new(3.0, 2.0, 2.0), Vec3::new(-2.5, 0.1, -3.0), Vec3::new(0.01, 4.5, 0.01)]
+        .into_iter()
+        .enumerate()
+    {
+        cases.push((format!("mixed camera {k}"), mixed_scene(eye)));
+    }
+    cases.push(("builtin:cornell".into(), Scene::load("builtin:cornell").expect("cornell")));
+    cases.push(("builtin:spheres".into(), Scene::load("builtin:spheres").expect("spheres")));
+    let obj = "/usr/share/assimp/models/OBJ/spider.obj";
+    if std::path::Path::new(obj).exists() {
+        cases.push(("spider.obj".into(), Scene::load(obj).expect("spider")));
+    }
+    for (name, scene) in &cases {
+        let (w, h) = (64, 48);
+        let g = render(&ctx, scene, w, h, |_| {});
+        let c = cpu::reference_aovs(scene, w, h);
+        assert_aovs_match(name, &g, &c);
+    }
+}
+
+#[test]
+fn specialised_kernels_bind_only_what_the_scene_needs() {
+    let Some(ctx) = common::gpu() else { return };
+    let tris = Scene::load("builtin:blob:500").expect("blob");
+    let spheres = Scene::load("builtin:spheres").expect("spheres");
+    let both = mixed_scene(Vec3::new(0.0, 0.5, 4.0));
+    let cases = [
+        (&tris, "trace_none_tris", vec!["params", "vertices", "triangles", "shading", "pixels"]),
+        (&spheres, "trace_none_spheres", vec!["params", "spheres", "shading", "pixels"]),
+        (&both, "trace_none_all", vec!["params", "vertices", "triangles", "spheres", "shading", "pixels"]),
+    ];
+    for (scene, kernel, bound) in cases {
+        let s = RenderSettings::for_size(16, 12);
+        let (_, stats) = gpu::render(&ctx, scene, &s, |_, _| {}).expect("render");
+        assert_eq!(stats.kernel, kernel, "{}", scene.name);
+        assert_eq!(stats.bindings, bound, "{}", scene.name);
+    }
+    // Specialised and general kernels render the same image, bit for bit.
+    for scene in [&tris, &spheres] {
+        let a = render(&ctx, scene, 40, 30, |s| s.spp = 2);
+        let b = render(&ctx, scene, 40, 30, |s| {
+            s.spp = 2;
+            s.kernel = KernelChoice::General;
+        });
+        assert_eq!(a.radiance, b.radiance, "{}: specialised and general radiance differ", scene.name);
+        assert_eq!(a.prim, b.prim);
+        assert_eq!(a.depth, b.depth);
+    }
+}
+
+#[test]
+fn output_is_identical_whatever_the_dispatch_split() {
+    let Some(ctx) = common::gpu() else { return };
+    let scene = mixed_scene(Vec3::new(0.3, 0.8, 4.0));
+    let whole = render(&ctx, &scene, 37, 23, |s| {
+        s.spp = 3;
+        s.seed = 9;
+        s.dispatch_budget = u64::MAX / 4;
+    });
+    let split = render(&ctx, &scene, 37, 23, |s| {
+        s.spp = 3;
+        s.seed = 9;
+        s.dispatch_budget = 1;
+    });
+    assert_eq!(whole.radiance, split.radiance);
+    assert_eq!(whole.depth, split.depth);
+    assert_eq!(whole.prim, split.prim);
+    // A different seed changes the jittered samples.
+    let other = render(&ctx, &scene, 37, 23, |s| {
+        s.spp = 3;
+        s.seed = 10;
+    });
+    assert_ne!(whole.radiance, other.radiance);
+}
+
+#[test]
+fn every_pipeline_respects_the_storage_buffer_limit() {
+    for geometry in ["tris", "spheres", "all"] {
+        let b = gpu::trace_bindings(geometry);
+        let storage = b.iter().filter(|d| d.kind == BindingKind::Storage).count();
+        assert!(storage <= MAX_STORAGE_BUFFERS_PER_STAGE as usize, "{geometry}: {storage}");
+        Kernel::check_storage_limit(geometry, &b).expect("within limit");
+    }
+    let nine: Vec<BindingDesc> = (0..9).map(|i| BindingDesc { binding: i, kind: BindingKind::Storage, name: "x" }).collect();
+    let err = Kernel::check_storage_limit("nine", &nine).expect_err("nine storage buffers must be refused");
+    assert!(err.to_string().contains("9 storage buffers"), "{err}");
+    // And on the device: creating such a kernel fails before any Vulkan call.
+    let Some(ctx) = common::gpu() else { return };
+    let spv = arbor::gpu::spirv::get("trace_none_all").expect("kernel");
+    assert!(ctx.create_kernel("nine", spv, &nine, &[], 0).is_err());
+    assert_eq!(AccelKind::ALL.len(), 1);
+}
+
+#[test]
+fn storage_range_limit_names_the_buffer() {
+    let Some(_) = common::gpu() else { return };
+    let ctx = Context::new(&arbor::gpu::ContextOptions { max_storage_range: Some(4096), ..Default::default() }).expect("ctx");
+    let scene = Scene::load("builtin:blob:2000").expect("blob");
+    let err = gpu::render(&ctx, &scene, &RenderSettings::for_size(8, 8), |_, _| {}).expect_err("too large");
+    let msg = err.to_string();
+    assert!(msg.contains("'vertices'") && msg.contains("4096") && msg.contains("maxStorageBufferRange"), "{msg}");
+}
+
+#[test]
+fn images_have_the_expected_content() {
+    let Some(ctx) = common::gpu() else { return };
+    // A lone Lambert sphere lit head-on by a directional light of radiance pi: the
+    // centre pixel's radiance is albedo * (1 + ambient * background) within rounding.
+    let mut b = SceneBuilder::new("analytic");
+    b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: 0 });
+    b.scene.lights.push(Light::Directional { direction: Vec3::new(0.0, 0.0, -1.0), radiance: Vec3::splat(std::f32::consts::PI) });
+    b.scene.camera = Camera { eye: Vec3::new(0.0, 0.0, 5.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 30.0 };
+    b.scene.background = Vec3::new(0.2, 0.3, 0.4);
+    b.scene.ambient = 0.0;
+    let scene = b.finish().expect("scene");
+    let f = render(&ctx, &scene, 33, 33, |_| {});
+    let centre = f.radiance[16 * 33 + 16];
+    for c in centre {
+        assert!((c - 0.7).abs() < 1e-3, "centre radiance {centre:?}, expected albedo 0.7");
+    }
+    assert!((f.depth[16 * 33 + 16] - 4.0).abs() < 1e-5);
+    assert_eq!(f.radiance[0], [0.2, 0.3, 0.4], "corner shows the background");
+}
