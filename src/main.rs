@@ -329,7 +329,10 @@ fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device:
     let (w, h) = parse_size(size)?;
     let ctx = context(device)?;
     eprintln!("device: {} ({}); {w}x{h} primary rays, {repeat} repeats after 1 warm-up", ctx.info().name, ctx.info().kind);
-    println!("{:>10} {:>8} {:>12} {:>12} {:>12} {:>10}", "triangles", "accel", "trace_ms", "spread_ms", "Mrays/s", "dispatches");
+    println!(
+        "{:>10} {:>8} {:>12} {:>12} {:>12} {:>12} {:>10}",
+        "triangles", "accel", "trace_ms", "spread_ms", "Mrays/s", "Mtests/s", "dispatches"
+    );
     let mut rows = Vec::new();
     for &n in tris {
         let scene = Scene::load(&format!("builtin:blob:{n}"))?;
@@ -338,9 +341,11 @@ fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device:
         let mut times = Vec::new();
         let mut rates = Vec::new();
         let mut dispatches = 0;
+        let mut tests_per_ray = 0.0;
         for r in 0..=repeat {
             let (_, st) = render::gpu::render(&ctx, &scene, &settings, |_, _| {})?;
             dispatches = st.dispatches;
+            tests_per_ray = st.mean_prims_tested;
             if r == 0 {
                 continue; // warm-up
             }
@@ -350,10 +355,21 @@ fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device:
         }
         let spread = times.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - times.iter().cloned().fold(f64::INFINITY, f64::min);
         let (mt, mr) = (median(&mut times), median(&mut rates));
-        println!("{:>10} {:>8} {:>12.2} {:>12.2} {:>12.3} {:>10}", scene.triangles.len(), "none", mt, spread, mr, dispatches);
+        let mtests = mr * tests_per_ray;
+        println!(
+            "{:>10} {:>8} {:>12.2} {:>12.2} {:>12.5} {:>12.1} {:>10}",
+            scene.triangles.len(),
+            "none",
+            mt,
+            spread,
+            mr,
+            mtests,
+            dispatches
+        );
         rows.push(serde_json::json!({
             "triangles": scene.triangles.len(), "accel": "none", "width": w, "height": h,
             "trace_ms_median": mt, "trace_ms_spread": spread, "mrays_per_s_median": mr,
+            "mtests_per_s_median": mtests, "prims_tested_per_ray": tests_per_ray,
             "trace_ms_all": times, "device": ctx.info().name,
         }));
     }
