@@ -198,11 +198,12 @@ fn run(cli: Cli) -> Result<()> {
             if let Some(p) = &stats {
                 check_writable(p)?;
             }
+            if spp == 0 || spp > 1 << 20 {
+                bail!("--spp must be 1..=1048576, got {spp}");
+            }
+            let size = size.as_deref().map(parse_size).transpose()?;
             let scene = Scene::load(&scene)?;
-            let (w, h) = match &size {
-                Some(s) => parse_size(s)?,
-                None => (scene.width, scene.height),
-            };
+            let (w, h) = size.unwrap_or((scene.width, scene.height));
             let ctx = context(&device)?;
             let mut settings = RenderSettings::for_size(w, h);
             settings.spp = spp;

@@ -171,7 +171,12 @@ impl Context {
             .enabled_extension_names(&ext_ptrs)
             .enabled_layer_names(&layer_ptrs);
         // SAFETY: all pointers in `info` point at data alive for this call.
-        let instance = unsafe { entry.create_instance(&info, None) }.map_err(vk_err("vkCreateInstance"))?;
+        let instance = unsafe { entry.create_instance(&info, None) }.map_err(|e| match e {
+            vk::Result::ERROR_INCOMPATIBLE_DRIVER => Error::NoDevice(
+                "no Vulkan driver found (install mesa-vulkan-drivers for lavapipe, or check VK_DRIVER_FILES)".into(),
+            ),
+            other => vk_err("vkCreateInstance")(other),
+        })?;
         Ok((instance, has_debug))
     }
 
