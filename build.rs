@@ -29,13 +29,12 @@ fn main() {
 
     let opened: Rc<RefCell<BTreeSet<PathBuf>>> = Rc::default();
     let compiler = shaderc::Compiler::new().expect("shaderc compiler");
-    let mut table = String::from("/// (name, SPIR-V bytes) of every compiled kernel.\npub const SHADERS: &[(&str, &[u8])] = &[\n");
+    let mut table =
+        String::from("/// (name, SPIR-V bytes) of every compiled kernel.\npub const SHADERS: &[(&str, &[u8])] = &[\n");
     let mut failures = Vec::new();
 
-    let mut comps: Vec<PathBuf> = read_dir_sorted(&shader_dir)
-        .into_iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "comp"))
-        .collect();
+    let mut comps: Vec<PathBuf> =
+        read_dir_sorted(&shader_dir).into_iter().filter(|p| p.extension().is_some_and(|e| e == "comp")).collect();
     comps.sort();
     let accels: Vec<String> = read_dir_sorted(&shader_dir.join("accel"))
         .into_iter()
@@ -93,9 +92,8 @@ fn main() {
 }
 
 fn read_dir_sorted(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
-        .unwrap_or_default();
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(dir).map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect()).unwrap_or_default();
     v.sort();
     v
 }

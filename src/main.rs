@@ -115,7 +115,21 @@ enum Command {
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) if !e.use_stderr() => {
+            // --help and --version print as clap formats them, to stdout.
+            let _ = e.print();
+            return;
+        }
+        Err(e) => {
+            // One line, like every other error: clap's first line without its prefix.
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            eprintln!("arbor: error: {} (see arbor --help)", first.trim_start_matches("error: "));
+            std::process::exit(2);
+        }
+    };
     if let Err(e) = run(cli) {
         eprintln!("arbor: error: {e:#}");
         std::process::exit(1);
@@ -132,7 +146,8 @@ fn context(d: &DeviceArgs) -> Result<Context> {
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
+    let (w, h) =
+        s.split_once(['x', 'X']).with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
     let w: u32 = w.trim().parse().with_context(|| format!("--size {s:?}: bad width"))?;
     let h: u32 = h.trim().parse().with_context(|| format!("--size {s:?}: bad height"))?;
     if w == 0 || h == 0 || w > arbor::scene::MAX_FILM_SIDE || h > arbor::scene::MAX_FILM_SIDE {
@@ -188,7 +203,20 @@ fn progress_bar(quiet: bool) -> ProgressBar {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Render { scene, output, size, spp, accel, aov, stats, device, seed, kernel, dispatch_budget, quiet } => {
+        Command::Render {
+            scene,
+            output,
+            size,
+            spp,
+            accel,
+            aov,
+            stats,
+            device,
+            seed,
+            kernel,
+            dispatch_budget,
+            quiet,
+        } => {
             let aovs = parse_aovs(&aov)?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
@@ -234,7 +262,8 @@ fn run(cli: Cli) -> Result<()> {
                         output::write_aov(path, w, h, 3, &n)?
                     }
                     "prim" => {
-                        let p: Vec<f32> = frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect();
+                        let p: Vec<f32> =
+                            frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect();
                         output::write_aov(path, w, h, 1, &p)?
                     }
                     _ => {
@@ -287,14 +316,23 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&info)?);
             } else {
                 println!("scene       {}", scene.name);
-                println!("triangles   {} ({} degenerate, kept and never hit)", scene.triangles.len(), scene.degenerate_triangles);
+                println!(
+                    "triangles   {} ({} degenerate, kept and never hit)",
+                    scene.triangles.len(),
+                    scene.degenerate_triangles
+                );
                 println!("vertices    {}", scene.positions.len());
                 println!("spheres     {}", scene.spheres.len());
                 println!("materials   {}", scene.materials.len());
                 println!("lights      {}", scene.lights.len());
                 println!("film        {}x{}", scene.width, scene.height);
                 println!("bounds      {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
-                println!("accel       {} (build {:.3} ms, {} bytes)", accel.name(), b.stats().build_ms, b.stats().bytes);
+                println!(
+                    "accel       {} (build {:.3} ms, {} bytes)",
+                    accel.name(),
+                    b.stats().build_ms,
+                    b.stats().bytes
+                );
                 println!("kernel      {}", info["kernel"].as_str().unwrap_or_default());
                 println!("buffers     {}", info["buffers"]);
             }
@@ -313,14 +351,20 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Bench { tris, size, repeat, json, device } => bench(&tris, &size, repeat.max(1), json.as_deref(), &device),
+        Command::Bench { tris, size, repeat, json, device } => {
+            bench(&tris, &size, repeat.max(1), json.as_deref(), &device)
+        }
     }
 }
 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device: &DeviceArgs) -> Result<()> {
@@ -329,7 +373,11 @@ fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device:
     }
     let (w, h) = parse_size(size)?;
     let ctx = context(device)?;
-    eprintln!("device: {} ({}); {w}x{h} primary rays, {repeat} repeats after 1 warm-up", ctx.info().name, ctx.info().kind);
+    eprintln!(
+        "device: {} ({}); {w}x{h} primary rays, {repeat} repeats after 1 warm-up",
+        ctx.info().name,
+        ctx.info().kind
+    );
     println!(
         "{:>10} {:>8} {:>12} {:>12} {:>12} {:>12} {:>10}",
         "triangles", "accel", "trace_ms", "spread_ms", "Mrays/s", "Mtests/s", "dispatches"
@@ -354,7 +402,8 @@ fn bench(tris: &[usize], size: &str, repeat: usize, json: Option<&Path>, device:
             times.push(ms);
             rates.push(st.rays as f64 / (ms * 1e3));
         }
-        let spread = times.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - times.iter().cloned().fold(f64::INFINITY, f64::min);
+        let spread = times.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - times.iter().cloned().fold(f64::INFINITY, f64::min);
         let (mt, mr) = (median(&mut times), median(&mut rates));
         let mtests = mr * tests_per_ray;
         println!(

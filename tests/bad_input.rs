@@ -276,9 +276,6 @@ const SPHERE: &str = "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n";
 
 // --- missing files --------------------------------------------------------------------
 
-// PRODUCT BUG (src/error.rs `Error::Io` + src/main.rs `{e:#}`): the I/O message is printed
-// twice ("x.toml: No such file or directory (os error 2): No such file or directory (os
-// error 2)"), so this test fails on the repeated-clause check until that is fixed.
 #[test]
 fn missing_scene_files() {
     let fx = Fixture::new();
@@ -295,8 +292,6 @@ fn toml_mesh_file_missing() {
     scene_fails(&fx, &toml, &[&at(&toml, 3), "missing.obj", "not found"]);
 }
 
-// PRODUCT BUG (same as `missing_scene_files`): a mesh path that is a directory prints
-// "dir.obj: Is a directory (os error 21): Is a directory (os error 21)".
 #[test]
 fn scene_path_is_a_directory() {
     let fx = Fixture::new();
@@ -327,8 +322,6 @@ fn toml_syntax_error_names_the_line() {
     scene_fails(&fx, &toml, &[&format!("{toml}:"), "unclosed|expected"]);
 }
 
-// PRODUCT BUG (same as `missing_scene_files`): prints "bin.toml: stream did not contain
-// valid UTF-8: stream did not contain valid UTF-8".
 #[test]
 fn toml_not_utf8() {
     let fx = Fixture::new();
@@ -355,7 +348,8 @@ fn toml_unknown_material() {
     let fx = Fixture::new();
     fx.triangle_obj();
     let header = "# scene\n[[material]]\nname = \"red\"\ntype = \"lambert\"\n\n";
-    let toml = fx.write("sphere.toml", format!("{header}[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"gold\"\n"));
+    let toml =
+        fx.write("sphere.toml", format!("{header}[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"gold\"\n"));
     scene_fails(&fx, &toml, &[&at(&toml, 6), "unknown material", "gold"]);
     let toml = fx.write("mesh.toml", format!("{header}[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n"));
     scene_fails(&fx, &toml, &[&at(&toml, 6), "unknown material", "gold"]);
@@ -392,10 +386,6 @@ fn toml_empty_scene() {
     }
 }
 
-// PRODUCT BUG: `[film] width = 0` is reported as "s.toml: image size 0x10 is invalid ..."
-// without the line of the [film] table (FilmDef is not `Spanned`; the size is only checked
-// in SceneBuilder::finish and mapped to `Error::invalid` with no line at the end of
-// src/scene/scene_file.rs `load`). The failure itself is clean; the line is missing.
 #[test]
 fn toml_zero_size_film() {
     let fx = Fixture::new();
@@ -437,7 +427,9 @@ fn obj_face_index_out_of_range() {
 #[test]
 fn obj_non_finite_coordinates() {
     let fx = Fixture::new();
-    for (name, v) in [("nan.obj", "v nan 0 0"), ("inf.obj", "v inf 0 0"), ("ninf.obj", "v 0 -inf 0"), ("big.obj", "v 1e39 0 0")] {
+    for (name, v) in
+        [("nan.obj", "v nan 0 0"), ("inf.obj", "v inf 0 0"), ("ninf.obj", "v 0 -inf 0"), ("big.obj", "v 1e39 0 0")]
+    {
         let obj = fx.write(name, format!("# c\n{v}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
         scene_fails(&fx, &obj, &[&at(&obj, 2), "non-finite"]);
     }
@@ -613,10 +605,8 @@ fn zero_spp() {
     render_fails(&fx, &obj, &["--spp", "0"], Device::Inherit, &["--spp", "0"]);
 }
 
-// PRODUCT BUG: `--spp 0` is only checked inside render::gpu::render
-// (src/render/gpu.rs:153), after the Vulkan context is created in src/main.rs, so without
-// a device the user gets "Vulkan: vkCreateInstance failed: ERROR_INCOMPATIBLE_DRIVER"
-// instead of the --spp message. A command-line value must be checked before any GPU work.
+/// `--spp` is a command-line value: it must be rejected before any GPU work, so the
+/// message is the same without a device.
 #[test]
 fn zero_spp_is_rejected_without_a_device() {
     let fx = Fixture::new();
@@ -624,10 +614,6 @@ fn zero_spp_is_rejected_without_a_device() {
     render_fails(&fx, &obj, &["--spp", "0"], Device::Absent, &["--spp"]);
 }
 
-// PRODUCT BUG: invalid values for clap-parsed options (`--accel`, and likewise `--kernel`,
-// `--spp abc`, unknown flags) are reported by clap itself (src/main.rs `Cli::parse()`):
-// three lines ("error: invalid value 'kdtree' for '--accel <ACCEL>': ...", a blank line,
-// "For more information, try '--help'.") without the "arbor: error: " prefix, exit code 2.
 #[test]
 fn unknown_accel() {
     let fx = Fixture::new();

@@ -27,9 +27,12 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     };
     let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(36)));
     let dispatch: GpuDispatch = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
-    let vertices: Vec<GpuVertex> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
-    let triangles: Vec<GpuTriangle> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(4)))).collect();
-    let spheres: Vec<GpuSphere> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
+    let vertices: Vec<GpuVertex> =
+        (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
+    let triangles: Vec<GpuTriangle> =
+        (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(4)))).collect();
+    let spheres: Vec<GpuSphere> =
+        (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
     let material: GpuMaterial = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)));
     let light: GpuLight = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
     let pixels: Vec<GpuPixel> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(12)))).collect();
@@ -61,7 +64,9 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
         BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_out" },
     ];
     let spv = spirv::get("layout_probe").expect("probe kernel compiled");
-    let mut k = ctx.create_kernel("layout_probe", spv, &bindings, &[], std::mem::size_of::<GpuDispatch>() as u32).expect("kernel");
+    let mut k = ctx
+        .create_kernel("layout_probe", spv, &bindings, &[], std::mem::size_of::<GpuDispatch>() as u32)
+        .expect("kernel");
     let u = ctx.upload_uniform("params", bytemuck::bytes_of(&params)).expect("u");
     let vb = ctx.upload_storage("vertices", bytemuck::cast_slice(&vertices)).expect("v");
     let tb = ctx.upload_storage("triangles", bytemuck::cast_slice(&triangles)).expect("t");

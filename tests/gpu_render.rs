@@ -57,8 +57,18 @@ fn assert_aovs_match(name: &str, gpu: &Frame, cpu: &Frame) {
             depth_bad.push((k, g, c));
         }
     }
-    assert!(prim_bad.is_empty(), "{name}: {} pixels with a different prim, first {:?}", prim_bad.len(), &prim_bad[..prim_bad.len().min(5)]);
-    assert!(depth_bad.is_empty(), "{name}: {} pixels with depth off by > 1e-5 relative, first {:?}", depth_bad.len(), &depth_bad[..depth_bad.len().min(5)]);
+    assert!(
+        prim_bad.is_empty(),
+        "{name}: {} pixels with a different prim, first {:?}",
+        prim_bad.len(),
+        &prim_bad[..prim_bad.len().min(5)]
+    );
+    assert!(
+        depth_bad.is_empty(),
+        "{name}: {} pixels with depth off by > 1e-5 relative, first {:?}",
+        depth_bad.len(),
+        &depth_bad[..depth_bad.len().min(5)]
+    );
     let hits = cpu.prim.iter().filter(|&&p| p != u32::MAX).count();
     assert!(hits > 0 && hits < cpu.prim.len(), "{name}: the test image must contain hits and misses ({hits})");
 }
@@ -67,9 +77,10 @@ fn assert_aovs_match(name: &str, gpu: &Frame, cpu: &Frame) {
 fn gpu_aovs_equal_cpu_reference() {
     let Some(ctx) = common::gpu() else { return };
     let mut cases: Vec<(String, Scene)> = Vec::new();
-    for (k, eye) in [Vec3::new(0.0, 0.5, 4.0), Vec3::new(3.0, 2.0, 2.0), Vec3::new(-2.5, 0.1, -3.0), Vec3::new(0.01, 4.5, 0.01)]
-        .into_iter()
-        .enumerate()
+    for (k, eye) in
+        [Vec3::new(0.0, 0.5, 4.0), Vec3::new(3.0, 2.0, 2.0), Vec3::new(-2.5, 0.1, -3.0), Vec3::new(0.01, 4.5, 0.01)]
+            .into_iter()
+            .enumerate()
     {
         cases.push((format!("mixed camera {k}"), mixed_scene(eye)));
     }
@@ -150,7 +161,8 @@ fn every_pipeline_respects_the_storage_buffer_limit() {
         assert!(storage <= MAX_STORAGE_BUFFERS_PER_STAGE as usize, "{geometry}: {storage}");
         Kernel::check_storage_limit(geometry, &b).expect("within limit");
     }
-    let nine: Vec<BindingDesc> = (0..9).map(|i| BindingDesc { binding: i, kind: BindingKind::Storage, name: "x" }).collect();
+    let nine: Vec<BindingDesc> =
+        (0..9).map(|i| BindingDesc { binding: i, kind: BindingKind::Storage, name: "x" }).collect();
     let err = Kernel::check_storage_limit("nine", &nine).expect_err("nine storage buffers must be refused");
     assert!(err.to_string().contains("9 storage buffers"), "{err}");
     // And on the device: creating such a kernel fails before any Vulkan call.
@@ -163,7 +175,8 @@ fn every_pipeline_respects_the_storage_buffer_limit() {
 #[test]
 fn storage_range_limit_names_the_buffer() {
     let Some(_) = common::gpu() else { return };
-    let ctx = Context::new(&arbor::gpu::ContextOptions { max_storage_range: Some(4096), ..Default::default() }).expect("ctx");
+    let ctx =
+        Context::new(&arbor::gpu::ContextOptions { max_storage_range: Some(4096), ..Default::default() }).expect("ctx");
     let scene = Scene::load("builtin:blob:2000").expect("blob");
     let err = gpu::render(&ctx, &scene, &RenderSettings::for_size(8, 8), |_, _| {}).expect_err("too large");
     let msg = err.to_string();
@@ -177,7 +190,9 @@ fn images_have_the_expected_content() {
     // centre pixel's radiance is albedo * (1 + ambient * background) within rounding.
     let mut b = SceneBuilder::new("analytic");
     b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: 0 });
-    b.scene.lights.push(Light::Directional { direction: Vec3::new(0.0, 0.0, -1.0), radiance: Vec3::splat(std::f32::consts::PI) });
+    b.scene
+        .lights
+        .push(Light::Directional { direction: Vec3::new(0.0, 0.0, -1.0), radiance: Vec3::splat(std::f32::consts::PI) });
     b.scene.camera = Camera { eye: Vec3::new(0.0, 0.0, 5.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 30.0 };
     b.scene.background = Vec3::new(0.2, 0.3, 0.4);
     b.scene.ambient = 0.0;

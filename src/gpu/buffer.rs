@@ -75,7 +75,9 @@ impl Context {
         let size = size.max(16).next_multiple_of(16);
         let (usage, location) = match kind {
             BufferKind::Storage => (
-                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::TRANSFER_SRC,
+                vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::TRANSFER_DST
+                    | vk::BufferUsageFlags::TRANSFER_SRC,
                 MemoryLocation::GpuOnly,
             ),
             BufferKind::Uniform => (vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu),
@@ -90,11 +92,13 @@ impl Context {
         // SAFETY: `raw` is a live buffer of `dev`.
         let requirements = unsafe { dev.get_buffer_memory_requirements(raw) };
         let allocation = {
-            let mut guard = self.shared.allocator.lock().map_err(|_| Error::Vulkan {
-                what: "allocator".into(),
-                result: "poisoned lock".into(),
-            })?;
-            let alloc = guard.as_mut().ok_or_else(|| Error::Vulkan { what: "allocator".into(), result: "gone".into() })?;
+            let mut guard = self
+                .shared
+                .allocator
+                .lock()
+                .map_err(|_| Error::Vulkan { what: "allocator".into(), result: "poisoned lock".into() })?;
+            let alloc =
+                guard.as_mut().ok_or_else(|| Error::Vulkan { what: "allocator".into(), result: "gone".into() })?;
             alloc.allocate(&AllocationCreateDesc {
                 name,
                 requirements,
@@ -111,8 +115,18 @@ impl Context {
                 return Err(alloc_err("allocate buffer memory")(e));
             }
         };
-        let buffer = Buffer { shared: Arc::clone(&self.shared), raw, allocation: Some(allocation), size, kind, name: name.to_string() };
-        let a = buffer.allocation.as_ref().ok_or_else(|| Error::Vulkan { what: "bind".into(), result: "no allocation".into() })?;
+        let buffer = Buffer {
+            shared: Arc::clone(&self.shared),
+            raw,
+            allocation: Some(allocation),
+            size,
+            kind,
+            name: name.to_string(),
+        };
+        let a = buffer
+            .allocation
+            .as_ref()
+            .ok_or_else(|| Error::Vulkan { what: "bind".into(), result: "no allocation".into() })?;
         // SAFETY: memory was allocated for these requirements and is not bound elsewhere.
         unsafe { dev.bind_buffer_memory(raw, a.memory(), a.offset()) }.map_err(vk_err("vkBindBufferMemory"))?;
         Ok(buffer)
@@ -126,7 +140,10 @@ impl Context {
             result: "not host visible".into(),
         })?;
         if data.len() > a.len() {
-            return Err(Error::Vulkan { what: format!("write buffer '{name}'"), result: "data larger than buffer".into() });
+            return Err(Error::Vulkan {
+                what: format!("write buffer '{name}'"),
+                result: "data larger than buffer".into(),
+            });
         }
         a[..data.len()].copy_from_slice(data);
         Ok(())
@@ -169,7 +186,10 @@ impl Context {
     /// Copies `len` bytes from `offset` of a storage buffer back to the host.
     pub fn read_storage(&self, buffer: &Buffer, offset: u64, len: u64) -> Result<Vec<u8>> {
         if offset + len > buffer.size {
-            return Err(Error::Vulkan { what: format!("read buffer '{}'", buffer.name), result: "range out of bounds".into() });
+            return Err(Error::Vulkan {
+                what: format!("read buffer '{}'", buffer.name),
+                result: "range out of bounds".into(),
+            });
         }
         if len == 0 {
             return Ok(Vec::new());
@@ -206,10 +226,11 @@ impl Context {
                 );
             }
         })?;
-        let a = rb.allocation.as_ref().and_then(|a| a.mapped_slice()).ok_or_else(|| Error::Vulkan {
-            what: "readback".into(),
-            result: "not host visible".into(),
-        })?;
+        let a = rb
+            .allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .ok_or_else(|| Error::Vulkan { what: "readback".into(), result: "not host visible".into() })?;
         Ok(a[..len as usize].to_vec())
     }
 }

@@ -145,9 +145,8 @@ impl Context {
     fn create_instance(entry: &ash::Entry, validation: bool) -> Result<(ash::Instance, bool)> {
         // SAFETY: plain queries on a loaded entry.
         let exts = unsafe { entry.enumerate_instance_extension_properties(None) }.unwrap_or_default();
-        let has_debug = exts
-            .iter()
-            .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == ash::ext::debug_utils::NAME));
+        let has_debug =
+            exts.iter().any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == ash::ext::debug_utils::NAME));
         // SAFETY: as above.
         let layers = unsafe { entry.enumerate_instance_layer_properties() }.unwrap_or_default();
         let layer_name = c"VK_LAYER_KHRONOS_validation";
@@ -250,7 +249,9 @@ impl Context {
                             .find(|c| Self::describe(instance, c.1, c.0).name.to_lowercase().contains(&s))
                             .copied()
                             .ok_or_else(|| {
-                                Error::NoDevice(format!("--device {sel:?}: no device name contains it (run `arbor devices`)"))
+                                Error::NoDevice(format!(
+                                    "--device {sel:?}: no device name contains it (run `arbor devices`)"
+                                ))
                             })
                     }
                 }
@@ -276,7 +277,8 @@ impl Context {
         let mut info = Self::describe(&instance, physical, index);
 
         let priorities = [1.0f32];
-        let qinfo = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
+        let qinfo =
+            [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
         let dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
         // SAFETY: `physical` is from `instance`; pointers in dev_info live for the call.
         let device = match unsafe { instance.create_device(physical, &dev_info, None) } {
@@ -304,7 +306,8 @@ impl Context {
                     .pfn_user_callback(Some(debug_callback))
                     .user_data(&*messages as *const Mutex<Vec<String>> as *mut c_void);
                 // SAFETY: the callback and its user data outlive the messenger (both owned by Shared).
-                unsafe { di.create_debug_utils_messenger(&ci, None) }.map_err(vk_err("vkCreateDebugUtilsMessengerEXT"))?
+                unsafe { di.create_debug_utils_messenger(&ci, None) }
+                    .map_err(vk_err("vkCreateDebugUtilsMessengerEXT"))?
             } else {
                 vk::DebugUtilsMessengerEXT::null()
             };
@@ -349,7 +352,8 @@ impl Context {
         // SAFETY: physical/instance valid.
         let families = unsafe { shared.instance.get_physical_device_queue_family_properties(physical) };
         let props = unsafe { shared.instance.get_physical_device_properties(physical) };
-        let timestamps = families[queue_family as usize].timestamp_valid_bits > 0 && props.limits.timestamp_period > 0.0;
+        let timestamps =
+            families[queue_family as usize].timestamp_valid_bits > 0 && props.limits.timestamp_period > 0.0;
         // SAFETY: valid device.
         let query_pool = unsafe {
             dev.create_query_pool(
@@ -423,13 +427,17 @@ impl Context {
         let cb = unsafe { dev.allocate_command_buffers(&alloc) }.map_err(vk_err("vkAllocateCommandBuffers"))?[0];
         self.shared.set_name(cb, label);
         // SAFETY: valid device.
-        let fence = unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.map_err(vk_err("vkCreateFence"))?;
+        let fence =
+            unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.map_err(vk_err("vkCreateFence"))?;
         self.shared.set_name(fence, label);
         let result = (|| -> Result<Option<f64>> {
             // SAFETY: `cb` is a fresh primary command buffer of this device.
             unsafe {
-                dev.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
-                    .map_err(vk_err("vkBeginCommandBuffer"))?;
+                dev.begin_command_buffer(
+                    cb,
+                    &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .map_err(vk_err("vkBeginCommandBuffer"))?;
                 let cname = CString::new(label.replace('\0', " ")).unwrap_or_default();
                 if let Some(d) = &self.shared.debug_device {
                     d.cmd_begin_debug_utils_label(cb, &vk::DebugUtilsLabelEXT::default().label_name(&cname));
@@ -460,7 +468,12 @@ impl Context {
             let mut ts = [0u64; 2];
             // SAFETY: both queries were written by the completed submission.
             unsafe {
-                dev.get_query_pool_results(self.query_pool, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                dev.get_query_pool_results(
+                    self.query_pool,
+                    0,
+                    &mut ts,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
             let ticks = ts[1].wrapping_sub(ts[0]) as f64;

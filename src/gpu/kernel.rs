@@ -140,13 +140,15 @@ impl Context {
         .map_err(vk_err("vkCreateDescriptorSetLayout"))?;
         self.shared.set_name(k.set_layout, name);
         let set_layouts = [k.set_layout];
-        let ranges = [vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).offset(0).size(push_size)];
+        let ranges =
+            [vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).offset(0).size(push_size)];
         let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
         if push_size > 0 {
             layout_info = layout_info.push_constant_ranges(&ranges);
         }
         // SAFETY: as above.
-        k.layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
+        k.layout =
+            unsafe { dev.create_pipeline_layout(&layout_info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
         self.shared.set_name(k.layout, name);
         let entries: Vec<vk::SpecializationMapEntry> = spec
             .iter()
@@ -252,13 +254,19 @@ impl Context {
         }
         self.submit(label, |dev, cb| {
             let barrier = [vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::UNIFORM_READ)];
+                .src_access_mask(
+                    vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE,
+                )
+                .dst_access_mask(
+                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::UNIFORM_READ,
+                )];
             // SAFETY: recording scope; all handles belong to this device and are live.
             unsafe {
                 dev.cmd_pipeline_barrier(
                     cb,
-                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::HOST,
+                    vk::PipelineStageFlags::TRANSFER
+                        | vk::PipelineStageFlags::COMPUTE_SHADER
+                        | vk::PipelineStageFlags::HOST,
                     vk::PipelineStageFlags::COMPUTE_SHADER,
                     vk::DependencyFlags::empty(),
                     &barrier,

@@ -117,7 +117,8 @@ pub fn loop_iterations_per_sample(scene: &Scene, settings: &RenderSettings) -> u
     let per_trace = (scene.triangles.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
         + (scene.spheres.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
         + 2;
-    let (depth, lights) = if settings.primary_only { (1, 0) } else { (u64::from(scene.max_depth), scene.lights.len() as u64) };
+    let (depth, lights) =
+        if settings.primary_only { (1, 0) } else { (u64::from(scene.max_depth), scene.lights.len() as u64) };
     (depth + lights) * per_trace + depth + lights + 1
 }
 
@@ -159,13 +160,14 @@ pub fn render(
 
     let geometry = geometry_suffix(scene, settings.kernel);
     let kernel_name = format!("trace_{}_{geometry}", settings.accel.name());
-    let spv = spirv::get(&kernel_name)
-        .ok_or_else(|| Error::Usage(format!("no kernel '{kernel_name}' was compiled")))?;
+    let spv =
+        spirv::get(&kernel_name).ok_or_else(|| Error::Usage(format!("no kernel '{kernel_name}' was compiled")))?;
     let bindings = trace_bindings(geometry);
     let use_lights = !settings.primary_only && !scene.lights.is_empty();
     let max_depth = if settings.primary_only { 1 } else { scene.max_depth };
     let spec = [(SPEC_SHADOWS, u32::from(use_lights)), (SPEC_MAX_DEPTH, max_depth)];
-    let mut kernel = ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;
+    let mut kernel =
+        ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;
 
     let start = Instant::now();
     let gs = GpuScene::new(scene);
@@ -218,10 +220,12 @@ pub fn render(
         bound_names.push(b.name.to_string());
         keep.push(buf);
     }
-    let pixel_buf_index = bindings.iter().filter(|b| b.kind == BindingKind::Storage).position(|b| b.binding == BINDING_PIXELS);
+    let pixel_buf_index =
+        bindings.iter().filter(|b| b.kind == BindingKind::Storage).position(|b| b.binding == BINDING_PIXELS);
     let pixel_buf = pixel_buf_index.and_then(|i| keep.get(i)).ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
 
-    let (px_per, mut spp_per) = dispatch_shape(chunk_pixels, settings.spp, tests_per_sample(scene, settings), settings.dispatch_budget);
+    let (px_per, mut spp_per) =
+        dispatch_shape(chunk_pixels, settings.spp, tests_per_sample(scene, settings), settings.dispatch_budget);
     if let Some(budget) = ctx.loop_budget() {
         let per_sample = loop_iterations_per_sample(scene, settings);
         if per_sample > budget {

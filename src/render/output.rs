@@ -148,7 +148,11 @@ pub fn read_pfm(path: &Path) -> Result<(u32, u32, usize, Vec<f32>)> {
         .chunks_exact(4)
         .map(|c| {
             let a = [c[0], c[1], c[2], c[3]];
-            if scale < 0.0 { f32::from_le_bytes(a) } else { f32::from_be_bytes(a) }
+            if scale < 0.0 {
+                f32::from_le_bytes(a)
+            } else {
+                f32::from_be_bytes(a)
+            }
         })
         .collect();
     let row = w as usize * channels;

@@ -62,7 +62,8 @@ fn default_scene() -> Result<Scene> {
     b.scene.spheres.push(Sphere { center: Vec3::new(0.95, 0.3, 0.45), radius: 0.3, material: glass });
     b.scene.lights.push(Light::Directional { direction: Vec3::new(-0.4, -1.0, -0.5), radiance: Vec3::splat(2.2) });
     b.scene.lights.push(Light::Point { position: Vec3::new(1.5, 2.5, 2.0), intensity: Vec3::new(4.0, 3.6, 3.0) });
-    b.scene.camera = Camera { eye: Vec3::new(0.0, 1.4, 3.6), look_at: Vec3::new(0.0, 0.45, 0.0), up: Vec3::Y, vfov: 40.0 };
+    b.scene.camera =
+        Camera { eye: Vec3::new(0.0, 1.4, 3.6), look_at: Vec3::new(0.0, 0.45, 0.0), up: Vec3::Y, vfov: 40.0 };
     b.scene.background = Vec3::new(0.55, 0.65, 0.8);
     // Small by default: brute force over 100k triangles on lavapipe (2 cores) takes
     // about 45 s at this size.
@@ -84,8 +85,8 @@ fn cornell() -> Result<Scene> {
         ([v(-1., 0., 1.), v(1., 0., 1.), v(1., 0., -1.), v(-1., 0., -1.)], white), // floor
         ([v(-1., 2., -1.), v(1., 2., -1.), v(1., 2., 1.), v(-1., 2., 1.)], white), // ceiling
         ([v(-1., 0., -1.), v(1., 0., -1.), v(1., 2., -1.), v(-1., 2., -1.)], white), // back
-        ([v(-1., 0., 1.), v(-1., 0., -1.), v(-1., 2., -1.), v(-1., 2., 1.)], red),  // left
-        ([v(1., 0., -1.), v(1., 0., 1.), v(1., 2., 1.), v(1., 2., -1.)], green),    // right
+        ([v(-1., 0., 1.), v(-1., 0., -1.), v(-1., 2., -1.), v(-1., 2., 1.)], red), // left
+        ([v(1., 0., -1.), v(1., 0., 1.), v(1., 2., 1.), v(1., 2., -1.)], green),   // right
         ([v(-0.25, 1.999, -0.25), v(0.25, 1.999, -0.25), v(0.25, 1.999, 0.25), v(-0.25, 1.999, 0.25)], light),
     ];
     for (corners, m) in walls {

@@ -186,7 +186,11 @@ impl SceneBuilder {
             }
         }
         for (k, m) in s.materials.iter().enumerate() {
-            let ok = m.color.is_finite() && m.specular.is_finite() && m.emission.is_finite() && m.shininess.is_finite() && m.ior.is_finite();
+            let ok = m.color.is_finite()
+                && m.specular.is_finite()
+                && m.emission.is_finite()
+                && m.shininess.is_finite()
+                && m.ior.is_finite();
             if !ok || m.ior <= 0.0 {
                 return Err(err(format!("material {k} ('{}') has a non-finite value or ior <= 0", m.name)));
             }

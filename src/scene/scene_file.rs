@@ -14,9 +14,9 @@ use crate::error::{Error, Result};
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
-    camera: Option<CameraDef>,
-    film: Option<FilmDef>,
-    render: Option<RenderDef>,
+    camera: Option<Spanned<CameraDef>>,
+    film: Option<Spanned<FilmDef>>,
+    render: Option<Spanned<RenderDef>>,
     #[serde(default)]
     mesh: Vec<Spanned<MeshDef>>,
     #[serde(default)]
@@ -144,13 +144,25 @@ pub fn load(path: &Path) -> Result<Scene> {
         let mat = Material {
             kind: d.kind,
             color: d.color.map(v3).unwrap_or(default_color),
-            specular: d.specular.map(v3).unwrap_or(if d.kind == MaterialKind::Phong { Vec3::splat(0.5) } else { Vec3::ZERO }),
+            specular: d.specular.map(v3).unwrap_or(if d.kind == MaterialKind::Phong {
+                Vec3::splat(0.5)
+            } else {
+                Vec3::ZERO
+            }),
             shininess: d.shininess.unwrap_or(32.0),
             ior: d.ior.unwrap_or(1.5),
-            emission: d.emission.map(v3).unwrap_or(if d.kind == MaterialKind::Emissive { Vec3::ONE } else { Vec3::ZERO }),
+            emission: d.emission.map(v3).unwrap_or(if d.kind == MaterialKind::Emissive {
+                Vec3::ONE
+            } else {
+                Vec3::ZERO
+            }),
             ..base
         };
-        let bad = !(mat.color.is_finite() && mat.specular.is_finite() && mat.emission.is_finite() && mat.shininess.is_finite() && mat.ior.is_finite());
+        let bad = !(mat.color.is_finite()
+            && mat.specular.is_finite()
+            && mat.emission.is_finite()
+            && mat.shininess.is_finite()
+            && mat.ior.is_finite());
         if bad || mat.ior <= 0.0 {
             return Err(at(m.span(), format!("material '{}' has a non-finite value or ior <= 0", d.name)));
         }
@@ -159,9 +171,10 @@ pub fn load(path: &Path) -> Result<Scene> {
     let lookup = |b: &SceneBuilder, name: &Option<String>, span: std::ops::Range<usize>| -> Result<Option<u32>> {
         match name {
             None => Ok(None),
-            Some(n) => b.find_material(n).map(Some).ok_or_else(|| {
-                at(span, format!("unknown material '{n}' (define it in a [[material]] table)"))
-            }),
+            Some(n) => b
+                .find_material(n)
+                .map(Some)
+                .ok_or_else(|| at(span, format!("unknown material '{n}' (define it in a [[material]] table)"))),
         }
     };
     for m in &file.mesh {
@@ -172,10 +185,9 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
         let mesh_path = dir.join(&d.file);
         let mesh = load_mesh(&mesh_path).map_err(|e| match e {
-            Error::Io { path, source } if source.kind() == std::io::ErrorKind::NotFound => at(
-                m.span(),
-                format!("mesh file '{}' not found ({})", d.file, path.display()),
-            ),
+            Error::Io { path, cause } if cause.kind() == std::io::ErrorKind::NotFound => {
+                at(m.span(), format!("mesh file '{}' not found ({})", d.file, path.display()))
+            }
             other => other,
         })?;
         b.mesh(&mesh, d.scale, v3(d.translate), mat);
@@ -194,21 +206,30 @@ pub fn load(path: &Path) -> Result<Scene> {
         let light = match d.kind {
             LightKind::Directional => {
                 if d.position.is_some() || d.intensity.is_some() {
-                    return Err(at(l.span(), "a directional light takes direction and radiance, not position/intensity".into()));
+                    return Err(at(
+                        l.span(),
+                        "a directional light takes direction and radiance, not position/intensity".into(),
+                    ));
                 }
-                let dir = d.direction.map(v3).ok_or_else(|| at(l.span(), "directional light needs direction".into()))?;
+                let dir =
+                    d.direction.map(v3).ok_or_else(|| at(l.span(), "directional light needs direction".into()))?;
                 Light::Directional { direction: dir, radiance: d.radiance.map(v3).unwrap_or(Vec3::ONE) }
             }
             LightKind::Point => {
                 if d.direction.is_some() || d.radiance.is_some() {
-                    return Err(at(l.span(), "a point light takes position and intensity, not direction/radiance".into()));
+                    return Err(at(
+                        l.span(),
+                        "a point light takes position and intensity, not direction/radiance".into(),
+                    ));
                 }
                 let p = d.position.map(v3).ok_or_else(|| at(l.span(), "point light needs position".into()))?;
                 Light::Point { position: p, intensity: d.intensity.map(v3).unwrap_or(Vec3::ONE) }
             }
         };
         let ok = match light {
-            Light::Directional { direction, radiance } => direction.is_finite() && direction.length_squared() > 0.0 && radiance.is_finite(),
+            Light::Directional { direction, radiance } => {
+                direction.is_finite() && direction.length_squared() > 0.0 && radiance.is_finite()
+            }
             Light::Point { position, intensity } => position.is_finite() && intensity.is_finite(),
         };
         if !ok {
@@ -216,11 +237,24 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
         b.scene.lights.push(light);
     }
-    if let Some(f) = &file.film {
+    if let Some(sf) = &file.film {
+        let f = sf.get_ref();
+        let max = super::MAX_FILM_SIDE;
+        if f.width == 0 || f.height == 0 || f.width > max || f.height > max {
+            return Err(at(
+                sf.span(),
+                format!("image size {}x{} is invalid: each side must be 1..={max}", f.width, f.height),
+            ));
+        }
         b.scene.width = f.width;
         b.scene.height = f.height;
     }
-    if let Some(r) = &file.render {
+    if let Some(sr) = &file.render {
+        let r = sr.get_ref();
+        let finite = r.background.is_none_or(|bg| v3(bg).is_finite()) && r.ambient.is_none_or(f32::is_finite);
+        if !finite {
+            return Err(at(sr.span(), "render background and ambient must be finite".into()));
+        }
         if let Some(bg) = r.background {
             b.scene.background = v3(bg);
         }
@@ -232,8 +266,11 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
     }
     match &file.camera {
-        Some(c) => {
-            b.scene.camera = Camera { eye: v3(c.eye), look_at: v3(c.look_at), up: v3(c.up), vfov: c.vfov };
+        Some(sc) => {
+            let c = sc.get_ref();
+            let cam = Camera { eye: v3(c.eye), look_at: v3(c.look_at), up: v3(c.up), vfov: c.vfov };
+            cam.check().map_err(|m| at(sc.span(), m))?;
+            b.scene.camera = cam;
         }
         None => {
             let mut bounds = crate::math::Aabb::EMPTY;
@@ -249,7 +286,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             }
         }
     }
-    if b.scene.lights.is_empty() && file.light.is_empty() && !b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO) {
+    if b.scene.lights.is_empty() && file.light.is_empty() && !b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO)
+    {
         b.scene.lights.push(super::default_light());
     }
     b.finish().map_err(|e| match e {
