@@ -282,7 +282,7 @@ pub fn render(
         let bytes = ctx.read_storage(pixel_buf, 0, chunk_len * std::mem::size_of::<GpuPixel>() as u64)?;
         let px: Vec<GpuPixel> = bytes
             .chunks_exact(std::mem::size_of::<GpuPixel>())
-            .map(|c| bytemuck::pod_read_unaligned::<GpuPixel>(c))
+            .map(bytemuck::pod_read_unaligned::<GpuPixel>)
             .collect();
         for (k, g) in px.iter().enumerate() {
             let idx = (chunk_start as usize) + k;
