@@ -403,7 +403,7 @@ fn convert_material(m: &tobj::Material) -> Material {
         out.ior = ni;
     }
     let illum = m.illumination_model;
-    let kd_black = kd.map_or(true, |c| c.max_element() <= BLACK);
+    let kd_black = kd.is_none_or(|c| c.max_element() <= BLACK);
     let translucent = m.dissolve.is_some_and(|d| d < 1.0);
     out.kind = if ke.max_element() > BLACK {
         MaterialKind::Emissive
