@@ -278,7 +278,7 @@ fn run(cli: Cli) -> Result<()> {
             }
             if !quiet {
                 let trace = st.trace_ms.map(|t| format!("{t:.1} ms GPU")).unwrap_or_else(|| "no GPU timestamps".into());
-                let mr = st.mrays_per_s.map(|m| format!(", {m:.2} Mrays/s")).unwrap_or_default();
+                let mr = st.mrays_per_s.map(|m| format!(", {m:.4} Mrays/s")).unwrap_or_default();
                 eprintln!(
                     "wrote {} ({w}x{h}, {spp} spp, {} triangles, {} spheres, accel {}) on {}: trace {trace}{mr}, {} dispatches, {:.0} ms wall",
                     output.display(),

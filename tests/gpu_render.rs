@@ -205,3 +205,22 @@ fn images_have_the_expected_content() {
     assert!((f.depth[16 * 33 + 16] - 4.0).abs() < 1e-5);
     assert_eq!(f.radiance[0], [0.2, 0.3, 0.4], "corner shows the background");
 }
+
+#[test]
+fn validation_errors_fail_the_operation() {
+    // A pipeline layout that leaves out a binding the shader uses is invalid; with the
+    // validation layer on, arbor must turn the layer's message into an error.
+    let ctx = match Context::new(&arbor::gpu::ContextOptions { validation: true, ..Default::default() }) {
+        Ok(c) => c,
+        Err(e) if common::gpu_required() => panic!("validation layer required: {e}"),
+        Err(e) => {
+            eprintln!("skipped: no Vulkan device with the validation layer ({e})");
+            return;
+        }
+    };
+    let spv = arbor::gpu::spirv::get("trace_none_spheres").expect("kernel");
+    let short: Vec<BindingDesc> = gpu::trace_bindings("spheres").into_iter().filter(|d| d.name != "pixels").collect();
+    let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 32).expect_err("validation must fail this");
+    let msg = err.to_string();
+    assert!(msg.contains("validation") && msg.contains("missing_pixels"), "{msg}");
+}

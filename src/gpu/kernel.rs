@@ -191,6 +191,7 @@ impl Context {
         }
         .map_err(vk_err("vkAllocateDescriptorSets"))?[0];
         self.shared.set_name(k.set, name);
+        self.check_validation()?;
         Ok(k)
     }
 

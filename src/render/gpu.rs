@@ -280,10 +280,8 @@ pub fn render(
             p += n;
         }
         let bytes = ctx.read_storage(pixel_buf, 0, chunk_len * std::mem::size_of::<GpuPixel>() as u64)?;
-        let px: Vec<GpuPixel> = bytes
-            .chunks_exact(std::mem::size_of::<GpuPixel>())
-            .map(bytemuck::pod_read_unaligned::<GpuPixel>)
-            .collect();
+        let px: Vec<GpuPixel> =
+            bytes.chunks_exact(std::mem::size_of::<GpuPixel>()).map(bytemuck::pod_read_unaligned::<GpuPixel>).collect();
         for (k, g) in px.iter().enumerate() {
             let idx = (chunk_start as usize) + k;
             let inv = 1.0 / settings.spp as f32;
