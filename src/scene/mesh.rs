@@ -59,3 +59,26 @@ pub struct MeshData {
     pub tri_material: Vec<u32>,
     pub materials: Vec<Material>,
 }
+
+/// Appends the fan `(i0, ik, ik+1)` of a polygon; polygons with < 3 vertices add nothing.
+pub(crate) fn push_fan(triangles: &mut Vec<[u32; 3]>, polygon: &[u32]) {
+    if let Some((&first, rest)) = polygon.split_first() {
+        for pair in rest.windows(2) {
+            if let [b, c] = *pair {
+                triangles.push([first, b, c]);
+            }
+        }
+    }
+}
+
+/// Unit normals, or None when any normal is zero-length or not finite (the mesh is then
+/// treated as having no normals).
+pub(crate) fn normalize_all(normals: Vec<Vec3>) -> Option<Vec<Vec3>> {
+    normals
+        .into_iter()
+        .map(|n| {
+            let len = n.length();
+            (len.is_finite() && len > 0.0).then(|| n / len)
+        })
+        .collect()
+}

@@ -43,7 +43,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::error::{Error, Result};
-use crate::scene::mesh::MeshData;
+use crate::scene::mesh::{normalize_all, push_fan, MeshData};
 
 /// Upper bound on what a header count may pre-allocate; larger counts grow as data arrives.
 const MAX_PREALLOC: usize = 1 << 20;
@@ -638,29 +638,6 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
         mesh.normals = normalize_all(normals);
     }
     Ok(mesh)
-}
-
-/// Appends the fan `(i0, ik, ik+1)` of a polygon; polygons with < 3 vertices add nothing.
-fn push_fan(triangles: &mut Vec<[u32; 3]>, polygon: &[u32]) {
-    if let Some((&first, rest)) = polygon.split_first() {
-        for pair in rest.windows(2) {
-            if let [b, c] = *pair {
-                triangles.push([first, b, c]);
-            }
-        }
-    }
-}
-
-/// Unit normals, or None when any normal is zero-length or not finite (the mesh is then
-/// treated as having no normals).
-fn normalize_all(normals: Vec<Vec3>) -> Option<Vec<Vec3>> {
-    normals
-        .into_iter()
-        .map(|n| {
-            let len = n.length();
-            (len.is_finite() && len > 0.0).then(|| n / len)
-        })
-        .collect()
 }
 
 #[cfg(test)]
