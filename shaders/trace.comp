@@ -9,6 +9,8 @@ layout(local_size_x = WORKGROUP_SIZE) in;
 
 layout(constant_id = SPEC_SHADOWS) const bool USE_LIGHTS = true;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
+layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
+layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -18,6 +20,7 @@ layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 uint g_nodes = 0u;
 uint g_tests = 0u;
 uint g_rays = 0u;
+bool g_overflow = false;
 
 #if HAS_TRIANGLES
 bool intersect_triangle(uint i, Ray r, inout Hit h) {
@@ -26,7 +29,9 @@ bool intersect_triangle(uint i, Ray r, inout Hit h) {
     float t, u, v;
     Ray rr = r;
     rr.tmax = h.t;
-    if (ray_triangle(rr, vertices[tri.x].position.xyz, vertices[tri.y].position.xyz, vertices[tri.z].position.xyz, t, u, v)) {
+    // Closer wins; at equal t the lower index wins (same rule as Hit::closer in Rust).
+    if (ray_triangle(rr, vertices[tri.x].position.xyz, vertices[tri.y].position.xyz, vertices[tri.z].position.xyz, t, u, v)
+        && (t < h.t || i < h.prim)) {
         h.t = t; h.prim = i; h.u = u; h.v = v;
         return true;
     }
@@ -41,7 +46,7 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
     float t;
     Ray rr = r;
     rr.tmax = h.t;
-    if (ray_sphere(rr, s.xyz, s.w, t)) {
+    if (ray_sphere(rr, s.xyz, s.w, t) && (t < h.t || params.dims.z + i < h.prim)) {
         h.t = t; h.prim = params.dims.z + i; h.u = 0.0; h.v = 0.0;
         return true;
     }
@@ -51,6 +56,8 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
 
 #if defined(ACCEL_NONE)
 #include "accel/none.glsl"
+#elif defined(ACCEL_KDTREE)
+#include "accel/kdtree.glsl"
 #endif
 
 const float PI = 3.14159265358979;
@@ -214,5 +221,6 @@ void main() {
         out_px.radiance += vec4(L, 1.0);
     }
     out_px.prim_cost.w += g_rays;
+    if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
     pixels[slot] = out_px;
 }

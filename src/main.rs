@@ -294,8 +294,14 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Info { scene, accel, json } => {
             let scene = Scene::load(&scene)?;
-            let b = arbor::accel::none::BruteForce::build(&scene);
+            let built = arbor::accel::Accel::build(accel, &scene);
+            let valid = built.validate(&scene);
+            let st = built.stats(&scene);
             let bounds = scene.bounds();
+            let geometry = render::gpu::geometry_suffix(&scene, KernelChoice::Specialized);
+            let kernel = format!("trace_{}_{geometry}", accel.kernel());
+            let buffers: Vec<&str> =
+                render::gpu::trace_bindings(accel.kernel(), geometry).iter().map(|b| b.name).collect();
             let info = serde_json::json!({
                 "scene": scene.name,
                 "triangles": scene.triangles.len(),
@@ -308,35 +314,45 @@ fn run(cli: Cli) -> Result<()> {
                 "bounds_min": bounds.min.to_array(),
                 "bounds_max": bounds.max.to_array(),
                 "accel": accel.name(),
-                "build": b.stats(),
-                "kernel": format!("trace_{}_{}", accel.name(), render::gpu::geometry_suffix(&scene, KernelChoice::Specialized)),
-                "buffers": render::gpu::trace_bindings(render::gpu::geometry_suffix(&scene, KernelChoice::Specialized)).iter().map(|b| b.name).collect::<Vec<_>>(),
+                "build": st,
+                "valid": valid.is_ok(),
+                "kernel": kernel,
+                "buffers": buffers,
             });
             if json {
                 println!("{}", serde_json::to_string_pretty(&info)?);
             } else {
-                println!("scene       {}", scene.name);
+                let n = scene.prim_count().max(1) as f64;
+                println!("scene           {}", scene.name);
                 println!(
-                    "triangles   {} ({} degenerate, kept and never hit)",
+                    "triangles       {} ({} degenerate, kept and never hit)",
                     scene.triangles.len(),
                     scene.degenerate_triangles
                 );
-                println!("vertices    {}", scene.positions.len());
-                println!("spheres     {}", scene.spheres.len());
-                println!("materials   {}", scene.materials.len());
-                println!("lights      {}", scene.lights.len());
-                println!("film        {}x{}", scene.width, scene.height);
-                println!("bounds      {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
+                println!("vertices        {}", scene.positions.len());
+                println!("spheres         {}", scene.spheres.len());
+                println!("materials       {}", scene.materials.len());
+                println!("lights          {}", scene.lights.len());
+                println!("film            {}x{}", scene.width, scene.height);
+                println!("bounds          {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
+                println!("accel           {}", accel.name());
+                println!("  build         {:.2} ms", st.build_ms);
+                println!("  nodes         {} ({} leaves, {} empty)", st.nodes, st.leaves, st.empty_leaves);
+                println!("  depth         max {}, mean leaf {:.2}", st.max_depth, st.mean_leaf_depth);
+                println!("  refs/prim     {:.3}", st.refs_per_prim);
+                println!("  bytes         {} ({:.2} per primitive)", st.bytes, st.bytes as f64 / n);
+                println!("  SAH cost      {:.3}", st.sah_cost);
                 println!(
-                    "accel       {} (build {:.3} ms, {} bytes)",
-                    accel.name(),
-                    b.stats().build_ms,
-                    b.stats().bytes
+                    "  validate      {}",
+                    match &valid {
+                        Ok(()) => "ok".to_string(),
+                        Err(e) => format!("FAILED: {e}"),
+                    }
                 );
-                println!("kernel      {}", info["kernel"].as_str().unwrap_or_default());
-                println!("buffers     {}", info["buffers"]);
+                println!("kernel          {kernel}");
+                println!("buffers         {}", buffers.join(", "));
             }
-            Ok(())
+            valid.map_err(|e| anyhow::anyhow!("{}: structure failed validation: {e}", scene.name))
         }
         Command::Devices => {
             let list = Context::list_devices()?;

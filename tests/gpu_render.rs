@@ -156,7 +156,7 @@ fn output_is_identical_whatever_the_dispatch_split() {
 #[test]
 fn every_pipeline_respects_the_storage_buffer_limit() {
     for geometry in ["tris", "spheres", "all"] {
-        let b = gpu::trace_bindings(geometry);
+        let b = gpu::trace_bindings("none", geometry);
         let storage = b.iter().filter(|d| d.kind == BindingKind::Storage).count();
         assert!(storage <= MAX_STORAGE_BUFFERS_PER_STAGE as usize, "{geometry}: {storage}");
         Kernel::check_storage_limit(geometry, &b).expect("within limit");
@@ -219,7 +219,8 @@ fn validation_errors_fail_the_operation() {
         }
     };
     let spv = arbor::gpu::spirv::get("trace_none_spheres").expect("kernel");
-    let short: Vec<BindingDesc> = gpu::trace_bindings("spheres").into_iter().filter(|d| d.name != "pixels").collect();
+    let short: Vec<BindingDesc> =
+        gpu::trace_bindings("none", "spheres").into_iter().filter(|d| d.name != "pixels").collect();
     let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 32).expect_err("validation must fail this");
     let msg = err.to_string();
     assert!(msg.contains("validation") && msg.contains("missing_pixels"), "{msg}");

@@ -91,7 +91,7 @@ bool ray_triangle(Ray r, vec3 v0, vec3 v1, vec3 v2, out float t, out float u, ou
     if (vv < 0.0 || uu + vv > 1.0) return false;
     precise float tt = dot3(e2, q) * inv;
     t = tt; u = uu; v = vv;
-    return tt > r.tmin && tt < r.tmax;
+    return tt > r.tmin && tt <= r.tmax;
 }
 
 // Haines, Gunther & Akenine-Moller, Ray Tracing Gems (2019) ch. 7. Unit direction.
@@ -110,8 +110,8 @@ bool ray_sphere(Ray r, vec3 center, float radius, out float t) {
     float t1 = q;
     float near_t = t0 < t1 ? t0 : t1;
     float far_t = t0 < t1 ? t1 : t0;
-    if (near_t > r.tmin && near_t < r.tmax) { t = near_t; return true; }
-    if (far_t > r.tmin && far_t < r.tmax) { t = far_t; return true; }
+    if (near_t > r.tmin && near_t <= r.tmax) { t = near_t; return true; }
+    if (far_t > r.tmin && far_t <= r.tmax) { t = far_t; return true; }
     return false;
 }
 

@@ -2,13 +2,18 @@
 //! (`build`, `validate`, `stats`, `to_gpu`, CPU `intersect`/`occluded`); the GPU
 //! kernel variant for a structure is `trace_<kind>_<geometry>`.
 //!
-//! This foundation ships [`AccelKind::None`]: brute force over every primitive with
-//! a scene-box early-out, the baseline every structure is measured against.
+//! - [`AccelKind::None`]: brute force over every primitive with a scene-box
+//!   early-out, the baseline every structure is measured against.
+//! - [`AccelKind::Kdtree`]: the SAH kd-tree of Wald & Havran (2006).
+//! - [`AccelKind::BspCourse`]: the lecture's simple BSP tree, same layout and kernel.
 
 #![forbid(unsafe_code)]
 
 pub mod gpu_layout;
+pub mod kdtree;
 pub mod none;
+pub mod prim;
+pub mod sah;
 
 use std::fmt;
 use std::str::FromStr;
@@ -20,16 +25,30 @@ pub enum AccelKind {
     /// Every primitive for every ray, after a scene-box test.
     #[default]
     None,
+    /// SAH kd-tree (Wald & Havran 2006), perfect splits.
+    Kdtree,
+    /// The lecture's BSP tree: 3 candidate planes per axis, <= 4 per leaf, <= 20 levels.
+    BspCourse,
 }
 
 impl AccelKind {
     /// Every kind, in CLI order.
-    pub const ALL: &'static [AccelKind] = &[AccelKind::None];
+    pub const ALL: &'static [AccelKind] = &[AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse];
 
     /// The CLI / kernel name.
     pub fn name(self) -> &'static str {
         match self {
             AccelKind::None => "none",
+            AccelKind::Kdtree => "kdtree",
+            AccelKind::BspCourse => "bsp-course",
+        }
+    }
+
+    /// The kernel family (`trace_<kernel>_<geometry>`) that traverses this structure.
+    pub fn kernel(self) -> &'static str {
+        match self {
+            AccelKind::None => "none",
+            AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
         }
     }
 }
@@ -45,6 +64,8 @@ impl FromStr for AccelKind {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "none" | "brute-force" => Ok(AccelKind::None),
+            "kdtree" | "kd" | "bsp" => Ok(AccelKind::Kdtree),
+            "bsp-course" => Ok(AccelKind::BspCourse),
             _ => Err(format!(
                 "unknown structure '{s}'; available: {}",
                 AccelKind::ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
@@ -63,4 +84,68 @@ pub struct BuildStats {
     pub bytes: u64,
     pub nodes: u64,
     pub max_depth: u32,
+    pub leaves: u64,
+    pub empty_leaves: u64,
+    pub mean_leaf_depth: f64,
+    /// Primitive references in leaves per primitive.
+    pub refs_per_prim: f64,
+    /// SAH cost of the tree with the default constants (sah.rs), relative to the root.
+    pub sah_cost: f64,
+}
+
+/// A built structure of any kind, with the common surface.
+#[derive(Debug, Clone)]
+pub enum Accel {
+    None(none::BruteForce),
+    Kd(kdtree::KdTree),
+}
+
+impl Accel {
+    /// Builds `kind` for `scene` with default parameters.
+    pub fn build(kind: AccelKind, scene: &crate::scene::Scene) -> Accel {
+        match kind {
+            AccelKind::None => Accel::None(none::BruteForce::build(scene)),
+            AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, &kdtree::KdParams::default())),
+            AccelKind::BspCourse => Accel::Kd(kdtree::KdTree::build_course(scene)),
+        }
+    }
+
+    /// Checks the structure's invariants against the scene.
+    pub fn validate(&self, scene: &crate::scene::Scene) -> Result<(), String> {
+        match self {
+            Accel::None(b) => b.validate(),
+            Accel::Kd(t) => t.validate(scene),
+        }
+    }
+
+    pub fn stats(&self, scene: &crate::scene::Scene) -> BuildStats {
+        match self {
+            Accel::None(b) => b.stats(scene),
+            Accel::Kd(t) => t.stats(),
+        }
+    }
+
+    /// The box rays are first clipped to.
+    pub fn bounds(&self) -> crate::math::Aabb {
+        match self {
+            Accel::None(b) => b.bounds,
+            Accel::Kd(t) => t.bounds,
+        }
+    }
+
+    /// Nearest hit (CPU traversal, the test oracle).
+    pub fn intersect(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> Option<crate::math::Hit> {
+        match self {
+            Accel::None(b) => b.intersect(scene, ray),
+            Accel::Kd(t) => t.intersect(scene, ray),
+        }
+    }
+
+    /// Any hit (CPU traversal).
+    pub fn occluded(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> bool {
+        match self {
+            Accel::None(b) => b.occluded(scene, ray),
+            Accel::Kd(t) => t.occluded(scene, ray),
+        }
+    }
 }

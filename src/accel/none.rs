@@ -31,32 +31,29 @@ impl BruteForce {
         Ok(())
     }
 
-    pub fn stats(&self) -> BuildStats {
-        BuildStats { kind: "none".into(), build_ms: self.build_ms, bytes: 0, nodes: 0, max_depth: 0 }
+    pub fn stats(&self, scene: &Scene) -> BuildStats {
+        let n = scene.prim_count();
+        BuildStats {
+            kind: "none".into(),
+            build_ms: self.build_ms,
+            leaves: 1,
+            refs_per_prim: 1.0,
+            mean_leaf_depth: 0.0,
+            sah_cost: f64::from(super::sah::SahCosts::default().leaf(n)),
+            ..Default::default()
+        }
     }
 
-    /// Nearest hit in (tmin, tmax), ties broken by the lower primitive index, exactly
-    /// like the GPU loop (which tests in index order and keeps strictly closer hits).
+    /// Nearest hit in (tmin, tmax]; at equal t the lower primitive index wins, exactly
+    /// like the GPU loop.
     pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
         let inv = Aabb::inv_dir(ray.dir);
         self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax)?;
-        let mut best: Option<Hit> = None;
-        let mut r = *ray;
-        for (i, t) in scene.triangles.iter().enumerate() {
-            let [a, b, c] = t.map(|k| scene.positions[k as usize]);
-            if let Some((t, u, v)) = crate::math::intersect::ray_triangle(&r, a, b, c) {
-                r.tmax = t;
-                best = Some(Hit { t, prim: i as u32, u, v });
-            }
+        let mut best = Hit::none(ray.tmax);
+        for p in 0..scene.prim_count() as u32 {
+            crate::math::intersect::intersect_prim(scene, p, ray, &mut best);
         }
-        let nt = scene.triangles.len() as u32;
-        for (i, s) in scene.spheres.iter().enumerate() {
-            if let Some(t) = crate::math::intersect::ray_sphere(&r, s.center, s.radius) {
-                r.tmax = t;
-                best = Some(Hit { t, prim: nt + i as u32, u: 0.0, v: 0.0 });
-            }
-        }
-        best
+        (best.prim != u32::MAX).then_some(best)
     }
 
     /// Whether anything lies in (tmin, tmax).

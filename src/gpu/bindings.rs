@@ -36,6 +36,13 @@ pub const MAX_STORAGE_BUFFERS_PER_STAGE: u32 = 8;
 /// Specialization constant ids.
 pub const SPEC_SHADOWS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
+/// Traversal stack entries (tree depth + 1).
+pub const SPEC_STACK_SIZE: u32 = 2;
+/// Traversal steps (nodes + primitive tests) one trace may take before the pixel is
+/// flagged as overflowed.
+pub const SPEC_TREE_STEPS: u32 = 3;
+/// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
+pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
@@ -52,4 +59,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BRUTE_UNROLL", BRUTE_UNROLL),
     ("SPEC_SHADOWS", SPEC_SHADOWS),
     ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
+    ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
+    ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
+    ("OVERFLOW_FLAG", OVERFLOW_FLAG),
 ];

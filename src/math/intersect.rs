@@ -14,6 +14,8 @@ pub struct Ray {
 }
 
 /// The closest hit found so far.
+///
+/// Order: smaller t wins; at equal t the lower primitive index wins ([`Hit::closer`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
     pub t: f32,
@@ -22,6 +24,46 @@ pub struct Hit {
     /// Barycentric coordinates of v1 and v2 (triangles only).
     pub u: f32,
     pub v: f32,
+}
+
+impl Hit {
+    /// Whether a candidate (t, prim) beats this hit: closer, or as close with a lower index.
+    #[inline]
+    pub fn closer(&self, t: f32, prim: u32) -> bool {
+        t < self.t || (t == self.t && prim < self.prim)
+    }
+
+    /// The "no hit yet" state for a ray whose interval ends at `tmax`.
+    pub fn none(tmax: f32) -> Hit {
+        Hit { t: tmax, prim: u32::MAX, u: 0.0, v: 0.0 }
+    }
+}
+
+/// Tests primitive `prim` of `scene` (triangles first, then spheres) against `ray`
+/// clipped to the best hit so far, and records it if it wins. Twin of
+/// `intersect_triangle` / `intersect_sphere` in trace.comp.
+#[inline]
+pub fn intersect_prim(scene: &crate::scene::Scene, prim: u32, ray: &Ray, best: &mut Hit) -> bool {
+    let nt = scene.triangles.len() as u32;
+    let r = Ray { tmax: best.t, ..*ray };
+    if prim < nt {
+        let [a, b, c] = scene.triangles[prim as usize].map(|k| scene.positions[k as usize]);
+        if let Some((t, u, v)) = ray_triangle(&r, a, b, c) {
+            if best.closer(t, prim) {
+                *best = Hit { t, prim, u, v };
+                return true;
+            }
+        }
+    } else {
+        let s = &scene.spheres[(prim - nt) as usize];
+        if let Some(t) = ray_sphere(&r, s.center, s.radius) {
+            if best.closer(t, prim) {
+                *best = Hit { t, prim, u: 0.0, v: 0.0 };
+                return true;
+            }
+        }
+    }
+    false
 }
 
 #[inline]
@@ -36,7 +78,8 @@ fn cross3(a: Vec3, b: Vec3) -> Vec3 {
 
 /// Möller & Trumbore, "Fast, Minimum Storage Ray/Triangle Intersection" (JGT 1997),
 /// two-sided, no epsilon: a degenerate triangle has det = 0 and is never hit.
-/// Returns (t, u, v) with t in the open interval (tmin, tmax).
+/// Returns (t, u, v) with t in (tmin, tmax]; callers break ties at equal t by the
+/// lower primitive index, so every structure agrees with brute force.
 pub fn ray_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<(f32, f32, f32)> {
     let e1 = v1 - v0;
     let e2 = v2 - v0;
@@ -57,14 +100,14 @@ pub fn ray_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<(f32, f32
         return None;
     }
     let t = dot3(e2, q) * inv;
-    (t > ray.tmin && t < ray.tmax).then_some((t, u, v))
+    (t > ray.tmin && t <= ray.tmax).then_some((t, u, v))
 }
 
 /// Ray/sphere after Haines, Günther & Akenine-Möller, "Precision Improvements for
 /// Ray/Sphere Intersection", Ray Tracing Gems (2019), ch. 7: the discriminant is
 /// computed from the distance of the centre to the ray line (no cancellation for
 /// small spheres far away) and the roots from the numerically stable quadratic
-/// form. Assumes a unit direction. Returns the nearest t in (tmin, tmax).
+/// form. Assumes a unit direction. Returns the nearest t in (tmin, tmax].
 pub fn ray_sphere(ray: &Ray, center: Vec3, radius: f32) -> Option<f32> {
     let f = ray.origin - center;
     let b = -dot3(f, ray.dir);
@@ -82,9 +125,9 @@ pub fn ray_sphere(ray: &Ray, center: Vec3, radius: f32) -> Option<f32> {
     let t0 = c / q;
     let t1 = q;
     let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-    if near > ray.tmin && near < ray.tmax {
+    if near > ray.tmin && near <= ray.tmax {
         Some(near)
-    } else if far > ray.tmin && far < ray.tmax {
+    } else if far > ray.tmin && far <= ray.tmax {
         Some(far)
     } else {
         None

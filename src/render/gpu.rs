@@ -4,11 +4,9 @@
 
 use std::time::Instant;
 
-use bytemuck::Zeroable;
-
 use super::{Frame, KernelChoice, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::*;
-use crate::accel::none::BruteForce;
+use crate::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context};
@@ -27,8 +25,9 @@ pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
     }
 }
 
-/// The descriptor bindings of a trace variant (`tris`, `spheres` or `all`).
-pub fn trace_bindings(geometry: &str) -> Vec<BindingDesc> {
+/// The descriptor bindings of a trace variant: structure kernel family (`none`,
+/// `kdtree`) and geometry (`tris`, `spheres` or `all`).
+pub fn trace_bindings(family: &str, geometry: &str) -> Vec<BindingDesc> {
     let mut b = vec![BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" }];
     if geometry != "spheres" {
         b.push(BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Storage, name: "vertices" });
@@ -39,6 +38,10 @@ pub fn trace_bindings(geometry: &str) -> Vec<BindingDesc> {
     }
     b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" });
     b.push(BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" });
+    if family != "none" {
+        b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "accel_nodes" });
+        b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "accel_indices" });
+    }
     b
 }
 
@@ -110,17 +113,33 @@ fn tests_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
     prims * rays
 }
 
-/// Upper bound on the loop iterations one invocation runs for one sample: every
-/// trace (at most `max_depth` closest-hit rays and one shadow ray per light) walks
-/// the brute-force loops of BRUTE_UNROLL primitives, plus the path and light loops.
-pub fn loop_iterations_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
-    let per_trace = (scene.triangles.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
-        + (scene.spheres.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
-        + 2;
-    let (depth, lights) =
-        if settings.primary_only { (1, 0) } else { (u64::from(scene.max_depth), scene.lights.len() as u64) };
-    (depth + lights) * per_trace + depth + lights + 1
+/// Traces one sample may run: at most `max_depth` closest-hit rays and one shadow
+/// ray per light.
+pub fn traces_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
+    if settings.primary_only {
+        1
+    } else {
+        u64::from(scene.max_depth) + scene.lights.len() as u64
+    }
 }
+
+/// Upper bound on the loop iterations one invocation runs for one sample when each
+/// trace runs at most `per_trace` iterations, plus the path and light loops.
+pub fn loop_iterations_per_sample(scene: &Scene, settings: &RenderSettings, per_trace: u64) -> u64 {
+    traces_per_sample(scene, settings) * (per_trace + 1) + 1
+}
+
+/// Loop iterations of one brute-force trace: the loops of BRUTE_UNROLL primitives.
+fn brute_iterations(scene: &Scene) -> u64 {
+    (scene.triangles.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
+        + (scene.spheres.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
+        + 2
+}
+
+/// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
+const MIN_TREE_STEPS: u64 = 256;
+/// Per-trace step budget of tree traversal where the driver sets no loop limit.
+const TREE_STEPS_UNLIMITED: u64 = 1 << 22;
 
 /// Splits `pixels` x `spp` into dispatches of about `budget` primitive tests:
 /// returns (pixels per dispatch, samples per dispatch).
@@ -142,37 +161,86 @@ pub fn render(
     ctx: &Context,
     scene: &Scene,
     settings: &RenderSettings,
+    progress: impl FnMut(u64, u64),
+) -> Result<(Frame, RenderStats)> {
+    let accel = Accel::build(settings.accel, scene);
+    accel.validate(scene).map_err(|m| Error::scene(scene.name.clone(), m))?;
+    render_with(ctx, scene, settings, &accel, progress)
+}
+
+/// Renders `scene` with an already built structure.
+pub fn render_with(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    accel: &Accel,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
     let (w, h) = (settings.width, settings.height);
     if w == 0 || h == 0 || w > crate::scene::MAX_FILM_SIDE || h > crate::scene::MAX_FILM_SIDE {
-        return Err(Error::Usage(format!(
-            "image size {w}x{h} is invalid: each side must be 1..={}",
-            crate::scene::MAX_FILM_SIDE
-        )));
+        return Err(Error::Usage(format!("image size {w}x{h} is invalid")));
     }
     if settings.spp == 0 || settings.spp > 1 << 20 {
         return Err(Error::Usage(format!("--spp must be 1..=1048576, got {}", settings.spp)));
     }
-    let accel = BruteForce::build(scene);
-    accel.validate().map_err(|m| Error::scene(scene.name.clone(), m))?;
-    let build = accel.stats();
-
+    let build = accel.stats(scene);
+    let family = settings.accel.kernel();
+    if let Accel::Kd(t) = accel {
+        if t.depth > crate::accel::kdtree::MAX_KD_DEPTH {
+            return Err(Error::scene(
+                scene.name.clone(),
+                format!(
+                    "kd-tree depth {} exceeds the kernel's stack of {}",
+                    t.depth,
+                    crate::accel::kdtree::MAX_KD_DEPTH
+                ),
+            ));
+        }
+    }
     let geometry = geometry_suffix(scene, settings.kernel);
-    let kernel_name = format!("trace_{}_{geometry}", settings.accel.name());
+    let kernel_name = format!("trace_{family}_{geometry}");
     let spv =
         spirv::get(&kernel_name).ok_or_else(|| Error::Usage(format!("no kernel '{kernel_name}' was compiled")))?;
-    let bindings = trace_bindings(geometry);
+    let bindings = trace_bindings(family, geometry);
     let use_lights = !settings.primary_only && !scene.lights.is_empty();
     let max_depth = if settings.primary_only { 1 } else { scene.max_depth };
-    let spec = [(SPEC_SHADOWS, u32::from(use_lights)), (SPEC_MAX_DEPTH, max_depth)];
+    // Loop iterations per trace: fixed for brute force; a step budget for trees, which
+    // the kernel enforces (flagging the pixel) so llvmpipe's limit is never crossed.
+    let traces = traces_per_sample(scene, settings);
+    let (per_trace, tree_steps) = match accel {
+        Accel::None(_) => (brute_iterations(scene), 0u64),
+        Accel::Kd(_) => {
+            let steps = match ctx.loop_budget() {
+                Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
+                None => TREE_STEPS_UNLIMITED,
+            };
+            if steps < MIN_TREE_STEPS {
+                return Err(Error::Usage(format!(
+                    "{}: {traces} traces per sample leave only {steps} traversal steps each within {}'s loop limit; lower [render] max_depth",
+                    scene.name,
+                    ctx.info().name
+                )));
+            }
+            (steps, steps)
+        }
+    };
+    let stack = match accel {
+        Accel::Kd(t) => t.depth + 1,
+        Accel::None(_) => 1,
+    };
+    let spec = [
+        (SPEC_SHADOWS, u32::from(use_lights)),
+        (SPEC_MAX_DEPTH, max_depth),
+        (SPEC_STACK_SIZE, stack),
+        (SPEC_TREE_STEPS, tree_steps as u32),
+    ];
     let mut kernel =
         ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;
 
     let start = Instant::now();
     let gs = GpuScene::new(scene);
     let basis = scene.camera.basis(w, h);
-    let bounds = accel.bounds;
+    let bounds = accel.bounds();
     let params = GpuParams {
         cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
         cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
@@ -209,6 +277,14 @@ pub fn render(
             BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&gs.triangles))?,
             BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&gs.spheres))?,
             BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&gs.shading))?,
+            BINDING_ACCEL_NODES => match accel {
+                Accel::Kd(t) => upload_checked(ctx, "accel_nodes", bytemuck::cast_slice(t.to_gpu().0))?,
+                Accel::None(_) => return Err(Error::Usage("brute force has no nodes".into())),
+            },
+            BINDING_ACCEL_INDICES => match accel {
+                Accel::Kd(t) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(t.to_gpu().1))?,
+                Accel::None(_) => return Err(Error::Usage("brute force has no indices".into())),
+            },
             BINDING_PIXELS => {
                 let size = chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
                 check_range(ctx, "pixels", size)?;
@@ -227,7 +303,7 @@ pub fn render(
     let (px_per, mut spp_per) =
         dispatch_shape(chunk_pixels, settings.spp, tests_per_sample(scene, settings), settings.dispatch_budget);
     if let Some(budget) = ctx.loop_budget() {
-        let per_sample = loop_iterations_per_sample(scene, settings);
+        let per_sample = loop_iterations_per_sample(scene, settings, per_trace);
         if per_sample > budget {
             return Err(Error::Usage(format!(
                 "{}: one sample needs up to {per_sample} loop iterations per pixel, more than the {budget} that {} runs per invocation; use fewer primitives, a lower [render] max_depth, or an acceleration structure",
@@ -253,6 +329,7 @@ pub fn render(
     let mut gpu_ms = Some(0.0f64);
     let mut dispatches = 0u32;
     let mut chunk_start = 0u64;
+    let mut overflow = 0u64;
     while chunk_start < total_pixels {
         let chunk_len = chunk_pixels.min(total_pixels - chunk_start);
         let mut p = 0u64;
@@ -291,12 +368,23 @@ pub fn render(
             frame.prim[idx] = g.prim_cost[0];
             frame.nodes[idx] = g.prim_cost[1];
             frame.tests[idx] = g.prim_cost[2];
-            frame.rays[idx] = g.prim_cost[3];
+            frame.rays[idx] = g.prim_cost[3] & !OVERFLOW_FLAG;
+            if g.prim_cost[3] & OVERFLOW_FLAG != 0 {
+                overflow += 1;
+            }
         }
         chunk_start += chunk_len;
     }
     ctx.check_validation()?;
-    let _ = GpuPixel::zeroed();
+    if overflow > 0 {
+        return Err(Error::scene(
+            scene.name.clone(),
+            format!(
+                "{overflow} pixels needed more than {tree_steps} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
+                ctx.info().name
+            ),
+        ));
+    }
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let rays: u64 = frame.rays.iter().map(|&r| u64::from(r)).sum();
     let mrays = gpu_ms.filter(|&ms| ms > 0.0).map(|ms| rays as f64 / (ms * 1e3));
@@ -310,6 +398,7 @@ pub fn render(
         height: h,
         spp: settings.spp,
         accel: settings.accel.name().to_string(),
+        build: build.clone(),
         kernel: kernel_name,
         bindings: bound_names,
         build_ms: build.build_ms,

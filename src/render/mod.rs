@@ -91,6 +91,8 @@ pub struct RenderStats {
     pub height: u32,
     pub spp: u32,
     pub accel: String,
+    /// Structure statistics (nodes, leaves, depth, references, SAH cost, bytes).
+    pub build: crate::accel::BuildStats,
     pub kernel: String,
     /// Storage and uniform buffers the kernel bound, by name.
     pub bindings: Vec<String>,

@@ -1,0 +1,98 @@
+// kd-tree traversal: front to back with a (node, tmin, tmax) stack, stopping as soon
+// as the best hit lies before the current cell's far distance. Mirrors
+// KdTree::traverse in src/accel/kdtree/mod.rs; node layout documented there:
+//   uvec2 node: x = split bits (inner) or primitive count (leaf)
+//               y = (above child or first index) << 2 | axis (3 = leaf)
+// The stack holds SPEC_STACK_SIZE entries (tree depth + 1, checked at build time);
+// every trace takes at most TREE_STEPS steps (nodes + primitive tests), beyond which
+// the pixel is flagged and the host reports an error (llvmpipe caps loop iterations).
+
+layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer KdNodes { uvec2 kd_nodes[]; };
+layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer KdIndices { uint kd_indices[]; };
+
+bool intersect_prim(uint p, Ray r, inout Hit h) {
+#if HAS_TRIANGLES && HAS_SPHERES
+    if (p < params.dims.z) return intersect_triangle(p, r, h);
+    return intersect_sphere(p - params.dims.z, r, h);
+#elif HAS_TRIANGLES
+    return intersect_triangle(p, r, h);
+#else
+    return intersect_sphere(p - params.dims.z, r, h);
+#endif
+}
+
+bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
+    vec3 inv = safe_rcp3(r.dir);
+    float tmin, tmax;
+    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, tmin, tmax)) return false;
+    uint st_node[STACK_SIZE];
+    float st_min[STACK_SIZE];
+    float st_max[STACK_SIZE];
+    uint sp = 0u;
+    uint node = 0u;
+    bool found = false;
+    uint steps = 0u;
+    while (steps < TREE_STEPS) {
+        steps += 1u;
+        g_nodes += 1u;
+        uvec2 nd = kd_nodes[node];
+        uint axis = nd.y & 3u;
+        if (axis == 3u) {
+            uint first = nd.y >> 2u;
+            uint count = nd.x;
+            for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
+                steps += 1u;
+                if (intersect_prim(kd_indices[first + k], r, h)) {
+                    found = true;
+                    if (any_hit) return true;
+                }
+            }
+            if (found && h.t < tmax) return true;
+            bool resumed = false;
+            while (sp > 0u) {
+                sp -= 1u;
+                if (!(found && st_min[sp] > h.t)) {
+                    node = st_node[sp]; tmin = st_min[sp]; tmax = st_max[sp];
+                    resumed = true;
+                    break;
+                }
+            }
+            if (!resumed) return found;
+            continue;
+        }
+        float split = uintBitsToFloat(nd.x);
+        uint above = nd.y >> 2u;
+        float o = r.origin[axis];
+        float d = r.dir[axis];
+        bool below_first = o < split || (o == split && d <= 0.0);
+        uint first_child = below_first ? node + 1u : above;
+        uint second_child = below_first ? above : node + 1u;
+        if (o == split && d == 0.0) {
+            st_node[sp] = second_child; st_min[sp] = tmin; st_max[sp] = tmax; sp += 1u;
+            node = first_child;
+            continue;
+        }
+        precise float tplane = (split - o) * inv[axis];
+        if (tplane > tmax || tplane <= 0.0) {
+            node = first_child;
+        } else if (tplane < tmin) {
+            node = second_child;
+        } else {
+            st_node[sp] = second_child; st_min[sp] = tplane; st_max[sp] = tmax; sp += 1u;
+            node = first_child;
+            tmax = tplane;
+        }
+    }
+    g_overflow = true;
+    return found;
+}
+
+bool trace_closest(Ray r, inout Hit h) {
+    return kd_traverse(r, h, false);
+}
+
+bool trace_any(Ray r) {
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    return kd_traverse(r, h, true);
+}
