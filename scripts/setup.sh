@@ -20,7 +20,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 if ! command -v cargo >/dev/null; then
-  echo "setup: cargo not found; install a Rust toolchain (rustup, Rust 1.85 or newer)" >&2
+  echo "setup: cargo not found; install a Rust toolchain (rustup, Rust 1.86 or newer)" >&2
   exit 1
 fi
 echo "setup: ok" >&2

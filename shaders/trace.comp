@@ -11,6 +11,7 @@ layout(constant_id = SPEC_SHADOWS) const bool USE_LIGHTS = true;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
 layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
+layout(constant_id = SPEC_BRUTE_UNROLL) const uint BRUTE_UNROLL = 1u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"

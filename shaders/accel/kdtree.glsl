@@ -1,5 +1,5 @@
 // kd-tree traversal: front to back with a (node, tmin, tmax) stack, stopping as soon
-// as the best hit lies before the current cell's far distance. Mirrors
+// as every remaining cell starts after the best hit. Mirrors
 // KdTree::traverse in src/accel/kdtree/mod.rs; node layout documented there:
 //   uvec2 node: x = split bits (inner) or primitive count (leaf)
 //               y = (above child or first index) << 2 | axis (3 = leaf)
@@ -9,6 +9,12 @@
 
 layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer KdNodes { uvec2 kd_nodes[]; };
 layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer KdIndices { uint kd_indices[]; };
+
+// a lies before b by more than the relative margin T_MARGIN (see KdTree::traverse).
+bool before(float a, float b) {
+    precise float m = a * (1.0 + 1e-5);
+    return m < b;
+}
 
 bool intersect_prim(uint p, Ray r, inout Hit h) {
 #if HAS_TRIANGLES && HAS_SPHERES
@@ -47,11 +53,13 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
                     if (any_hit) return true;
                 }
             }
-            if (found && h.t < tmax) return true;
+            // Pop until a cell may still hold a hit before the best (no early return
+            // on this cell's tmax: a ray inside a split plane pushes a sibling with
+            // the same interval).
             bool resumed = false;
             while (sp > 0u) {
                 sp -= 1u;
-                if (!(found && st_min[sp] > h.t)) {
+                if (!(found && before(h.t, st_min[sp]))) {
                     node = st_node[sp]; tmin = st_min[sp]; tmax = st_max[sp];
                     resumed = true;
                     break;
@@ -73,9 +81,9 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
             continue;
         }
         precise float tplane = (split - o) * inv[axis];
-        if (tplane > tmax || tplane <= 0.0) {
+        if (before(tmax, tplane) || tplane <= 0.0) {
             node = first_child;
-        } else if (tplane < tmin) {
+        } else if (before(tplane, tmin)) {
             node = second_child;
         } else {
             st_node[sp] = second_child; st_min[sp] = tplane; st_max[sp] = tmax; sp += 1u;

@@ -5,16 +5,18 @@
 // Both count into g_nodes / g_tests.
 //
 // llvmpipe (lavapipe) allows each shader invocation 65535 loop iterations in total,
-// over all loops, and silently breaks the invocation beyond that. The primitive
-// loops are therefore unrolled by hand BRUTE_UNROLL times (no loop in the IR for the
-// inner step), and the host bounds the iterations per dispatch (see
-// src/render/gpu.rs, `loop_iterations`).
+// over all loops, and silently breaks the invocation beyond that. For scenes whose
+// plain loops would cross that, the host sets BRUTE_UNROLL to 8 or 32 and the
+// primitive loops run unrolled by hand that many times (no loop in the IR for the
+// inner step); plain loops (BRUTE_UNROLL = 1) are the fastest, unrolled code is
+// several times slower on llvmpipe, so the host picks the smallest factor that fits. The host bounds the iterations per dispatch
+// (src/render/gpu.rs, `brute_iterations`).
 
 #define TEST_TRI(k) if (b + k < n) { if (intersect_triangle(b + k, r, h)) { found = true; ANY_EXIT } }
 #define TEST_SPH(k) if (b + k < n) { if (intersect_sphere(b + k, r, h)) { found = true; ANY_EXIT } }
-#define UNROLLED_16(T) T(0u) T(1u) T(2u) T(3u) T(4u) T(5u) T(6u) T(7u) \
-    T(8u) T(9u) T(10u) T(11u) T(12u) T(13u) T(14u) T(15u)
-#define UNROLLED(T) UNROLLED_16(T) \
+#define UNROLLED_8(T) T(0u) T(1u) T(2u) T(3u) T(4u) T(5u) T(6u) T(7u)
+#define UNROLLED(T) UNROLLED_8(T) \
+    T(8u) T(9u) T(10u) T(11u) T(12u) T(13u) T(14u) T(15u) \
     T(16u) T(17u) T(18u) T(19u) T(20u) T(21u) T(22u) T(23u) \
     T(24u) T(25u) T(26u) T(27u) T(28u) T(29u) T(30u) T(31u)
 
@@ -31,13 +33,27 @@ bool trace_closest(Ray r, inout Hit h) {
 #if HAS_TRIANGLES
     {
         uint n = params.dims.z;
-        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_TRI) }
+        if (BRUTE_UNROLL == 32u) {
+            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_TRI) }
+        } else if (BRUTE_UNROLL == 8u) {
+            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_TRI) }
+        } else {
+            uint b = 0u;
+            for (uint k = 0u; k < n; k++) { TEST_TRI(k) }
+        }
     }
 #endif
 #if HAS_SPHERES
     {
         uint n = params.dims.w;
-        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_SPH) }
+        if (BRUTE_UNROLL == 32u) {
+            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_SPH) }
+        } else if (BRUTE_UNROLL == 8u) {
+            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_SPH) }
+        } else {
+            uint b = 0u;
+            for (uint k = 0u; k < n; k++) { TEST_SPH(k) }
+        }
     }
 #endif
 #undef ANY_EXIT
@@ -54,13 +70,27 @@ bool trace_any(Ray r) {
 #if HAS_TRIANGLES
     {
         uint n = params.dims.z;
-        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_TRI) }
+        if (BRUTE_UNROLL == 32u) {
+            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_TRI) }
+        } else if (BRUTE_UNROLL == 8u) {
+            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_TRI) }
+        } else {
+            uint b = 0u;
+            for (uint k = 0u; k < n; k++) { TEST_TRI(k) }
+        }
     }
 #endif
 #if HAS_SPHERES
     {
         uint n = params.dims.w;
-        for (uint b = 0u; b < n; b += BRUTE_UNROLL) { UNROLLED(TEST_SPH) }
+        if (BRUTE_UNROLL == 32u) {
+            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_SPH) }
+        } else if (BRUTE_UNROLL == 8u) {
+            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_SPH) }
+        } else {
+            uint b = 0u;
+            for (uint k = 0u; k < n; k++) { TEST_SPH(k) }
+        }
     }
 #endif
 #undef ANY_EXIT

@@ -24,9 +24,9 @@ pub const BINDING_ACCEL_INDICES: u32 = 7;
 pub const WORKGROUP_SIZE: u32 = 64;
 /// Upper bound on path depth (camera ray + bounces) the kernel will ever follow.
 pub const MAX_PATH_DEPTH: u32 = 16;
-/// Primitives tested per loop iteration by the brute-force kernel (unrolled by hand
-/// in shaders/accel/none.glsl; must stay 32 to match the UNROLLED macro).
-pub const BRUTE_UNROLL: u32 = 32;
+/// Unroll factors the brute-force kernel offers (shaders/accel/none.glsl: plain
+/// loop, UNROLLED_8, UNROLLED), smallest first.
+pub const BRUTE_UNROLL_FACTORS: [u32; 3] = [1, 8, 32];
 /// Loop iterations one invocation may run in total on llvmpipe (its hard limit is
 /// 65535; beyond it the invocation silently stops); the host keeps dispatches under it.
 pub const LLVMPIPE_LOOP_BUDGET: u64 = 60_000;
@@ -41,6 +41,8 @@ pub const SPEC_STACK_SIZE: u32 = 2;
 /// Traversal steps (nodes + primitive tests) one trace may take before the pixel is
 /// flagged as overflowed.
 pub const SPEC_TREE_STEPS: u32 = 3;
+/// Unroll factor of the brute-force loops (one of BRUTE_UNROLL_FACTORS).
+pub const SPEC_BRUTE_UNROLL: u32 = 4;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -56,10 +58,10 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
-    ("BRUTE_UNROLL", BRUTE_UNROLL),
     ("SPEC_SHADOWS", SPEC_SHADOWS),
     ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
     ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
     ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
+    ("SPEC_BRUTE_UNROLL", SPEC_BRUTE_UNROLL),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
 ];

@@ -129,11 +129,10 @@ pub fn loop_iterations_per_sample(scene: &Scene, settings: &RenderSettings, per_
     traces_per_sample(scene, settings) * (per_trace + 1) + 1
 }
 
-/// Loop iterations of one brute-force trace: the loops of BRUTE_UNROLL primitives.
-fn brute_iterations(scene: &Scene) -> u64 {
-    (scene.triangles.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
-        + (scene.spheres.len() as u64).div_ceil(u64::from(BRUTE_UNROLL))
-        + 2
+/// Loop iterations of one brute-force trace with the loops unrolled `unroll` times.
+fn brute_iterations(scene: &Scene, unroll: u32) -> u64 {
+    let step = u64::from(unroll);
+    (scene.triangles.len() as u64).div_ceil(step) + (scene.spheres.len() as u64).div_ceil(step) + 2
 }
 
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
@@ -207,8 +206,16 @@ pub fn render_with(
     // Loop iterations per trace: fixed for brute force; a step budget for trees, which
     // the kernel enforces (flagging the pixel) so llvmpipe's limit is never crossed.
     let traces = traces_per_sample(scene, settings);
+    // The smallest unroll factor whose loops fit the driver's limit for one sample.
+    let unroll = match ctx.loop_budget() {
+        None => 1,
+        Some(budget) => BRUTE_UNROLL_FACTORS
+            .into_iter()
+            .find(|&u| loop_iterations_per_sample(scene, settings, brute_iterations(scene, u)) <= budget)
+            .unwrap_or(BRUTE_UNROLL_FACTORS[BRUTE_UNROLL_FACTORS.len() - 1]),
+    };
     let (per_trace, tree_steps) = match accel {
-        Accel::None(_) => (brute_iterations(scene), 0u64),
+        Accel::None(_) => (brute_iterations(scene, unroll), 0u64),
         Accel::Kd(_) => {
             let steps = match ctx.loop_budget() {
                 Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
@@ -233,6 +240,7 @@ pub fn render_with(
         (SPEC_MAX_DEPTH, max_depth),
         (SPEC_STACK_SIZE, stack),
         (SPEC_TREE_STEPS, tree_steps as u32),
+        (SPEC_BRUTE_UNROLL, unroll),
     ];
     let mut kernel =
         ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;

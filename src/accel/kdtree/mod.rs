@@ -82,6 +82,18 @@ pub(crate) fn shrink(b: &Aabb) -> Aabb {
     Aabb { min: b.min + pad, max: b.max - pad }
 }
 
+/// Relative margin of traversal's comparisons against cell boundaries: about 80 ulps, so
+/// that primitive tests whose own t rounds differently (Moller-Trumbore far from the
+/// origin) still see every cell a hit could lie in.
+pub const T_MARGIN: f32 = 1e-5;
+
+/// `a` lies before `b` by more than the margin (both are ray distances, b >= 0).
+/// Twin of `before` in shaders/accel/kdtree.glsl.
+#[inline]
+pub fn before(a: f32, b: f32) -> bool {
+    a * (1.0 + T_MARGIN) < b
+}
+
 /// Which builder made a tree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum KdBuilder {
@@ -309,8 +321,13 @@ impl KdTree {
         self.traverse(scene, ray, &mut best, true)
     }
 
-    /// Front-to-back traversal with a (node, tmin, tmax) stack; stops as soon as the
-    /// best hit lies before the current cell's far distance. Returns whether it hit.
+    /// Front-to-back traversal with a (node, tmin, tmax) stack; stops as soon as every
+    /// remaining cell starts after the best hit. Returns whether it hit.
+    ///
+    /// Cell boundaries come from `(split - o) * inv`, rounded differently from the
+    /// primitive tests' t, so every comparison against a boundary keeps a relative
+    /// margin of [`T_MARGIN`]: a hit within it of a boundary visits both sides, which
+    /// makes ties at shared edges resolve exactly as brute force does.
     fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         let Some((mut tmin, mut tmax)) = self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax) else {
@@ -334,12 +351,12 @@ impl KdTree {
                         }
                     }
                 }
-                if found && best.t < tmax {
-                    return true;
-                }
+                // Next cell: pop until one may still hold a hit before the best. (No
+                // early return on the current cell's tmax: a ray lying in a split plane
+                // pushes a sibling with the same interval.)
                 loop {
                     let Some((n, a, b)) = stack.pop() else { return found };
-                    if !(found && a > best.t) {
+                    if !(found && before(best.t, a)) {
                         (node, tmin, tmax) = (n, a, b);
                         break;
                     }
@@ -358,9 +375,9 @@ impl KdTree {
                 continue;
             }
             let tplane = (split - o[axis]) * iv[axis];
-            if tplane > tmax || tplane <= 0.0 {
+            if before(tmax, tplane) || tplane <= 0.0 {
                 node = first;
-            } else if tplane < tmin {
+            } else if before(tplane, tmin) {
                 node = second;
             } else {
                 stack.push((second, tplane, tmax));
