@@ -618,9 +618,9 @@ fn zero_spp_is_rejected_without_a_device() {
 fn unknown_accel() {
     let fx = Fixture::new();
     let obj = fx.triangle_obj();
-    render_fails(&fx, &obj, &["--accel", "kdtree"], Device::Absent, &["--accel", "kdtree"]);
-    let o = arbor(&["info".into(), obj, "--accel".into(), "kdtree".into()], Device::Absent, &[]);
-    expect_failure(&o, &["--accel", "kdtree"]);
+    render_fails(&fx, &obj, &["--accel", "octree-x"], Device::Absent, &["--accel", "octree-x"]);
+    let o = arbor(&["info".into(), obj, "--accel".into(), "octree-x".into()], Device::Absent, &[]);
+    expect_failure(&o, &["--accel", "octree-x"]);
 }
 
 #[test]

@@ -51,35 +51,44 @@ pub fn clipped_bounds(g: &PrimGeom, b: &Aabb, exact: bool) -> Option<Aabb> {
 /// Clips a triangle to a box (Sutherland–Hodgman against its six planes, in f64) and
 /// returns the bounds of what remains, rounded outward to f32 and limited to the box.
 pub fn clip_triangle(v: &[Vec3; 3], b: &Aabb) -> Option<Aabb> {
-    let mut poly: Vec<DVec3> = v.iter().map(|p| p.as_dvec3()).collect();
-    let mut next: Vec<DVec3> = Vec::with_capacity(9);
+    // A triangle clipped by 6 planes has at most 9 vertices.
+    let mut poly = [DVec3::ZERO; 9];
+    let mut next = [DVec3::ZERO; 9];
+    let (mut len, mut next_len);
+    for (k, p) in v.iter().enumerate() {
+        poly[k] = p.as_dvec3();
+    }
+    len = 3;
     for axis in 0..3 {
         for (bound, keep_above) in [(f64::from(b.min[axis]), true), (f64::from(b.max[axis]), false)] {
-            next.clear();
+            next_len = 0;
             let inside = |p: &DVec3| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
-            for i in 0..poly.len() {
+            for i in 0..len {
                 let cur = poly[i];
-                let prev = poly[(i + poly.len() - 1) % poly.len()];
+                let prev = poly[(i + len - 1) % len];
                 let (ci, pi) = (inside(&cur), inside(&prev));
-                if ci != pi {
+                if ci != pi && next_len < 9 {
                     let t = (bound - prev[axis]) / (cur[axis] - prev[axis]);
                     let mut x = prev + (cur - prev) * t;
                     x[axis] = bound;
-                    next.push(x);
+                    next[next_len] = x;
+                    next_len += 1;
                 }
-                if ci {
-                    next.push(cur);
+                if ci && next_len < 9 {
+                    next[next_len] = cur;
+                    next_len += 1;
                 }
             }
             std::mem::swap(&mut poly, &mut next);
-            if poly.is_empty() {
+            len = next_len;
+            if len == 0 {
                 return None;
             }
         }
     }
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &poly {
+    for p in &poly[..len] {
         lo = lo.min(*p);
         hi = hi.max(*p);
     }

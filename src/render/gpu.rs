@@ -107,10 +107,16 @@ impl GpuScene {
 }
 
 /// Estimated primitive tests one sample of one pixel costs.
-fn tests_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
-    let prims = scene.prim_count().max(1) as u64;
+/// Estimated work (primitive tests or traversal steps) of one sample of one pixel,
+/// used to size dispatches: every primitive for brute force; for a tree, a few
+/// steps per level (the measured mean is about one step per level plus a few tests).
+fn tests_per_sample(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> u64 {
+    let per_ray = match accel {
+        Accel::None(_) => scene.prim_count().max(1) as u64,
+        Accel::Kd(t) => 4 * (u64::from(t.depth) + 8),
+    };
     let rays = if settings.primary_only { 1 } else { 1 + scene.lights.len() as u64 + 1 };
-    prims * rays
+    per_ray * rays
 }
 
 /// Traces one sample may run: at most `max_depth` closest-hit rays and one shadow
@@ -309,7 +315,7 @@ pub fn render_with(
     let pixel_buf = pixel_buf_index.and_then(|i| keep.get(i)).ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
 
     let (px_per, mut spp_per) =
-        dispatch_shape(chunk_pixels, settings.spp, tests_per_sample(scene, settings), settings.dispatch_budget);
+        dispatch_shape(chunk_pixels, settings.spp, tests_per_sample(scene, settings, accel), settings.dispatch_budget);
     if let Some(budget) = ctx.loop_budget() {
         let per_sample = loop_iterations_per_sample(scene, settings, per_trace);
         if per_sample > budget {
@@ -417,6 +423,7 @@ pub fn render_with(
         mrays_per_s: mrays,
         accel_bytes: build.bytes,
         mean_prims_tested: mean_tests,
+        mean_nodes_visited: frame.nodes.iter().map(|&t| t as f64).sum::<f64>() / total_pixels as f64,
     };
     Ok((frame, stats))
 }

@@ -106,5 +106,8 @@ pub struct RenderStats {
     pub rays: u64,
     pub mrays_per_s: Option<f64>,
     pub accel_bytes: u64,
+    /// Mean primitives tested by the pixel-centre camera ray.
     pub mean_prims_tested: f64,
+    /// Mean nodes (or boxes) visited by the pixel-centre camera ray.
+    pub mean_nodes_visited: f64,
 }

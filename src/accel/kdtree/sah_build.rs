@@ -22,19 +22,38 @@ const START: u8 = 2;
 /// Children with more primitives than this are built in parallel.
 const PARALLEL_MIN: usize = 1024;
 
+/// One event, 16 bytes. The key orders events by position (32 bits of a float
+/// mapped to an order-preserving integer), then kind (2 bits), then primitive (30
+/// bits: the node's local index), a total order independent of thread count.
 #[derive(Debug, Clone, Copy)]
 struct Event {
+    key: u64,
     pos: f32,
-    kind: u8,
-    /// Index into the node's primitive list.
-    prim: u32,
 }
 
-fn key(e: &Event) -> (u32, u8, u32) {
-    // Positions are finite; map to a u32 that orders like the float.
-    let b = e.pos.to_bits();
-    let ord = if b >> 31 == 1 { !b } else { b | 0x8000_0000 };
-    (ord, e.kind, e.prim)
+impl Event {
+    fn new(pos: f32, kind: u8, prim: u32) -> Event {
+        // Positions are finite; map to a u32 that orders like the float (-0 = +0).
+        let b = (pos + 0.0).to_bits();
+        let ord = if b >> 31 == 1 { !b } else { b | 0x8000_0000 };
+        Event { key: (u64::from(ord) << 32) | (u64::from(kind) << 30) | u64::from(prim), pos }
+    }
+    #[inline]
+    fn kind(&self) -> u8 {
+        ((self.key >> 30) & 3) as u8
+    }
+    #[inline]
+    fn prim(&self) -> u32 {
+        (self.key & 0x3fff_ffff) as u32
+    }
+    #[inline]
+    fn with_prim(&self, prim: u32) -> Event {
+        Event { key: (self.key & !0x3fff_ffff) | u64::from(prim), pos: self.pos }
+    }
+}
+
+fn key(e: &Event) -> u64 {
+    e.key
 }
 
 struct Ctx<'a> {
@@ -50,14 +69,18 @@ struct NodeData {
     events: [Vec<Event>; 3],
 }
 
+fn push_axis_events(list: &mut Vec<Event>, b: &Aabb, axis: usize, prim: u32) {
+    if b.min[axis] == b.max[axis] {
+        list.push(Event::new(b.min[axis], PLANAR, prim));
+    } else {
+        list.push(Event::new(b.min[axis], START, prim));
+        list.push(Event::new(b.max[axis], END, prim));
+    }
+}
+
 fn push_events(events: &mut [Vec<Event>; 3], b: &Aabb, prim: u32) {
     for (axis, list) in events.iter_mut().enumerate() {
-        if b.min[axis] == b.max[axis] {
-            list.push(Event { pos: b.min[axis], kind: PLANAR, prim });
-        } else {
-            list.push(Event { pos: b.min[axis], kind: START, prim });
-            list.push(Event { pos: b.max[axis], kind: END, prim });
-        }
+        push_axis_events(list, b, axis, prim);
     }
 }
 
@@ -89,59 +112,77 @@ struct Plane {
     planar_left: bool,
 }
 
-fn find_plane(ctx: &Ctx, node: &NodeData) -> Option<Plane> {
+/// Best plane on one axis by one sweep over its sorted events.
+fn sweep_axis(ctx: &Ctx, node: &NodeData, axis: usize, parent: f32) -> Option<Plane> {
     let n = node.prims.len();
     let b = &node.bbox;
-    let parent = area(b);
+    let costs = &ctx.params.costs;
+    let ev = &node.events[axis];
+    let e = b.extent();
+    let (e1, e2) = (e[(axis + 1) % 3], e[(axis + 2) % 3]);
+    let (cap, perim) = (e1 * e2, e1 + e2);
+    let mut best: Option<Plane> = None;
+    let (mut nl, mut nr) = (0usize, n);
+    let mut i = 0;
+    while i < ev.len() {
+        let p = ev[i].pos;
+        let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
+        while i < ev.len() && ev[i].pos == p && ev[i].kind() == END {
+            pe += 1;
+            i += 1;
+        }
+        while i < ev.len() && ev[i].pos == p && ev[i].kind() == PLANAR {
+            pp += 1;
+            i += 1;
+        }
+        while i < ev.len() && ev[i].pos == p && ev[i].kind() == START {
+            ps += 1;
+            i += 1;
+        }
+        nr -= pp + pe;
+        if p > b.min[axis] && p < b.max[axis] {
+            // Child areas: 2 (cap + length x perimeter of the other two axes).
+            let al = 2.0 * (cap + (p - b.min[axis]) * perim);
+            let ar = 2.0 * (cap + (b.max[axis] - p) * perim);
+            let left = costs.split(parent, al, nl + pp, ar, nr);
+            let right = costs.split(parent, al, nl, ar, nr + pp);
+            let (cost, planar_left) = if left <= right { (left, true) } else { (right, false) };
+            if best.as_ref().is_none_or(|bp| cost < bp.cost) {
+                best = Some(Plane { cost, axis, pos: p, planar_left });
+            }
+        }
+        nl += ps + pp;
+    }
+    best
+}
+
+/// The cheapest plane over the three axes (ties: lower axis, then lower position).
+fn find_plane(ctx: &Ctx, node: &NodeData) -> Option<Plane> {
+    let parent = area(&node.bbox);
     if parent <= 0.0 {
         return None;
     }
-    let costs = &ctx.params.costs;
+    let per_axis: Vec<Option<Plane>> = if node.prims.len() > PARALLEL_MIN {
+        use rayon::prelude::*;
+        (0..3).into_par_iter().map(|a| sweep_axis(ctx, node, a, parent)).collect()
+    } else {
+        (0..3).map(|a| sweep_axis(ctx, node, a, parent)).collect()
+    };
     let mut best: Option<Plane> = None;
-    for axis in 0..3 {
-        let ev = &node.events[axis];
-        let (mut nl, mut nr) = (0usize, n);
-        let mut i = 0;
-        while i < ev.len() {
-            let p = ev[i].pos;
-            let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
-            while i < ev.len() && ev[i].pos == p && ev[i].kind == END {
-                pe += 1;
-                i += 1;
-            }
-            while i < ev.len() && ev[i].pos == p && ev[i].kind == PLANAR {
-                pp += 1;
-                i += 1;
-            }
-            while i < ev.len() && ev[i].pos == p && ev[i].kind == START {
-                ps += 1;
-                i += 1;
-            }
-            nr -= pp + pe;
-            if p > b.min[axis] && p < b.max[axis] {
-                let (mut lb, mut rb) = (*b, *b);
-                lb.max[axis] = p;
-                rb.min[axis] = p;
-                let (al, ar) = (area(&lb), area(&rb));
-                let left = costs.split(parent, al, nl + pp, ar, nr);
-                let right = costs.split(parent, al, nl, ar, nr + pp);
-                let (cost, planar_left) = if left <= right { (left, true) } else { (right, false) };
-                if best.as_ref().is_none_or(|bp| cost < bp.cost) {
-                    best = Some(Plane { cost, axis, pos: p, planar_left });
-                }
-            }
-            nl += ps + pp;
+    for p in per_axis.into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| p.cost < b.cost) {
+            best = Some(p);
         }
     }
     best
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Both,
-    Left,
-    Right,
-}
+// Side codes of a primitive relative to the chosen plane.
+const BOTH: u8 = 0;
+const LEFT: u8 = 1;
+const RIGHT: u8 = 2;
+/// Set when a primitive's events are regenerated from clipped bounds.
+const REGEN: u8 = 4;
 
 fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
     let n = node.prims.len();
@@ -155,19 +196,13 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
     let (axis, pos) = (plane.axis, plane.pos);
 
     // Classify with one sweep over the split axis.
-    let mut side = vec![Side::Both; n];
+    let mut side = vec![BOTH; n];
     for e in &node.events[axis] {
-        let s = &mut side[e.prim as usize];
-        match e.kind {
-            END if e.pos <= pos => *s = Side::Left,
-            START if e.pos >= pos => *s = Side::Right,
-            PLANAR => {
-                if e.pos < pos || (e.pos == pos && plane.planar_left) {
-                    *s = Side::Left;
-                } else {
-                    *s = Side::Right;
-                }
-            }
+        let s = &mut side[e.prim() as usize];
+        match e.kind() {
+            END if e.pos <= pos => *s = LEFT,
+            START if e.pos >= pos => *s = RIGHT,
+            PLANAR => *s = if e.pos < pos || (e.pos == pos && plane.planar_left) { LEFT } else { RIGHT },
             _ => {}
         }
     }
@@ -176,103 +211,87 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
     rbox.min[axis] = pos;
 
     // Straddling primitives: clip to each child; one whose part in a child is empty
-    // leaves that child.
-    let mut clip_l: Vec<Option<Aabb>> = vec![None; n];
-    let mut clip_r: Vec<Option<Aabb>> = vec![None; n];
-    for i in 0..n {
-        if side[i] == Side::Both {
-            let g = &ctx.geoms[node.prims[i] as usize];
-            let l = prim::clipped_bounds(g, &lbox, ctx.params.perfect_splits);
-            let r = prim::clipped_bounds(g, &rbox, ctx.params.perfect_splits);
-            match (l, r) {
-                (Some(_), Some(_)) => {
-                    clip_l[i] = l;
-                    clip_r[i] = r;
-                }
-                (Some(_), None) => {
-                    side[i] = Side::Left;
-                    clip_l[i] = l;
-                }
-                (None, Some(_)) => {
-                    side[i] = Side::Right;
-                    clip_r[i] = r;
-                }
-                (None, None) => {
-                    // Numerically lost: keep it on both sides with box-clipped bounds.
-                    let gb = prim::bounds(g);
-                    clip_l[i] = Some(prim::intersect_boxes(&gb, &lbox).unwrap_or(lbox));
-                    clip_r[i] = Some(prim::intersect_boxes(&gb, &rbox).unwrap_or(rbox));
-                }
-            }
+    // leaves that child. All of them get regenerated events.
+    let mut straddlers: Vec<(u32, Option<Aabb>, Option<Aabb>)> = Vec::new();
+    for (i, s) in side.iter_mut().enumerate() {
+        if *s != BOTH {
+            continue;
         }
+        let g = &ctx.geoms[node.prims[i] as usize];
+        let l = prim::clipped_bounds(g, &lbox, ctx.params.perfect_splits);
+        let r = prim::clipped_bounds(g, &rbox, ctx.params.perfect_splits);
+        let (l, r, new_side) = match (l, r) {
+            (Some(_), Some(_)) => (l, r, BOTH),
+            (Some(_), None) => (l, None, LEFT),
+            (None, Some(_)) => (None, r, RIGHT),
+            (None, None) => {
+                // Numerically lost: keep it on both sides with box-clipped bounds.
+                let gb = prim::bounds(g);
+                let l = prim::intersect_boxes(&gb, &lbox).unwrap_or(lbox);
+                let r = prim::intersect_boxes(&gb, &rbox).unwrap_or(rbox);
+                (Some(l), Some(r), BOTH)
+            }
+        };
+        *s = new_side | REGEN;
+        straddlers.push((i as u32, l, r));
     }
     // Local index maps (monotone, so child lists stay ascending).
     let mut lmap = vec![u32::MAX; n];
     let mut rmap = vec![u32::MAX; n];
     let (mut lprims, mut rprims) = (Vec::new(), Vec::new());
     for i in 0..n {
-        let (to_l, to_r) = match side[i] {
-            Side::Left => (true, clip_l[i].is_some()),
-            Side::Right => (clip_r[i].is_some(), true),
-            Side::Both => (true, true),
-        };
-        // A one-sided primitive that was clipped keeps only regenerated events.
-        let (to_l, to_r) = match side[i] {
-            Side::Left => (to_l, false),
-            Side::Right => (false, to_r),
-            Side::Both => (to_l, to_r),
-        };
-        if to_l {
+        let s = side[i] & 3;
+        if s != RIGHT {
             lmap[i] = lprims.len() as u32;
             lprims.push(node.prims[i]);
         }
-        if to_r {
+        if s != LEFT {
             rmap[i] = rprims.len() as u32;
             rprims.push(node.prims[i]);
         }
     }
-    // Events: one-sided primitives keep theirs (already sorted); straddlers (and
-    // one-sided primitives that were clipped) get new ones, sorted then merged.
-    let regenerated = |i: usize| side[i] == Side::Both || clip_l[i].is_some() || clip_r[i].is_some();
+    // Per axis: one-sided primitives keep their (sorted) events, regenerated ones get
+    // new events, sorted, then merged.
+    let split_axis = |a: usize| -> (Vec<Event>, Vec<Event>) {
+        let old = &node.events[a];
+        let mut lo = Vec::with_capacity(old.len() / 2 + 8);
+        let mut ro = Vec::with_capacity(old.len() / 2 + 8);
+        for e in old {
+            let i = e.prim() as usize;
+            match side[i] {
+                LEFT => lo.push(e.with_prim(lmap[i])),
+                RIGHT => ro.push(e.with_prim(rmap[i])),
+                _ => {}
+            }
+        }
+        let mut ln = Vec::new();
+        let mut rn = Vec::new();
+        for &(i, l, r) in &straddlers {
+            let i = i as usize;
+            if let Some(b) = l {
+                push_axis_events(&mut ln, &b, a, lmap[i]);
+            }
+            if let Some(b) = r {
+                push_axis_events(&mut rn, &b, a, rmap[i]);
+            }
+        }
+        ln.sort_unstable_by_key(key);
+        rn.sort_unstable_by_key(key);
+        (merge(lo, ln), merge(ro, rn))
+    };
+    let per_axis: Vec<(Vec<Event>, Vec<Event>)> = if n > PARALLEL_MIN {
+        use rayon::prelude::*;
+        (0..3).into_par_iter().map(split_axis).collect()
+    } else {
+        (0..3).map(split_axis).collect()
+    };
+    drop(node.events);
     let mut lev: [Vec<Event>; 3] = Default::default();
     let mut rev: [Vec<Event>; 3] = Default::default();
-    for a in 0..3 {
-        let mut lo = Vec::with_capacity(node.events[a].len() / 2);
-        let mut ro = Vec::with_capacity(node.events[a].len() / 2);
-        for e in &node.events[a] {
-            let i = e.prim as usize;
-            if regenerated(i) {
-                continue;
-            }
-            match side[i] {
-                Side::Left => lo.push(Event { prim: lmap[i], ..*e }),
-                Side::Right => ro.push(Event { prim: rmap[i], ..*e }),
-                Side::Both => {}
-            }
-        }
-        lev[a] = lo;
-        rev[a] = ro;
+    for (a, (l, r)) in per_axis.into_iter().enumerate() {
+        lev[a] = l;
+        rev[a] = r;
     }
-    let mut lnew: [Vec<Event>; 3] = Default::default();
-    let mut rnew: [Vec<Event>; 3] = Default::default();
-    for i in 0..n {
-        if !regenerated(i) {
-            continue;
-        }
-        if let (Some(b), true) = (clip_l[i], lmap[i] != u32::MAX) {
-            push_events(&mut lnew, &b, lmap[i]);
-        }
-        if let (Some(b), true) = (clip_r[i], rmap[i] != u32::MAX) {
-            push_events(&mut rnew, &b, rmap[i]);
-        }
-    }
-    for a in 0..3 {
-        lnew[a].sort_unstable_by_key(key);
-        rnew[a].sort_unstable_by_key(key);
-        lev[a] = merge(std::mem::take(&mut lev[a]), std::mem::take(&mut lnew[a]));
-        rev[a] = merge(std::mem::take(&mut rev[a]), std::mem::take(&mut rnew[a]));
-    }
-    drop(node.events);
     let left = NodeData { bbox: lbox, prims: lprims, events: lev };
     let right = NodeData { bbox: rbox, prims: rprims, events: rev };
     let (below, above) = if n > PARALLEL_MIN {
@@ -290,7 +309,7 @@ fn merge(a: Vec<Event>, b: Vec<Event>) -> Vec<Event> {
     let mut out = Vec::with_capacity(a.len() + b.len());
     let (mut i, mut j) = (0, 0);
     while i < a.len() && j < b.len() {
-        if key(&a[i]) <= key(&b[j]) {
+        if a[i].key <= b[j].key {
             out.push(a[i]);
             i += 1;
         } else {
