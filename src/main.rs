@@ -83,8 +83,9 @@ enum Command {
         /// Samples per pixel (jittered; sample 0 goes through the pixel centre).
         #[arg(long, default_value_t = 1)]
         spp: u32,
-        /// Acceleration structure.
-        #[arg(long, default_value = "none")]
+        /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
+        /// tree), none (brute force).
+        #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
         /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
         /// cost (primitives tested). PFM or EXR by extension.
@@ -114,7 +115,7 @@ enum Command {
         /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
         scene: String,
         /// Acceleration structure to build and describe.
-        #[arg(long, default_value = "none")]
+        #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
         /// Print JSON instead of text.
         #[arg(long)]

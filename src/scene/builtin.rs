@@ -65,10 +65,8 @@ fn default_scene() -> Result<Scene> {
     b.scene.camera =
         Camera { eye: Vec3::new(0.0, 1.4, 3.6), look_at: Vec3::new(0.0, 0.45, 0.0), up: Vec3::Y, vfov: 40.0 };
     b.scene.background = Vec3::new(0.55, 0.65, 0.8);
-    // Small by default: brute force over 100k triangles on lavapipe (2 cores) takes
-    // about 45 s at this size.
-    b.scene.width = 160;
-    b.scene.height = 120;
+    b.scene.width = 640;
+    b.scene.height = 480;
     b.finish()
 }
 
