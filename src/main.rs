@@ -88,7 +88,7 @@ enum Command {
         #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
         /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
-        /// cost (primitives tested). PFM or EXR by extension.
+        /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
         #[arg(long, value_name = "NAME=PATH,...")]
         aov: Vec<String>,
         /// Write statistics JSON here.
@@ -282,8 +282,14 @@ fn run(cli: Cli) -> Result<()> {
                         output::write_aov(path, w, h, 1, &p)?
                     }
                     _ => {
-                        let c: Vec<f32> = frame.tests.iter().map(|&t| t as f32).collect();
-                        output::write_aov(path, w, h, 1, &c)?
+                        // RGB: nodes visited, primitives tested, 0.
+                        let c: Vec<f32> = frame
+                            .nodes
+                            .iter()
+                            .zip(&frame.tests)
+                            .flat_map(|(&n, &t)| [n as f32, t as f32, 0.0])
+                            .collect();
+                        output::write_aov(path, w, h, 3, &c)?
                     }
                 }
             }
