@@ -63,6 +63,9 @@ struct BenchArgs {
     /// Write all figures as JSON here.
     #[arg(long, value_name = "PATH")]
     json: Option<PathBuf>,
+    /// kd-tree builder parameters (see `render --kd`).
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    kd: String,
     #[command(flatten)]
     device: DeviceArgs,
 }
@@ -87,6 +90,12 @@ enum Command {
         /// tree), none (brute force).
         #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
+        /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
+        /// kt, ki (SAH traversal / intersection cost), bonus (empty-space factor),
+        /// leaf (most primitives a node keeps without trying to split), perfect
+        /// (true/false), depth (number or auto).
+        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+        kd: String,
         /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
         /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
         #[arg(long, value_name = "NAME=PATH,...")]
@@ -117,6 +126,9 @@ enum Command {
         /// Acceleration structure to build and describe.
         #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
+        /// kd-tree builder parameters (see `render --kd`).
+        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+        kd: String,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -231,8 +243,10 @@ fn run(cli: Cli) -> Result<()> {
             kernel,
             dispatch_budget,
             quiet,
+            kd,
         } => {
             let aovs = parse_aovs(&aov)?;
+            let kd = arbor::accel::kdtree::KdParams::parse(&kd).map_err(anyhow::Error::msg)?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
             for (_, p) in &aovs {
@@ -252,6 +266,7 @@ fn run(cli: Cli) -> Result<()> {
             settings.spp = spp;
             settings.seed = seed;
             settings.accel = accel;
+            settings.kd = kd;
             settings.dispatch_budget = dispatch_budget.max(1);
             settings.kernel = if kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
             let pb = progress_bar(quiet);
@@ -313,9 +328,10 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Info { scene, accel, json } => {
+        Command::Info { scene, accel, json, kd } => {
+            let kd = arbor::accel::kdtree::KdParams::parse(&kd).map_err(anyhow::Error::msg)?;
             let scene = Scene::load(&scene)?;
-            let built = arbor::accel::Accel::build(accel, &scene);
+            let built = arbor::accel::Accel::build_with(accel, &scene, &kd);
             let valid = built.validate(&scene);
             let st = built.stats(&scene);
             let bounds = scene.bounds();
@@ -422,6 +438,7 @@ fn bench_case(
     ctx: &Context,
     scene: &Scene,
     kind: AccelKind,
+    kd: &arbor::accel::kdtree::KdParams,
     size: (u32, u32),
     repeat: usize,
     pb: &ProgressBar,
@@ -432,7 +449,7 @@ fn bench_case(
     let mut case =
         Case { build_ms: Vec::new(), trace_ms: Vec::new(), rates: Vec::new(), stats: Default::default(), size };
     for r in 0..=repeat {
-        let accel = arbor::accel::Accel::build(kind, scene);
+        let accel = arbor::accel::Accel::build_with(kind, scene, kd);
         let (_, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
         pb.inc(1);
         if r > 0 {
@@ -451,6 +468,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         check_writable(p)?;
     }
     let (w, h) = parse_size(&args.size)?;
+    let kd = arbor::accel::kdtree::KdParams::parse(&args.kd).map_err(anyhow::Error::msg)?;
     let repeat = args.repeat.max(1);
     let ctx = context(&args.device)?;
     eprintln!(
@@ -475,7 +493,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         for &kind in &args.accel {
             pb.set_message(format!("{nt} triangles, {kind}"));
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
-            let c = bench_case(&ctx, &scene, kind, size, repeat, &pb)?;
+            let c = bench_case(&ctx, &scene, kind, &kd, size, repeat, &pb)?;
             let rate = median(&mut c.rates.clone());
             if kind == AccelKind::None {
                 brute_rate = Some(rate);

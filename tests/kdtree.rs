@@ -118,6 +118,7 @@ fn edge_cases() -> Vec<Scene> {
 fn presets() -> Vec<(&'static str, KdParams)> {
     vec![
         ("default", KdParams::default()),
+        ("quality", KdParams::quality()),
         ("fast", KdParams::fast()),
         ("shallow", KdParams { max_depth: Some(3), ..KdParams::default() }),
         ("big leaves", KdParams { leaf_size: 16, ..KdParams::default() }),
@@ -152,7 +153,7 @@ fn deep_trees_are_built_and_traversed() {
         }
     }
     let scene = scene_from("line", Some(tris(&list)), &[]);
-    let t = KdTree::build(&scene, &KdParams { max_depth: Some(40), ..KdParams::default() });
+    let t = KdTree::build(&scene, &KdParams { max_depth: Some(40), ..KdParams::quality() });
     t.validate(&scene).expect("valid");
     assert!(t.depth > 20, "depth {}", t.depth);
     assert!(t.depth <= MAX_KD_DEPTH);

@@ -103,9 +103,14 @@ pub enum Accel {
 impl Accel {
     /// Builds `kind` for `scene` with default parameters.
     pub fn build(kind: AccelKind, scene: &crate::scene::Scene) -> Accel {
+        Self::build_with(kind, scene, &kdtree::KdParams::default())
+    }
+
+    /// Builds `kind` for `scene`; `kd` applies to the SAH kd-tree.
+    pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, kd: &kdtree::KdParams) -> Accel {
         match kind {
             AccelKind::None => Accel::None(none::BruteForce::build(scene)),
-            AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, &kdtree::KdParams::default())),
+            AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, kd)),
             AccelKind::BspCourse => Accel::Kd(kdtree::KdTree::build_course(scene)),
         }
     }

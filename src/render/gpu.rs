@@ -168,7 +168,7 @@ pub fn render(
     settings: &RenderSettings,
     progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
-    let accel = Accel::build(settings.accel, scene);
+    let accel = Accel::build_with(settings.accel, scene, &settings.kd);
     accel.validate(scene).map_err(|m| Error::scene(scene.name.clone(), m))?;
     render_with(ctx, scene, settings, &accel, progress)
 }

@@ -48,16 +48,63 @@ pub struct KdParams {
 }
 
 impl Default for KdParams {
-    /// The quality preset: perfect splits, Kt = 1, Ki = 1.5, empty bonus 0.8.
+    /// The balanced preset: perfect splits, Kt = 1, Ki = 1.5, empty bonus 0.8, and
+    /// nodes of up to 8 primitives kept as leaves. Measured on lavapipe (75k
+    /// triangles) it traces as fast as `quality()` within the noise, builds about twice
+    /// as fast and takes a third of the memory (28 against 96 bytes per triangle).
     fn default() -> Self {
-        KdParams { costs: SahCosts::default(), perfect_splits: true, leaf_size: 1, max_depth: None }
+        KdParams { costs: SahCosts::default(), perfect_splits: true, leaf_size: 8, max_depth: None }
     }
 }
 
 impl KdParams {
+    /// Lowest SAH cost: every node with more than one primitive tries to split.
+    pub fn quality() -> Self {
+        KdParams { leaf_size: 1, ..Self::default() }
+    }
+
     /// Faster build: split candidates from bounding boxes only (no clipping).
     pub fn fast() -> Self {
         KdParams { perfect_splits: false, ..Self::default() }
+    }
+
+    /// Parses a preset name (`default`, `quality`, `fast`) or `key=value` pairs separated by
+    /// commas, applied over the default: `kt`, `ki`, `bonus`, `leaf`, `perfect`
+    /// (true/false), `depth` (a number or `auto`).
+    pub fn parse(spec: &str) -> Result<KdParams, String> {
+        let mut p = KdParams::default();
+        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item {
+                "default" => p = KdParams::default(),
+                "fast" => p = KdParams::fast(),
+                "quality" => p = KdParams::quality(),
+                _ => {
+                    let (k, v) = item.split_once('=').ok_or_else(|| {
+                        format!("--kd {item:?}: expected a preset (default, quality, fast) or KEY=VALUE")
+                    })?;
+                    let num = |v: &str| -> Result<f32, String> {
+                        v.parse::<f32>()
+                            .ok()
+                            .filter(|x| x.is_finite() && *x >= 0.0)
+                            .ok_or_else(|| format!("--kd {k}={v}: expected a non-negative number"))
+                    };
+                    match k {
+                        "kt" => p.costs.traversal = num(v)?,
+                        "ki" => p.costs.intersect = num(v)?,
+                        "bonus" => p.costs.empty_bonus = num(v)?,
+                        "leaf" => p.leaf_size = num(v)? as usize,
+                        "perfect" => {
+                            p.perfect_splits =
+                                v.parse().map_err(|_| format!("--kd perfect={v}: expected true or false"))?
+                        }
+                        "depth" if v == "auto" => p.max_depth = None,
+                        "depth" => p.max_depth = Some((num(v)? as u32).min(MAX_KD_DEPTH)),
+                        _ => return Err(format!("--kd: unknown key '{k}' (kt, ki, bonus, leaf, perfect, depth)")),
+                    }
+                }
+            }
+        }
+        Ok(p)
     }
 
     /// The depth limit for `n` primitives.
