@@ -624,6 +624,15 @@ fn unknown_accel() {
 }
 
 #[test]
+fn bad_kd_parameters() {
+    let fx = Fixture::new();
+    let obj = fx.triangle_obj();
+    render_fails(&fx, &obj, &["--kd", "leafs=3"], Device::Absent, &["--kd", "unknown key"]);
+    render_fails(&fx, &obj, &["--kd", "ki=-1"], Device::Absent, &["--kd", "non-negative"]);
+    render_fails(&fx, &obj, &["--kd", "perfect=maybe"], Device::Absent, &["--kd", "true or false"]);
+}
+
+#[test]
 fn unknown_aov() {
     let fx = Fixture::new();
     let obj = fx.triangle_obj();
