@@ -26,36 +26,34 @@ bool scene_box(Ray r) {
     return ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, safe_rcp3(r.dir), r.tmin, r.tmax, enter, exit_t);
 }
 
+// Tests primitives [0, n) with TEST (TEST_TRI or TEST_SPH), unrolled BRUTE_UNROLL times.
+#define BRUTE_LOOP(n_expr, TEST) \
+    { \
+        uint n = n_expr; \
+        if (BRUTE_UNROLL == 32u) { \
+            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST) } \
+        } else if (BRUTE_UNROLL == 8u) { \
+            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST) } \
+        } else { \
+            uint b = 0u; \
+            for (uint k = 0u; k < n; k++) { TEST(k) } \
+        } \
+    }
+
+// Every primitive of the scene; ANY_EXIT decides what a hit does besides recording it.
+#if HAS_TRIANGLES && HAS_SPHERES
+#define BRUTE_ALL BRUTE_LOOP(params.dims.z, TEST_TRI) BRUTE_LOOP(params.dims.w, TEST_SPH)
+#elif HAS_TRIANGLES
+#define BRUTE_ALL BRUTE_LOOP(params.dims.z, TEST_TRI)
+#else
+#define BRUTE_ALL BRUTE_LOOP(params.dims.w, TEST_SPH)
+#endif
+
 bool trace_closest(Ray r, inout Hit h) {
     if (!scene_box(r)) return false;
     bool found = false;
 #define ANY_EXIT
-#if HAS_TRIANGLES
-    {
-        uint n = params.dims.z;
-        if (BRUTE_UNROLL == 32u) {
-            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_TRI) }
-        } else if (BRUTE_UNROLL == 8u) {
-            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_TRI) }
-        } else {
-            uint b = 0u;
-            for (uint k = 0u; k < n; k++) { TEST_TRI(k) }
-        }
-    }
-#endif
-#if HAS_SPHERES
-    {
-        uint n = params.dims.w;
-        if (BRUTE_UNROLL == 32u) {
-            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_SPH) }
-        } else if (BRUTE_UNROLL == 8u) {
-            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_SPH) }
-        } else {
-            uint b = 0u;
-            for (uint k = 0u; k < n; k++) { TEST_SPH(k) }
-        }
-    }
-#endif
+    BRUTE_ALL
 #undef ANY_EXIT
     return found;
 }
@@ -67,32 +65,7 @@ bool trace_any(Ray r) {
     h.prim = NO_PRIM;
     bool found = false;
 #define ANY_EXIT return true;
-#if HAS_TRIANGLES
-    {
-        uint n = params.dims.z;
-        if (BRUTE_UNROLL == 32u) {
-            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_TRI) }
-        } else if (BRUTE_UNROLL == 8u) {
-            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_TRI) }
-        } else {
-            uint b = 0u;
-            for (uint k = 0u; k < n; k++) { TEST_TRI(k) }
-        }
-    }
-#endif
-#if HAS_SPHERES
-    {
-        uint n = params.dims.w;
-        if (BRUTE_UNROLL == 32u) {
-            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST_SPH) }
-        } else if (BRUTE_UNROLL == 8u) {
-            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST_SPH) }
-        } else {
-            uint b = 0u;
-            for (uint k = 0u; k < n; k++) { TEST_SPH(k) }
-        }
-    }
-#endif
+    BRUTE_ALL
 #undef ANY_EXIT
     return found;
 }
