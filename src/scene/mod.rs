@@ -40,6 +40,9 @@ pub enum Light {
     Point { position: Vec3, intensity: Vec3 },
 }
 
+/// Primitives (triangles + spheres) a scene may hold, exclusive.
+pub const MAX_PRIMS: usize = 1 << 30;
+
 /// Largest image side accepted.
 pub const MAX_FILM_SIDE: u32 = 16384;
 
@@ -156,8 +159,13 @@ impl SceneBuilder {
         if let Err(e) = s.camera.check() {
             return Err(err(e));
         }
-        if s.triangles.len() >= (u32::MAX / 2) as usize || s.spheres.len() >= (u32::MAX / 2) as usize {
-            return Err(err("too many primitives".into()));
+        // The kd-tree builder packs a node-local primitive index into 30 bits.
+        if s.triangles.len() + s.spheres.len() >= MAX_PRIMS {
+            return Err(err(format!(
+                "{} primitives: at most {} are supported",
+                s.triangles.len() + s.spheres.len(),
+                MAX_PRIMS - 1
+            )));
         }
         if let Some(i) = s.positions.iter().position(|p| !p.is_finite()) {
             return Err(err(format!("vertex {i} has a non-finite coordinate")));

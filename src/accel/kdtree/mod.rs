@@ -289,7 +289,7 @@ impl KdTree {
                     errors.push(format!("leaf {i} indexes past the index array"));
                     return;
                 }
-                leaves.push((i, *b, &self.indices[first..first + count]));
+                leaves.push((i, &self.indices[first..first + count]));
             } else {
                 let axis = (w1 & 3) as usize;
                 let split = f32::from_bits(w0);
@@ -308,7 +308,7 @@ impl KdTree {
             return Err(e.clone());
         }
         let np = scene.prim_count() as u32;
-        for (i, _, list) in &leaves {
+        for (i, list) in &leaves {
             if let Some(bad) = list.iter().find(|&&p| p >= np) {
                 return Err(format!("leaf {i} references primitive {bad} of {np}"));
             }
