@@ -383,7 +383,11 @@ impl KdTree {
         let o = ray.origin.to_array();
         let d = ray.dir.to_array();
         let iv = inv.to_array();
-        let mut stack: Vec<(usize, f32, f32)> = Vec::with_capacity(self.depth as usize + 1);
+        // (node, tmax, in_plane): the next cell starts where the last one ended, so its
+        // tmin is the current tmax, except after a ray inside a split plane, whose
+        // sibling restarts at the ray's entry (see shaders/accel/kdtree.glsl).
+        let t_entry = tmin;
+        let mut stack: Vec<(usize, f32, bool)> = Vec::with_capacity(self.depth as usize + 1);
         let mut node = 0usize;
         let mut found = false;
         loop {
@@ -402,9 +406,11 @@ impl KdTree {
                 // early return on the current cell's tmax: a ray lying in a split plane
                 // pushes a sibling with the same interval.)
                 loop {
-                    let Some((n, a, b)) = stack.pop() else { return found };
-                    if !(found && before(best.t, a)) {
-                        (node, tmin, tmax) = (n, a, b);
+                    let Some((n, b, in_plane)) = stack.pop() else { return found };
+                    let next_min = if in_plane { t_entry } else { tmax };
+                    tmax = b;
+                    if !(found && before(best.t, next_min)) {
+                        (node, tmin) = (n, next_min);
                         break;
                     }
                 }
@@ -417,7 +423,7 @@ impl KdTree {
             let (first, second) = if below_first { (node + 1, above) } else { (above, node + 1) };
             if o[axis] == split && d[axis] == 0.0 {
                 // The ray runs inside the plane: both sides, same interval.
-                stack.push((second, tmin, tmax));
+                stack.push((second, tmax, true));
                 node = first;
                 continue;
             }
@@ -427,7 +433,7 @@ impl KdTree {
             } else if before(tplane, tmin) {
                 node = second;
             } else {
-                stack.push((second, tplane, tmax));
+                stack.push((second, tmax, false));
                 node = first;
                 tmax = tplane;
             }
