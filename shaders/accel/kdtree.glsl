@@ -1,4 +1,4 @@
-// kd-tree traversal: front to back with a (node, tmin, tmax) stack, stopping as soon
+// kd-tree traversal: front to back with a (node, tmax) stack, stopping as soon
 // as every remaining cell starts after the best hit. Mirrors
 // KdTree::traverse in src/accel/kdtree/mod.rs; node layout documented there:
 //   uvec2 node: x = split bits (inner) or primitive count (leaf)

@@ -51,6 +51,15 @@ pub fn clipped_bounds(g: &PrimGeom, b: &Aabb, exact: bool) -> Option<Aabb> {
 /// Clips a triangle to a box (Sutherland–Hodgman against its six planes, in f64) and
 /// returns the bounds of what remains, rounded outward to f32 and limited to the box.
 pub fn clip_triangle(v: &[Vec3; 3], b: &Aabb) -> Option<Aabb> {
+    // A triangle inside the box clips to itself (the common case: most are far from
+    // the planes); one outside a plane clips to nothing.
+    let (tmin, tmax) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+    if tmin.cmpge(b.min).all() && tmax.cmple(b.max).all() {
+        return Some(Aabb { min: tmin, max: tmax });
+    }
+    if tmax.cmplt(b.min).any() || tmin.cmpgt(b.max).any() {
+        return None;
+    }
     // A triangle clipped by 6 planes has at most 9 vertices.
     let mut poly = [DVec3::ZERO; 9];
     let mut next = [DVec3::ZERO; 9];
@@ -61,8 +70,12 @@ pub fn clip_triangle(v: &[Vec3; 3], b: &Aabb) -> Option<Aabb> {
     len = 3;
     for axis in 0..3 {
         for (bound, keep_above) in [(f64::from(b.min[axis]), true), (f64::from(b.max[axis]), false)] {
-            next_len = 0;
             let inside = |p: &DVec3| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
+            // A plane every vertex is inside of leaves the polygon as it is.
+            if poly[..len].iter().all(inside) {
+                continue;
+            }
+            next_len = 0;
             for i in 0..len {
                 let cur = poly[i];
                 let prev = poly[(i + len - 1) % len];

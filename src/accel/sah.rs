@@ -39,6 +39,7 @@ impl SahCosts {
 
     /// Cost of splitting a node of area `parent` into children of areas `left`,
     /// `right` holding `nl`, `nr` primitives.
+    #[inline]
     pub fn split(&self, parent: f32, left: f32, nl: usize, right: f32, nr: usize) -> f32 {
         let pl = left / parent;
         let pr = right / parent;

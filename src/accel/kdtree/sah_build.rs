@@ -22,13 +22,14 @@ const START: u8 = 2;
 /// Children with more primitives than this are built in parallel.
 const PARALLEL_MIN: usize = 1024;
 
-/// One event, 16 bytes. The key orders events by position (32 bits of a float
-/// mapped to an order-preserving integer), then kind (2 bits), then primitive (30
-/// bits: the node's local index), a total order independent of thread count.
+/// One event, 8 bytes: a key that orders events by position (32 bits of a float
+/// mapped to an order-preserving integer, from which the position is recovered), then
+/// kind (2 bits), then primitive (30 bits: the node's local index), a total order
+/// independent of thread count. Half the size of a (key, position) pair, which
+/// matters because sorting, sweeping, splitting and merging all stream events.
 #[derive(Debug, Clone, Copy)]
 struct Event {
     key: u64,
-    pos: f32,
 }
 
 impl Event {
@@ -36,7 +37,17 @@ impl Event {
         // Positions are finite; map to a u32 that orders like the float (-0 = +0).
         let b = (pos + 0.0).to_bits();
         let ord = if b >> 31 == 1 { !b } else { b | 0x8000_0000 };
-        Event { key: (u64::from(ord) << 32) | (u64::from(kind) << 30) | u64::from(prim), pos }
+        Event { key: (u64::from(ord) << 32) | (u64::from(kind) << 30) | u64::from(prim) }
+    }
+    /// The order-preserving image of the position: equal positions, equal values.
+    #[inline]
+    fn ord(&self) -> u32 {
+        (self.key >> 32) as u32
+    }
+    #[inline]
+    fn pos(&self) -> f32 {
+        let ord = self.ord();
+        f32::from_bits(if ord >> 31 == 1 { ord & 0x7fff_ffff } else { !ord })
     }
     #[inline]
     fn kind(&self) -> u8 {
@@ -48,7 +59,7 @@ impl Event {
     }
     #[inline]
     fn with_prim(&self, prim: u32) -> Event {
-        Event { key: (self.key & !0x3fff_ffff) | u64::from(prim), pos: self.pos }
+        Event { key: (self.key & !0x3fff_ffff) | u64::from(prim) }
     }
 }
 
@@ -125,18 +136,15 @@ fn sweep_axis(ctx: &Ctx, node: &NodeData, axis: usize, parent: f32) -> Option<Pl
     let (mut nl, mut nr) = (0usize, n);
     let mut i = 0;
     while i < ev.len() {
-        let p = ev[i].pos;
+        let (ord, p) = (ev[i].ord(), ev[i].pos());
+        // Events at one position come sorted by kind: ends, planars, starts.
         let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
-        while i < ev.len() && ev[i].pos == p && ev[i].kind() == END {
-            pe += 1;
-            i += 1;
-        }
-        while i < ev.len() && ev[i].pos == p && ev[i].kind() == PLANAR {
-            pp += 1;
-            i += 1;
-        }
-        while i < ev.len() && ev[i].pos == p && ev[i].kind() == START {
-            ps += 1;
+        while i < ev.len() && ev[i].ord() == ord {
+            match ev[i].kind() {
+                END => pe += 1,
+                PLANAR => pp += 1,
+                _ => ps += 1,
+            }
             i += 1;
         }
         nr -= pp + pe;
@@ -144,9 +152,17 @@ fn sweep_axis(ctx: &Ctx, node: &NodeData, axis: usize, parent: f32) -> Option<Pl
             // Child areas: 2 (cap + length x perimeter of the other two axes).
             let al = 2.0 * (cap + (p - b.min[axis]) * perim);
             let ar = 2.0 * (cap + (b.max[axis] - p) * perim);
-            let left = costs.split(parent, al, nl + pp, ar, nr);
-            let right = costs.split(parent, al, nl, ar, nr + pp);
-            let (cost, planar_left) = if left <= right { (left, true) } else { (right, false) };
+            let (cost, planar_left) = if pp == 0 {
+                (costs.split(parent, al, nl, ar, nr), true)
+            } else {
+                let left = costs.split(parent, al, nl + pp, ar, nr);
+                let right = costs.split(parent, al, nl, ar, nr + pp);
+                if left <= right {
+                    (left, true)
+                } else {
+                    (right, false)
+                }
+            };
             if best.as_ref().is_none_or(|bp| cost < bp.cost) {
                 best = Some(Plane { cost, axis, pos: p, planar_left });
             }
@@ -199,10 +215,11 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
     let mut side = vec![BOTH; n];
     for e in &node.events[axis] {
         let s = &mut side[e.prim() as usize];
+        let epos = e.pos();
         match e.kind() {
-            END if e.pos <= pos => *s = LEFT,
-            START if e.pos >= pos => *s = RIGHT,
-            PLANAR => *s = if e.pos < pos || (e.pos == pos && plane.planar_left) { LEFT } else { RIGHT },
+            END if epos <= pos => *s = LEFT,
+            START if epos >= pos => *s = RIGHT,
+            PLANAR => *s = if epos < pos || (epos == pos && plane.planar_left) { LEFT } else { RIGHT },
             _ => {}
         }
     }
@@ -254,16 +271,21 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
     // new events, sorted, then merged.
     let split_axis = |a: usize| -> (Vec<Event>, Vec<Event>) {
         let old = &node.events[a];
-        let mut lo = Vec::with_capacity(old.len() / 2 + 8);
-        let mut ro = Vec::with_capacity(old.len() / 2 + 8);
+        // Branch-free: write every event to both outputs and advance only the side it
+        // belongs to (the side of consecutive events is unpredictable).
+        let mut lo = vec![Event { key: 0 }; old.len() + 1];
+        let mut ro = vec![Event { key: 0 }; old.len() + 1];
+        let (mut nl, mut nr) = (0usize, 0usize);
         for e in old {
             let i = e.prim() as usize;
-            match side[i] {
-                LEFT => lo.push(e.with_prim(lmap[i])),
-                RIGHT => ro.push(e.with_prim(rmap[i])),
-                _ => {}
-            }
+            let s = side[i];
+            lo[nl] = e.with_prim(lmap[i]);
+            nl += usize::from(s == LEFT);
+            ro[nr] = e.with_prim(rmap[i]);
+            nr += usize::from(s == RIGHT);
         }
+        lo.truncate(nl);
+        ro.truncate(nr);
         let mut ln = Vec::new();
         let mut rn = Vec::new();
         for &(i, l, r) in &straddlers {
