@@ -59,6 +59,8 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
 #include "accel/none.glsl"
 #elif defined(ACCEL_KDTREE)
 #include "accel/kdtree.glsl"
+#elif defined(ACCEL_BVH)
+#include "accel/bvh.glsl"
 #endif
 
 const float PI = 3.14159265358979;

@@ -52,7 +52,7 @@ struct BenchArgs {
     tris: Vec<usize>,
     /// Structures to compare; `none` (brute force) is traced on a smaller image of
     /// the same view and gives the speedup column.
-    #[arg(long, value_delimiter = ',', default_values_t = [AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse])]
+    #[arg(long, value_delimiter = ',', default_values_t = [AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse, AccelKind::BvhSah, AccelKind::Lbvh, AccelKind::Trbvh])]
     accel: Vec<AccelKind>,
     /// Image size WIDTHxHEIGHT (primary rays).
     #[arg(long, default_value = "256x256", value_name = "WxH")]
@@ -376,9 +376,12 @@ fn run(cli: Cli) -> Result<()> {
                 println!("  build         {:.2} ms", st.build_ms);
                 println!("  nodes         {} ({} leaves, {} empty)", st.nodes, st.leaves, st.empty_leaves);
                 println!("  depth         max {}, mean leaf {:.2}", st.max_depth, st.mean_leaf_depth);
-                println!("  refs/prim     {:.3}", st.refs_per_prim);
+                println!("  refs/prim     {:.3} ({:.2} per leaf)", st.refs_per_prim, st.prims_per_leaf);
                 println!("  bytes         {} ({:.2} per primitive)", st.bytes, st.bytes as f64 / n);
                 println!("  SAH cost      {:.3}", st.sah_cost);
+                for ph in &st.phases {
+                    println!("  phase         {:<22} {:.2} ms", ph.name, ph.ms);
+                }
                 println!(
                     "  validate      {}",
                     match &valid {

@@ -52,13 +52,23 @@ vec3 offset_ray_origin(vec3 p, vec3 n) {
         abs(p.z) < ORIGIN ? p.z + FLOAT_SCALE * n.z : p_i.z);
 }
 
-// Slab test; far padded by 1 + 2 gamma(3) (Ize 2013). Returns false on a miss,
-// else the clipped [enter, exit] interval.
+// Slab test; far padded by 1 + 2 gamma(7) (Ize 2013; Vulkan's 2.5-ulp division). A
+// zero direction component (|1/d| saturated at 1e30 by safe_rcp) makes its slab
+// everything when the origin lies within it, faces included, else nothing. Returns
+// false on a miss, else the clipped [enter, exit] interval. See src/math/aabb.rs.
 bool ray_box(vec3 bmin, vec3 bmax, vec3 origin, vec3 inv_dir, float tmin, float tmax, out float enter, out float exit_t) {
     vec3 t0 = (bmin - origin) * inv_dir;
     vec3 t1 = (bmax - origin) * inv_dir;
     vec3 near_t = min(t0, t1);
-    vec3 far_t = max(t0, t1) * (1.0 + 2.0 * gamma(3u));
+    vec3 far_t = max(t0, t1) * (1.0 + 2.0 * gamma(7u));
+    bvec3 flat_axis = greaterThanEqual(abs(inv_dir), vec3(1e30));
+    bvec3 lo = greaterThanEqual(origin, bmin);
+    bvec3 hi = lessThanEqual(origin, bmax);
+    bvec3 inside = bvec3(lo.x && hi.x, lo.y && hi.y, lo.z && hi.z);
+    const float BIG = 3.4028235e38;
+    vec3 flat_near = mix(vec3(BIG), vec3(-BIG), inside);
+    near_t = mix(near_t, flat_near, flat_axis);
+    far_t = mix(far_t, -flat_near, flat_axis);
     enter = max(max(max(near_t.x, near_t.y), near_t.z), tmin);
     exit_t = min(min(min(far_t.x, far_t.y), far_t.z), tmax);
     return enter <= exit_t;

@@ -6,9 +6,12 @@
 //!   early-out, the baseline every structure is measured against.
 //! - [`AccelKind::Kdtree`]: the SAH kd-tree of Wald & Havran (2006).
 //! - [`AccelKind::BspCourse`]: the lecture's simple BSP tree, same layout and kernel.
+//! - [`AccelKind::BvhSah`], [`AccelKind::Lbvh`], [`AccelKind::Trbvh`]: BVHs from
+//!   three builders, one layout and one kernel (see [`bvh`]).
 
 #![forbid(unsafe_code)]
 
+pub mod bvh;
 pub mod gpu_layout;
 pub mod kdtree;
 pub mod none;
@@ -29,11 +32,24 @@ pub enum AccelKind {
     Kdtree,
     /// The lecture's BSP tree: 3 candidate planes per axis, <= 4 per leaf, <= 20 levels.
     BspCourse,
+    /// BVH, top-down binned SAH (Wald 2007).
+    BvhSah,
+    /// Linear BVH (Karras 2012).
+    Lbvh,
+    /// LBVH with treelet restructuring (Karras & Aila 2013).
+    Trbvh,
 }
 
 impl AccelKind {
     /// Every kind, in CLI order.
-    pub const ALL: &'static [AccelKind] = &[AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse];
+    pub const ALL: &'static [AccelKind] = &[
+        AccelKind::None,
+        AccelKind::Kdtree,
+        AccelKind::BspCourse,
+        AccelKind::BvhSah,
+        AccelKind::Lbvh,
+        AccelKind::Trbvh,
+    ];
 
     /// The CLI / kernel name.
     pub fn name(self) -> &'static str {
@@ -41,6 +57,9 @@ impl AccelKind {
             AccelKind::None => "none",
             AccelKind::Kdtree => "kdtree",
             AccelKind::BspCourse => "bsp-course",
+            AccelKind::BvhSah => "bvh-sah",
+            AccelKind::Lbvh => "lbvh",
+            AccelKind::Trbvh => "trbvh",
         }
     }
 
@@ -49,6 +68,7 @@ impl AccelKind {
         match self {
             AccelKind::None => "none",
             AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
+            AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
         }
     }
 }
@@ -66,6 +86,9 @@ impl FromStr for AccelKind {
             "none" | "brute-force" => Ok(AccelKind::None),
             "kdtree" | "kd" | "bsp" => Ok(AccelKind::Kdtree),
             "bsp-course" => Ok(AccelKind::BspCourse),
+            "bvh-sah" | "bvh" => Ok(AccelKind::BvhSah),
+            "lbvh" => Ok(AccelKind::Lbvh),
+            "trbvh" => Ok(AccelKind::Trbvh),
             _ => Err(format!(
                 "unknown structure '{s}'; available: {}",
                 AccelKind::ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
@@ -89,8 +112,19 @@ pub struct BuildStats {
     pub mean_leaf_depth: f64,
     /// Primitive references in leaves per primitive.
     pub refs_per_prim: f64,
+    /// Primitive references per non-empty leaf.
+    pub prims_per_leaf: f64,
     /// SAH cost of the tree with the default constants (sah.rs), relative to the root.
     pub sah_cost: f64,
+    /// Build phases in order, CPU wall clock (BVHs).
+    pub phases: Vec<Phase>,
+}
+
+/// One timed phase of a build.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Phase {
+    pub name: String,
+    pub ms: f64,
 }
 
 /// A built structure of any kind, with the common surface.
@@ -98,6 +132,7 @@ pub struct BuildStats {
 pub enum Accel {
     None(none::BruteForce),
     Kd(kdtree::KdTree),
+    Bvh(bvh::Bvh),
 }
 
 impl Accel {
@@ -112,6 +147,9 @@ impl Accel {
             AccelKind::None => Accel::None(none::BruteForce::build(scene)),
             AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, kd)),
             AccelKind::BspCourse => Accel::Kd(kdtree::KdTree::build_course(scene)),
+            AccelKind::BvhSah => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Sah)),
+            AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
+            AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Trbvh)),
         }
     }
 
@@ -120,6 +158,7 @@ impl Accel {
         match self {
             Accel::None(b) => b.validate(),
             Accel::Kd(t) => t.validate(scene),
+            Accel::Bvh(t) => t.validate(scene),
         }
     }
 
@@ -127,6 +166,7 @@ impl Accel {
         match self {
             Accel::None(b) => b.stats(scene),
             Accel::Kd(t) => t.stats(),
+            Accel::Bvh(t) => t.stats(),
         }
     }
 
@@ -135,6 +175,7 @@ impl Accel {
         match self {
             Accel::None(b) => b.bounds,
             Accel::Kd(t) => t.bounds,
+            Accel::Bvh(t) => t.bounds,
         }
     }
 
@@ -143,6 +184,7 @@ impl Accel {
         match self {
             Accel::None(b) => b.intersect(scene, ray),
             Accel::Kd(t) => t.intersect(scene, ray),
+            Accel::Bvh(t) => t.intersect(scene, ray),
         }
     }
 
@@ -151,6 +193,7 @@ impl Accel {
         match self {
             Accel::None(b) => b.occluded(scene, ray),
             Accel::Kd(t) => t.occluded(scene, ray),
+            Accel::Bvh(t) => t.occluded(scene, ray),
         }
     }
 }

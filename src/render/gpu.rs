@@ -114,6 +114,7 @@ fn tests_per_sample(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> 
     let per_ray = match accel {
         Accel::None(_) => scene.prim_count().max(1) as u64,
         Accel::Kd(t) => 4 * (u64::from(t.depth) + 8),
+        Accel::Bvh(t) => 4 * (u64::from(t.depth) + 8),
     };
     let rays = if settings.primary_only { 1 } else { 1 + scene.lights.len() as u64 + 1 };
     per_ray * rays
@@ -191,6 +192,20 @@ pub fn render_with(
     }
     let build = accel.stats(scene);
     let family = settings.accel.kernel();
+    if let Accel::Bvh(t) = accel {
+        if t.depth > crate::accel::bvh::MAX_BVH_DEPTH {
+            return Err(Error::scene(
+                scene.name.clone(),
+                format!("BVH depth {} exceeds the kernel's stack of {}", t.depth, crate::accel::bvh::MAX_BVH_DEPTH),
+            ));
+        }
+        if t.prims > crate::accel::bvh::MAX_BVH_PRIMS {
+            return Err(Error::scene(
+                scene.name.clone(),
+                format!("{} primitives exceed the BVH layout's {}", t.prims, crate::accel::bvh::MAX_BVH_PRIMS),
+            ));
+        }
+    }
     if let Accel::Kd(t) = accel {
         if t.depth > crate::accel::kdtree::MAX_KD_DEPTH {
             return Err(Error::scene(
@@ -223,7 +238,7 @@ pub fn render_with(
     };
     let (per_trace, tree_steps) = match accel {
         Accel::None(_) => (brute_iterations(scene, unroll), 0u64),
-        Accel::Kd(_) => {
+        Accel::Kd(_) | Accel::Bvh(_) => {
             let steps = match ctx.loop_budget() {
                 Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
                 None => TREE_STEPS_UNLIMITED,
@@ -240,6 +255,7 @@ pub fn render_with(
     };
     let stack = match accel {
         Accel::Kd(t) => t.depth + 1,
+        Accel::Bvh(t) => t.depth + 1,
         Accel::None(_) => 1,
     };
     let spec = [
@@ -294,10 +310,12 @@ pub fn render_with(
             BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&gs.shading))?,
             BINDING_ACCEL_NODES => match accel {
                 Accel::Kd(t) => upload_checked(ctx, "accel_nodes", bytemuck::cast_slice(t.to_gpu().0))?,
+                Accel::Bvh(t) => upload_checked(ctx, "accel_nodes", bytemuck::cast_slice(t.to_gpu().0))?,
                 Accel::None(_) => return Err(Error::Usage("brute force has no nodes".into())),
             },
             BINDING_ACCEL_INDICES => match accel {
                 Accel::Kd(t) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(t.to_gpu().1))?,
+                Accel::Bvh(t) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(t.to_gpu().1))?,
                 Accel::None(_) => return Err(Error::Usage("brute force has no indices".into())),
             },
             BINDING_PIXELS => {

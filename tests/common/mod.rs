@@ -8,6 +8,8 @@
 
 use arbor::gpu::{Context, ContextOptions};
 
+pub mod scenes;
+
 /// Whether CI demands a device.
 pub fn gpu_required() -> bool {
     std::env::var("ARBOR_REQUIRE_GPU").is_ok_and(|v| v == "1")

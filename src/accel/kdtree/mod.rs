@@ -266,7 +266,9 @@ impl KdTree {
             empty_leaves: empty,
             mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
             refs_per_prim: refs as f64 / self.prims.max(1) as f64,
+            prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
             sah_cost: cost,
+            phases: Vec::new(),
         }
     }
 

@@ -1,0 +1,96 @@
+// BVH traversal, for every builder (bvh-sah, lbvh, trbvh). Mirrors Bvh::traverse in
+// src/accel/bvh/mod.rs, where the layout is documented: 64-byte inner nodes holding
+// both children's boxes and references; a reference with bit 31 set is a leaf
+// (first index << 3 | count - 1), 0xffffffff no child.
+//
+// Front to back: both child boxes are tested against [tmin, best t (1 + 1e-5)]; the
+// nearer hit child is visited and the other pushed. Inner nodes are descended in an
+// inner loop and leaves tested after it ("while-while"). The stack holds STACK_SIZE
+// references (tree depth + 1, checked at build time); every trace takes at most
+// TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is flagged.
+
+layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer BvhNodes { uvec4 bvh_nodes[]; };
+layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer BvhIndices { uint bvh_indices[]; };
+
+const uint BVH_LEAF = 0x80000000u;
+const uint BVH_EMPTY = 0xffffffffu;
+const float BVH_T_MARGIN = 1e-5;
+
+bool intersect_prim(uint p, Ray r, inout Hit h) {
+#if HAS_TRIANGLES && HAS_SPHERES
+    if (p < params.dims.z) return intersect_triangle(p, r, h);
+    return intersect_sphere(p - params.dims.z, r, h);
+#elif HAS_TRIANGLES
+    return intersect_triangle(p, r, h);
+#else
+    return intersect_sphere(p - params.dims.z, r, h);
+#endif
+}
+
+bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
+    vec3 inv = safe_rcp3(r.dir);
+    float e0, e1;
+    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
+    uint stack[STACK_SIZE];
+    uint sp = 0u;
+    uint cur = 0u;
+    bool found = false;
+    uint steps = 0u;
+    while (steps < TREE_STEPS) {
+        while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
+            steps += 1u;
+            g_nodes += 1u;
+            uvec4 a = bvh_nodes[4u * cur];
+            uvec4 b = bvh_nodes[4u * cur + 1u];
+            uvec4 c = bvh_nodes[4u * cur + 2u];
+            uvec4 d = bvh_nodes[4u * cur + 3u];
+            uint lref = a.w;
+            uint rref = b.w;
+            precise float limit = h.t * (1.0 + BVH_T_MARGIN);
+            float l0, l1, r0, r1;
+            bool hl = lref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1);
+            bool hr = rref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1);
+            if (hl && hr) {
+                bool left_first = l0 <= r0;
+                stack[sp] = left_first ? rref : lref;
+                sp += 1u;
+                cur = left_first ? lref : rref;
+            } else if (hl) {
+                cur = lref;
+            } else if (hr) {
+                cur = rref;
+            } else {
+                if (sp == 0u) return found;
+                sp -= 1u;
+                cur = stack[sp];
+            }
+        }
+        if ((cur & BVH_LEAF) == 0u) break;
+        uint first = (cur & ~BVH_LEAF) >> 3u;
+        uint count = (cur & 7u) + 1u;
+        for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
+            steps += 1u;
+            if (intersect_prim(bvh_indices[first + k], r, h)) {
+                found = true;
+                if (any_hit) return true;
+            }
+        }
+        if (sp == 0u) return found;
+        sp -= 1u;
+        cur = stack[sp];
+    }
+    g_overflow = true;
+    return found;
+}
+
+bool trace_closest(Ray r, inout Hit h) {
+    return bvh_traverse(r, h, false);
+}
+
+bool trace_any(Ray r) {
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    return bvh_traverse(r, h, true);
+}

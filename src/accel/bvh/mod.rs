@@ -1,0 +1,600 @@
+//! Bounding volume hierarchies: one canonical binary tree ([`Binary`]) that every
+//! builder produces, and one flattener that turns it into the GPU layout ([`Bvh`]).
+//!
+//! Builders see only primitive bounds and centroids ([`PrimRefs`]); triangles and
+//! spheres are both primitives.
+//!
+//! - `bvh-sah` ([`binned`]): top-down binned SAH after Wald (2007).
+//! - `lbvh` ([`lbvh`]): Morton codes and the radix tree of Karras (2012).
+//! - `trbvh` ([`treelet`]): LBVH, then treelet restructuring after Karras & Aila
+//!   (2013), then collapse of subtrees into leaves where the SAH prefers it.
+//!
+//! GPU layout: 64 bytes per inner node, holding both children's boxes so one fetch
+//! decides which children a ray enters and in which order. Leaves are not nodes but
+//! child references into the primitive-index array:
+//!
+//! ```text
+//! uvec4 0: left box min xyz (f32 bits),  w = left child reference
+//! uvec4 1: left box max xyz,             w = right child reference
+//! uvec4 2: right box min xyz,            w = 0
+//! uvec4 3: right box max xyz,            w = 0
+//! child reference: bit 31 clear        -> inner node index
+//!                  bit 31 set          -> leaf: bits 3..31 first index, bits 0..3 count - 1
+//!                  0xffffffff          -> no child (empty scene, or a one-leaf root)
+//! example: a leaf of 3 primitives at index entry 40 -> 0x80000000 | 40 << 3 | 2 = 0x80000142
+//! ```
+
+use std::time::Instant;
+
+use glam::Vec3;
+
+use super::prim;
+use super::sah::{self, SahCosts};
+use super::{BuildStats, Phase};
+use crate::math::{Aabb, Hit, Ray};
+use crate::scene::Scene;
+
+pub mod binned;
+pub mod lbvh;
+pub mod treelet;
+
+/// Most primitives in one leaf (3 bits of the child reference).
+pub const MAX_LEAF: usize = 8;
+/// Deepest tree (inner nodes on a path) the kernel's stack is allowed to hold.
+pub const MAX_BVH_DEPTH: u32 = 128;
+/// Most primitives a BVH can index (28 bits of the child reference).
+pub const MAX_BVH_PRIMS: usize = 1 << 28;
+/// Child reference flag: a leaf.
+pub const LEAF_REF: u32 = 0x8000_0000;
+/// Child reference of a missing child.
+pub const EMPTY_REF: u32 = 0xffff_ffff;
+/// Relative margin of the box test against the best hit so far: a box entered within
+/// it of the best t is still visited, so ties at equal t resolve as brute force does
+/// (the same margin as the kd-tree's, see `kdtree::T_MARGIN`).
+pub const T_MARGIN: f32 = super::kdtree::T_MARGIN;
+
+/// One inner node as the kernel reads it (see the module docs).
+pub type GpuBvhNode = [[u32; 4]; 4];
+
+/// Which builder made a tree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BvhBuilder {
+    Sah,
+    Lbvh,
+    Trbvh,
+}
+
+impl BvhBuilder {
+    pub fn name(self) -> &'static str {
+        match self {
+            BvhBuilder::Sah => "bvh-sah",
+            BvhBuilder::Lbvh => "lbvh",
+            BvhBuilder::Trbvh => "trbvh",
+        }
+    }
+}
+
+/// What builders see of the primitives: bounds and centroids, indexed like the
+/// scene's primitives (triangles first, then spheres).
+#[derive(Debug, Clone)]
+pub struct PrimRefs {
+    pub bounds: Vec<Aabb>,
+    pub centroids: Vec<Vec3>,
+}
+
+impl PrimRefs {
+    pub fn new(scene: &Scene) -> PrimRefs {
+        use rayon::prelude::*;
+        let n = scene.prim_count() as u32;
+        let bounds: Vec<Aabb> = (0..n).into_par_iter().map(|i| prim::bounds(&prim::geom(scene, i))).collect();
+        let centroids = bounds.par_iter().map(|b| (b.min + b.max) * 0.5).collect();
+        PrimRefs { bounds, centroids }
+    }
+
+    pub fn len(&self) -> usize {
+        self.bounds.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.bounds.is_empty()
+    }
+
+    /// Union of the bounds of `prims`.
+    pub fn union(&self, prims: &[u32]) -> Aabb {
+        prims.iter().fold(Aabb::EMPTY, |b, &p| b.union(&self.bounds[p as usize]))
+    }
+}
+
+/// Flag of [`BNode::left`] marking a leaf.
+pub const LEAF_FLAG: u32 = 0x8000_0000;
+
+/// A node of the canonical binary BVH. Inner: `left`, `right` are node indices.
+/// Leaf: `left` = `LEAF_FLAG | first`, `right` = count, a range of [`Binary::prims`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BNode {
+    pub bounds: Aabb,
+    pub left: u32,
+    pub right: u32,
+}
+
+impl BNode {
+    pub fn leaf(bounds: Aabb, first: u32, count: u32) -> BNode {
+        BNode { bounds, left: LEAF_FLAG | first, right: count }
+    }
+    pub fn is_leaf(&self) -> bool {
+        self.left & LEAF_FLAG != 0
+    }
+    /// The primitive range of a leaf.
+    pub fn range(&self) -> std::ops::Range<usize> {
+        let first = (self.left & !LEAF_FLAG) as usize;
+        first..first + self.right as usize
+    }
+}
+
+/// The canonical binary BVH: nodes in any order, a root, and the primitive order
+/// leaves index into.
+#[derive(Debug, Clone)]
+pub struct Binary {
+    pub nodes: Vec<BNode>,
+    pub root: u32,
+    pub prims: Vec<u32>,
+}
+
+impl Binary {
+    /// The tree of no primitives: one empty leaf.
+    pub fn empty() -> Binary {
+        Binary { nodes: vec![BNode::leaf(Aabb::EMPTY, 0, 0)], root: 0, prims: Vec::new() }
+    }
+
+    /// SAH cost relative to the root's area, with leaves as built (`collapse` false)
+    /// or with every subtree of at most [`MAX_LEAF`] primitives turned into a leaf
+    /// where that is cheaper (`collapse` true).
+    pub fn sah_cost(&self, costs: &SahCosts, collapse: bool) -> f64 {
+        let root_area = f64::from(sah::area(&self.nodes[self.root as usize].bounds));
+        if root_area <= 0.0 {
+            return f64::from(costs.intersect) * self.prims.len() as f64;
+        }
+        let (c, _) = self.cost_rec(self.root, costs, collapse);
+        c / root_area
+    }
+
+    fn cost_rec(&self, n: u32, costs: &SahCosts, collapse: bool) -> (f64, usize) {
+        let node = &self.nodes[n as usize];
+        let a = f64::from(sah::area(&node.bounds));
+        if node.is_leaf() {
+            return (f64::from(costs.intersect) * a * f64::from(node.right), node.right as usize);
+        }
+        let (cl, nl) = self.cost_rec(node.left, costs, collapse);
+        let (cr, nr) = self.cost_rec(node.right, costs, collapse);
+        let split = f64::from(costs.traversal) * a + cl + cr;
+        let count = nl + nr;
+        if collapse && count <= MAX_LEAF {
+            return (split.min(f64::from(costs.intersect) * a * count as f64), count);
+        }
+        (split, count)
+    }
+
+    /// Every primitive in the subtree of `n`, in depth-first order.
+    pub fn gather(&self, n: u32, out: &mut Vec<u32>) {
+        let mut stack = vec![n];
+        while let Some(i) = stack.pop() {
+            let node = &self.nodes[i as usize];
+            if node.is_leaf() {
+                out.extend_from_slice(&self.prims[node.range()]);
+            } else {
+                stack.push(node.right);
+                stack.push(node.left);
+            }
+        }
+    }
+}
+
+/// A BVH in the GPU layout, with everything `arbor info` reports.
+#[derive(Debug, Clone)]
+pub struct Bvh {
+    /// The scene box rays are first clipped to.
+    pub bounds: Aabb,
+    pub nodes: Vec<GpuBvhNode>,
+    pub indices: Vec<u32>,
+    /// Inner nodes on the longest root-to-leaf path.
+    pub depth: u32,
+    pub prims: usize,
+    pub builder: BvhBuilder,
+    pub build_ms: f64,
+    pub phases: Vec<Phase>,
+}
+
+/// A child on its way into the GPU layout.
+enum Child {
+    Node(u32),
+    /// A leaf of the canonical tree or a collapsed subtree: a range of `Binary::prims`
+    /// (collapsed subtrees are gathered into `Flattener::gathered` first) and its box.
+    Range(usize, usize, Aabb, bool),
+    /// An oversized leaf being split.
+    Owned(Vec<u32>),
+}
+
+struct Flattener<'a> {
+    bin: &'a Binary,
+    refs: &'a PrimRefs,
+    collapse: Option<&'a [bool]>,
+    nodes: Vec<GpuBvhNode>,
+    indices: Vec<u32>,
+    gathered: Vec<u32>,
+    depth: u32,
+}
+
+impl Flattener<'_> {
+    fn child(&mut self, n: u32) -> Child {
+        let node = &self.bin.nodes[n as usize];
+        if node.is_leaf() {
+            let r = node.range();
+            return Child::Range(r.start, r.len(), node.bounds, false);
+        }
+        if self.collapse.is_some_and(|c| c[n as usize]) {
+            let start = self.gathered.len();
+            let mut list = std::mem::take(&mut self.gathered);
+            self.bin.gather(n, &mut list);
+            self.gathered = list;
+            return Child::Range(start, self.gathered.len() - start, node.bounds, true);
+        }
+        Child::Node(n)
+    }
+
+    /// Writes a leaf of `list` (at most MAX_LEAF primitives); returns its reference.
+    fn leaf(&mut self, list: &[u32]) -> u32 {
+        let first = self.indices.len() as u32;
+        self.indices.extend_from_slice(list);
+        LEAF_REF | (first << 3) | (list.len() as u32 - 1)
+    }
+
+    /// Emits `c` below an inner node at `depth`: its reference and box.
+    fn emit(&mut self, c: Child, depth: u32) -> (u32, Aabb) {
+        match c {
+            Child::Range(_, 0, _, _) => (EMPTY_REF, Aabb::EMPTY),
+            Child::Range(start, len, b, gathered) if len <= MAX_LEAF => {
+                let first = self.indices.len() as u32;
+                let src = if gathered { &self.gathered } else { &self.bin.prims };
+                self.indices.extend_from_slice(&src[start..start + len]);
+                (LEAF_REF | (first << 3) | (len as u32 - 1), b)
+            }
+            Child::Range(start, len, _, gathered) => {
+                let src = if gathered { &self.gathered } else { &self.bin.prims };
+                self.emit(Child::Owned(src[start..start + len].to_vec()), depth)
+            }
+            Child::Owned(list) if list.is_empty() => (EMPTY_REF, Aabb::EMPTY),
+            Child::Owned(list) if list.len() <= MAX_LEAF => (self.leaf(&list), self.refs.union(&list)),
+            Child::Owned(mut list) => {
+                // Too many for one leaf (identical centroids, or the builder's depth
+                // limit): split at the median centroid of the widest axis.
+                let cb = list.iter().fold(Aabb::EMPTY, |mut b, &p| {
+                    b.grow(self.refs.centroids[p as usize]);
+                    b
+                });
+                let axis = cb.extent().max_position();
+                list.sort_by(|&a, &b| {
+                    let (ca, cb) = (self.refs.centroids[a as usize][axis], self.refs.centroids[b as usize][axis]);
+                    ca.total_cmp(&cb).then(a.cmp(&b))
+                });
+                let right = list.split_off(list.len() / 2);
+                self.emit_inner(Child::Owned(list), Child::Owned(right), depth + 1)
+            }
+            Child::Node(n) => {
+                let node = self.bin.nodes[n as usize];
+                let l = self.child(node.left);
+                let r = self.child(node.right);
+                self.emit_inner(l, r, depth + 1)
+            }
+        }
+    }
+
+    /// Emits an inner node at `depth` (1 = root) with children `l`, `r`.
+    fn emit_inner(&mut self, l: Child, r: Child, depth: u32) -> (u32, Aabb) {
+        self.depth = self.depth.max(depth);
+        let me = self.nodes.len();
+        self.nodes.push([[0; 4]; 4]);
+        let (lref, lbox) = self.emit(l, depth);
+        let (rref, rbox) = self.emit(r, depth);
+        let bits = |v: Vec3, w: u32| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), w];
+        let (lbox_g, rbox_g) = (gpu_box(&lbox), gpu_box(&rbox));
+        self.nodes[me] = [bits(lbox_g.min, lref), bits(lbox_g.max, rref), bits(rbox_g.min, 0), bits(rbox_g.max, 0)];
+        (me as u32, lbox.union(&rbox))
+    }
+}
+
+/// Empty boxes are stored as zeros (the kernel checks the reference first).
+fn gpu_box(b: &Aabb) -> Aabb {
+    if b.is_empty() {
+        Aabb { min: Vec3::ZERO, max: Vec3::ZERO }
+    } else {
+        *b
+    }
+}
+
+fn unpack_box(min: [u32; 4], max: [u32; 4]) -> Aabb {
+    let v = |a: [u32; 4]| Vec3::new(f32::from_bits(a[0]), f32::from_bits(a[1]), f32::from_bits(a[2]));
+    Aabb { min: v(min), max: v(max) }
+}
+
+/// Leaf reference → (first index, count).
+pub fn leaf_range(r: u32) -> (usize, usize) {
+    (((r & !LEAF_REF) >> 3) as usize, (r & 7) as usize + 1)
+}
+
+impl Bvh {
+    /// Builds with `builder` and flattens.
+    pub fn build(scene: &Scene, builder: BvhBuilder) -> Bvh {
+        let start = Instant::now();
+        let mut phases = Vec::new();
+        let mut t = Instant::now();
+        let refs = PrimRefs::new(scene);
+        lap(&mut phases, "prim bounds", &mut t);
+        let costs = SahCosts::default();
+        let (bin, collapse) = match builder {
+            BvhBuilder::Sah => {
+                let bin = binned::build(&refs, &costs);
+                lap(&mut phases, "binned SAH", &mut t);
+                (bin, None)
+            }
+            BvhBuilder::Lbvh => (lbvh::build(&refs, &mut phases, &mut t), None),
+            BvhBuilder::Trbvh => {
+                let mut bin = lbvh::build(&refs, &mut phases, &mut t);
+                let mut work = treelet::Restructure::new(&bin, &costs);
+                for round in 0..treelet::ROUNDS {
+                    work.round(&mut bin, treelet::gamma(round));
+                    lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);
+                }
+                let flags = work.collapse_flags(&bin);
+                lap(&mut phases, "collapse", &mut t);
+                (bin, Some(flags))
+            }
+        };
+        let mut bvh = Bvh::flatten(&bin, &refs, collapse.as_deref(), scene.bounds(), builder);
+        lap(&mut phases, "flatten", &mut t);
+        bvh.phases = phases;
+        bvh.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        bvh
+    }
+
+    /// Turns a canonical tree into the GPU layout. `collapse[n]` makes inner node `n`
+    /// a leaf of its subtree's primitives.
+    pub fn flatten(bin: &Binary, refs: &PrimRefs, collapse: Option<&[bool]>, bounds: Aabb, builder: BvhBuilder) -> Bvh {
+        let mut f = Flattener {
+            bin,
+            refs,
+            collapse,
+            nodes: Vec::with_capacity(refs.len() / 2 + 1),
+            indices: Vec::with_capacity(refs.len()),
+            gathered: Vec::new(),
+            depth: 0,
+        };
+        // The root is always an inner node; a one-leaf tree gets an empty sibling.
+        match f.child(bin.root) {
+            Child::Node(n) => {
+                let node = bin.nodes[n as usize];
+                let l = f.child(node.left);
+                let r = f.child(node.right);
+                f.emit_inner(l, r, 1);
+            }
+            leaf => {
+                f.emit_inner(leaf, Child::Owned(Vec::new()), 1);
+            }
+        }
+        Bvh {
+            bounds,
+            nodes: f.nodes,
+            indices: f.indices,
+            depth: f.depth,
+            prims: refs.len(),
+            builder,
+            build_ms: 0.0,
+            phases: Vec::new(),
+        }
+    }
+
+    /// Bytes as uploaded.
+    pub fn bytes(&self) -> u64 {
+        (self.nodes.len() * std::mem::size_of::<GpuBvhNode>() + self.indices.len() * 4) as u64
+    }
+
+    /// Children of inner node `n`: (reference, box) for left and right.
+    pub fn children(&self, n: usize) -> [(u32, Aabb); 2] {
+        let [a, b, c, d] = self.nodes[n];
+        [(a[3], unpack_box(a, b)), (b[3], unpack_box(c, d))]
+    }
+
+    /// Visits every child reference: `f(reference, box, depth of its parent)`.
+    fn walk(&self, mut f: impl FnMut(u32, &Aabb, u32)) {
+        let mut stack = vec![(0usize, 1u32)];
+        while let Some((n, d)) = stack.pop() {
+            for (r, b) in self.children(n) {
+                f(r, &b, d);
+                if r & LEAF_REF == 0 {
+                    stack.push((r as usize, d + 1));
+                }
+            }
+        }
+    }
+
+    /// Statistics, with the SAH cost computed like every other structure's.
+    pub fn stats(&self) -> BuildStats {
+        let costs = SahCosts::default();
+        let [(_, l), (_, r)] = self.children(0);
+        let root_area = f64::from(sah::area(&l.union(&r)));
+        let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
+        // The root counts as a traversal step too.
+        let mut cost = f64::from(costs.traversal) * root_area;
+        self.walk(|r, b, d| {
+            let a = f64::from(sah::area(b));
+            if r == EMPTY_REF {
+                empty += 1;
+            } else if r & LEAF_REF != 0 {
+                let (_, count) = leaf_range(r);
+                leaves += 1;
+                depth_sum += u64::from(d);
+                refs += count as u64;
+                cost += f64::from(costs.intersect) * a * count as f64;
+            } else {
+                cost += f64::from(costs.traversal) * a;
+            }
+        });
+        BuildStats {
+            kind: self.builder.name().into(),
+            build_ms: self.build_ms,
+            bytes: self.bytes(),
+            nodes: self.nodes.len() as u64,
+            max_depth: self.depth,
+            leaves,
+            empty_leaves: empty,
+            mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
+            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
+            prims_per_leaf: refs as f64 / leaves.max(1) as f64,
+            sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
+            phases: self.phases.clone(),
+        }
+    }
+
+    /// Checks: depth within the kernel's limit; references in range; every inner node
+    /// reached exactly once; every child box contains its subtree (the boxes of an
+    /// inner child, the bounds of a leaf's primitives); every primitive in exactly
+    /// one leaf.
+    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+        if self.depth > MAX_BVH_DEPTH {
+            return Err(format!("depth {} exceeds {MAX_BVH_DEPTH}", self.depth));
+        }
+        if self.nodes.is_empty() {
+            return Err("no root node".into());
+        }
+        let np = scene.prim_count();
+        let mut seen_node = vec![false; self.nodes.len()];
+        let mut seen_prim = vec![false; np];
+        seen_node[0] = true;
+        let mut stack = vec![(0usize, 1u32)];
+        let mut max_depth = 0;
+        while let Some((n, d)) = stack.pop() {
+            max_depth = max_depth.max(d);
+            for (r, b) in self.children(n) {
+                if r == EMPTY_REF {
+                    continue;
+                }
+                if r & LEAF_REF != 0 {
+                    let (first, count) = leaf_range(r);
+                    if first + count > self.indices.len() {
+                        return Err(format!("node {n}: leaf indexes past the index array"));
+                    }
+                    for &p in &self.indices[first..first + count] {
+                        let p = p as usize;
+                        if p >= np {
+                            return Err(format!("node {n}: primitive {p} of {np}"));
+                        }
+                        if std::mem::replace(&mut seen_prim[p], true) {
+                            return Err(format!("primitive {p} is in more than one leaf"));
+                        }
+                        let pb = prim::bounds(&prim::geom(scene, p as u32));
+                        if !contains(&b, &pb) {
+                            return Err(format!("node {n}: leaf box {b:?} does not contain primitive {p} {pb:?}"));
+                        }
+                    }
+                } else {
+                    let c = r as usize;
+                    if c >= self.nodes.len() {
+                        return Err(format!("node {n}: child {c} out of range"));
+                    }
+                    if std::mem::replace(&mut seen_node[c], true) {
+                        return Err(format!("node {c} is reached twice"));
+                    }
+                    for (cr, cb) in self.children(c) {
+                        if cr != EMPTY_REF && !contains(&b, &cb) {
+                            return Err(format!("node {n}: child box {b:?} does not contain its child's box {cb:?}"));
+                        }
+                    }
+                    stack.push((c, d + 1));
+                }
+            }
+        }
+        if max_depth != self.depth {
+            return Err(format!("recorded depth {} but the tree is {max_depth} deep", self.depth));
+        }
+        if let Some(n) = seen_node.iter().position(|s| !s) {
+            return Err(format!("node {n} is unreachable"));
+        }
+        if let Some(p) = seen_prim.iter().position(|s| !s) {
+            return Err(format!("primitive {p} is in no leaf"));
+        }
+        Ok(())
+    }
+
+    /// Nearest hit (the oracle; same algorithm as shaders/accel/bvh.glsl).
+    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
+        let mut best = Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, false).then_some(best)
+    }
+
+    /// Any hit.
+    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
+        let mut best = Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, true)
+    }
+
+    /// Front-to-back traversal with a stack of child references: at each inner node
+    /// both child boxes are tested against [tmin, best t (1 + T_MARGIN)], the nearer
+    /// hit child is visited first and the other pushed.
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        let inv = Aabb::inv_dir(ray.dir);
+        if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
+            return false;
+        }
+        let mut stack: Vec<u32> = Vec::with_capacity(self.depth as usize + 1);
+        let mut cur = 0u32;
+        let mut found = false;
+        loop {
+            while cur & LEAF_REF == 0 {
+                let [(lr, lb), (rr, rb)] = self.children(cur as usize);
+                let limit = best.t * (1.0 + T_MARGIN);
+                let hl = if lr == EMPTY_REF { None } else { lb.ray_box(ray.origin, inv, ray.tmin, limit) };
+                let hr = if rr == EMPTY_REF { None } else { rb.ray_box(ray.origin, inv, ray.tmin, limit) };
+                match (hl, hr) {
+                    (Some((l0, _)), Some((r0, _))) => {
+                        let (near, far) = if l0 <= r0 { (lr, rr) } else { (rr, lr) };
+                        stack.push(far);
+                        cur = near;
+                    }
+                    (Some(_), None) => cur = lr,
+                    (None, Some(_)) => cur = rr,
+                    (None, None) => match stack.pop() {
+                        Some(c) => cur = c,
+                        None => return found,
+                    },
+                }
+            }
+            let (first, count) = leaf_range(cur);
+            for &p in &self.indices[first..first + count] {
+                if crate::math::intersect::intersect_prim(scene, p, ray, best) {
+                    found = true;
+                    if any {
+                        return true;
+                    }
+                }
+            }
+            match stack.pop() {
+                Some(c) => cur = c,
+                None => return found,
+            }
+        }
+    }
+
+    /// Nodes and indices as the kernel reads them.
+    pub fn to_gpu(&self) -> (&[GpuBvhNode], &[u32]) {
+        (&self.nodes, &self.indices)
+    }
+}
+
+fn contains(outer: &Aabb, inner: &Aabb) -> bool {
+    inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
+}
+
+/// Records the time since `t` as phase `name` and restarts `t`.
+pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut Instant) {
+    phases.push(Phase { name: name.to_string(), ms: t.elapsed().as_secs_f64() * 1e3 });
+    *t = Instant::now();
+}

@@ -1,0 +1,183 @@
+//! BVHs (bvh-sah, lbvh, trbvh): validate() on edge cases, treelet restructuring never
+//! raising the SAH cost, CPU traversal against brute force, identical builds for any
+//! thread count, GPU against the CPU reference.
+
+mod common;
+
+use arbor::accel::bvh::{lbvh, treelet, Binary, Bvh, BvhBuilder, PrimRefs, EMPTY_REF, MAX_BVH_DEPTH};
+use arbor::accel::sah::SahCosts;
+use arbor::accel::{Accel, AccelKind};
+use arbor::render::{cpu, gpu, RenderSettings};
+use arbor::scene::{procedural, Camera, Scene};
+use common::scenes::{compare_with_brute_force, edge_cases, scene_from, tris};
+use glam::Vec3;
+
+const BUILDERS: [BvhBuilder; 3] = [BvhBuilder::Sah, BvhBuilder::Lbvh, BvhBuilder::Trbvh];
+
+/// The edge cases of the kd-tree tests plus two primitives and a cloud of identical
+/// centroids larger than a leaf.
+fn cases() -> Vec<Scene> {
+    let v = Vec3::new;
+    let mut out = edge_cases();
+    out.push(scene_from(
+        "two",
+        Some(tris(&[[v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)], [v(0., 0., 2.), v(1., 0., 2.), v(0., 1., 2.)]])),
+        &[],
+    ));
+    // 40 triangles with one centroid (every Morton code equal) but different shapes.
+    let mut same_centroid = Vec::new();
+    for k in 0..40 {
+        let s = 0.1 + k as f32 * 0.05;
+        same_centroid.push([v(-s, -s, 0.), v(2. * s, -s, 0.), v(-s, 2. * s, 0.)]);
+    }
+    out.push(scene_from("one centroid", Some(tris(&same_centroid)), &[(Vec3::ZERO, 0.3), (Vec3::ZERO, 0.2)]));
+    out
+}
+
+#[test]
+fn validate_every_builder_on_every_edge_case() {
+    for scene in cases() {
+        for b in BUILDERS {
+            let t = Bvh::build(&scene, b);
+            t.validate(&scene).unwrap_or_else(|e| panic!("{} / {}: {e}", scene.name, b.name()));
+            assert!(t.depth <= MAX_BVH_DEPTH);
+            let st = t.stats();
+            assert_eq!(st.refs_per_prim, 1.0, "{} / {}", scene.name, b.name());
+            assert!(st.sah_cost > 0.0 && st.sah_cost.is_finite(), "{} / {}: {}", scene.name, b.name(), st.sah_cost);
+        }
+    }
+}
+
+#[test]
+fn empty_scene_builds_a_root_with_no_children() {
+    let mut scene = edge_cases().remove(0);
+    scene.triangles.clear();
+    for b in BUILDERS {
+        let t = Bvh::build(&scene, b);
+        t.validate(&scene).unwrap_or_else(|e| panic!("empty / {}: {e}", b.name()));
+        assert_eq!(t.nodes.len(), 1);
+        assert_eq!(t.children(0).map(|(r, _)| r), [EMPTY_REF, EMPTY_REF]);
+        let ray = arbor::math::Ray { origin: Vec3::ZERO, dir: Vec3::X, tmin: 0.0, tmax: f32::INFINITY };
+        assert!(t.intersect(&scene, &ray).is_none());
+    }
+}
+
+#[test]
+fn restructuring_never_raises_sah_and_keeps_every_primitive() {
+    let costs = SahCosts::default();
+    let mut scenes = cases();
+    scenes.push(scene_from("blob", Some(procedural::blob(20_000, 0.2, 5)), &[(Vec3::ZERO, 0.6)]));
+    for scene in scenes {
+        let refs = PrimRefs::new(&scene);
+        let mut phases = Vec::new();
+        let mut t = std::time::Instant::now();
+        let mut bin = lbvh::build(&refs, &mut phases, &mut t);
+        let mut work = treelet::Restructure::new(&bin, &costs);
+        let mut before = bin.sah_cost(&costs, true);
+        let start = before;
+        for round in 0..treelet::ROUNDS {
+            work.round(&mut bin, treelet::gamma(round));
+            let after = bin.sah_cost(&costs, true);
+            assert!(after <= before * (1.0 + 1e-5), "{} round {round}: {before} -> {after}", scene.name);
+            // The incremental cost agrees with a recomputation.
+            let inc = work.root_cost(&bin);
+            assert!((inc - after).abs() <= 1e-3 * after.max(1e-30), "{}: {inc} vs {after}", scene.name);
+            before = after;
+            let mut all = Vec::new();
+            bin.gather(bin.root, &mut all);
+            all.sort_unstable();
+            assert_eq!(all, (0..scene.prim_count() as u32).collect::<Vec<_>>(), "{}", scene.name);
+            check_boxes(&bin);
+        }
+        if scene.name == "blob" {
+            assert!(before < start * 0.97, "restructuring should improve a 20k LBVH: {start} -> {before}");
+        }
+    }
+}
+
+/// Every inner node's box is the union of its children's.
+fn check_boxes(bin: &Binary) {
+    for (i, n) in bin.nodes.iter().enumerate() {
+        if !n.is_leaf() {
+            let u = bin.nodes[n.left as usize].bounds.union(&bin.nodes[n.right as usize].bounds);
+            assert_eq!(u, n.bounds, "node {i}");
+        }
+    }
+}
+
+#[test]
+fn trbvh_is_close_to_bvh_sah_and_better_than_lbvh() {
+    let scene = scene_from("blob", Some(procedural::blob(30_000, 0.25, 3)), &[]);
+    let sah = Bvh::build(&scene, BvhBuilder::Sah).stats().sah_cost;
+    let lb = Bvh::build(&scene, BvhBuilder::Lbvh).stats().sah_cost;
+    let tr = Bvh::build(&scene, BvhBuilder::Trbvh).stats().sah_cost;
+    assert!(tr < lb, "trbvh {tr} vs lbvh {lb}");
+    assert!(tr < sah * 1.10, "trbvh {tr} vs bvh-sah {sah}");
+}
+
+#[test]
+fn cpu_traversal_equals_brute_force() {
+    for scene in cases() {
+        for b in BUILDERS {
+            let t = Bvh::build(&scene, b);
+            compare_with_brute_force(&scene, &Accel::Bvh(t), 1500, 42, &[]);
+        }
+    }
+}
+
+#[test]
+fn build_is_identical_for_any_thread_count() {
+    let scene = scene_from("blob", Some(procedural::blob(150_000, 0.2, 9)), &[(Vec3::ZERO, 0.7)]);
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().expect("pool");
+    for b in BUILDERS {
+        let x = one.install(|| Bvh::build(&scene, b));
+        let y = four.install(|| Bvh::build(&scene, b));
+        assert_eq!(x.nodes, y.nodes, "{}", b.name());
+        assert_eq!(x.indices, y.indices, "{}", b.name());
+    }
+}
+
+#[test]
+fn gpu_equals_cpu_for_every_builder() {
+    let Some(ctx) = common::gpu() else { return };
+    let v = Vec3::new;
+    let cases = vec![
+        scene_from("mesh", Some(procedural::blob(5000, 0.25, 11)), &[]),
+        scene_from("spheres", None, &[(v(0., 0., 0.), 0.5), (v(1.1, 0.2, 0.), 0.4), (v(-1., -0.3, 0.3), 0.45)]),
+        scene_from("both", Some(procedural::blob(3000, 0.2, 12)), &[(v(1.2, 0., 0.3), 0.4), (v(-1.3, 0.2, 0.), 0.5)]),
+        Scene::load("builtin:cornell").expect("cornell"),
+    ];
+    for mut scene in cases {
+        for (k, eye) in [v(0.3, 0.4, 4.0), v(-3.0, 1.0, -2.0)].into_iter().enumerate() {
+            if scene.name != "builtin:cornell" {
+                scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
+            }
+            let reference = cpu::reference_aovs(&scene, 48, 40);
+            for kind in [AccelKind::BvhSah, AccelKind::Lbvh, AccelKind::Trbvh] {
+                let mut s = RenderSettings::for_size(48, 40);
+                s.accel = kind;
+                let (g, st) = gpu::render(&ctx, &scene, &s, |_, _| {}).expect("render");
+                ctx.check_validation().expect("no validation errors");
+                assert_eq!(st.kernel.split('_').nth(1), Some("bvh"));
+                for i in 0..g.prim.len() {
+                    assert_eq!(g.prim[i], reference.prim[i], "{} cam {k} {kind}: pixel {i}", scene.name);
+                    let (a, b) = (g.depth[i], reference.depth[i]);
+                    assert!(
+                        a == b || (a - b).abs() <= 1e-5 * b.abs(),
+                        "{} cam {k} {kind}: pixel {i} depth {a} vs {b}",
+                        scene.name
+                    );
+                }
+                if scene.prim_count() > 1000 {
+                    assert!(
+                        st.mean_prims_tested < scene.prim_count() as f64 / 10.0,
+                        "{}: {}",
+                        scene.name,
+                        st.mean_prims_tested
+                    );
+                }
+            }
+        }
+    }
+}
