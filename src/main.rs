@@ -66,6 +66,10 @@ struct BenchArgs {
     /// kd-tree builder parameters (see `render --kd`).
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     kd: String,
+    /// Also trace a shadow ray toward the light from every primary hit (no bounces);
+    /// Mrays/s then counts both kinds.
+    #[arg(long)]
+    shadow: bool,
     #[command(flatten)]
     device: DeviceArgs,
 }
@@ -444,10 +448,11 @@ fn bench_case(
     kd: &arbor::accel::kdtree::KdParams,
     size: (u32, u32),
     repeat: usize,
+    shadow: bool,
     pb: &ProgressBar,
 ) -> Result<Case> {
     let mut settings = RenderSettings::for_size(size.0, size.1);
-    settings.primary_only = true;
+    settings.primary_only = !shadow;
     settings.accel = kind;
     let mut case =
         Case { build_ms: Vec::new(), trace_ms: Vec::new(), rates: Vec::new(), stats: Default::default(), size };
@@ -475,9 +480,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
     let repeat = args.repeat.max(1);
     let ctx = context(&args.device)?;
     eprintln!(
-        "device: {} ({}); {w}x{h} primary rays (brute force on a smaller image of the same view), median of {repeat} after 1 warm-up",
+        "device: {} ({}); {w}x{h} primary rays{} (brute force on a smaller image of the same view), median of {repeat} after 1 warm-up",
         ctx.info().name,
-        ctx.info().kind
+        ctx.info().kind,
+        if args.shadow { " + a shadow ray per hit" } else { "" }
     );
     let pb = progress_bar(false);
     pb.set_length((args.tris.len() * args.accel.len() * (repeat + 1)) as u64);
@@ -487,7 +493,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
     let mut lines = Vec::new();
     let mut rows = Vec::new();
     for &n in &args.tris {
-        let scene = Scene::load(&format!("builtin:blob:{n}"))?;
+        let mut scene = Scene::load(&format!("builtin:blob:{n}"))?;
+        if args.shadow {
+            scene.max_depth = 1;
+        }
         let nt = scene.triangles.len();
         // Brute force over all pixels would take too long: trace a square subset whose
         // side keeps it under about 4e8 primitive tests.
@@ -496,7 +505,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         for &kind in &args.accel {
             pb.set_message(format!("{nt} triangles, {kind}"));
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
-            let c = bench_case(&ctx, &scene, kind, &kd, size, repeat, &pb)?;
+            let c = bench_case(&ctx, &scene, kind, &kd, size, repeat, args.shadow, &pb)?;
             let rate = median(&mut c.rates.clone());
             if kind == AccelKind::None {
                 brute_rate = Some(rate);

@@ -71,7 +71,7 @@ fn restructuring_never_raises_sah_and_keeps_every_primitive() {
         let refs = PrimRefs::new(&scene);
         let mut phases = Vec::new();
         let mut t = std::time::Instant::now();
-        let mut bin = lbvh::build(&refs, &mut phases, &mut t);
+        let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
         let mut work = treelet::Restructure::new(&bin, &costs);
         let mut before = bin.sah_cost(&costs, true);
         let start = before;

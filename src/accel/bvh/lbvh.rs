@@ -12,7 +12,8 @@
 //! - Hierarchy: every inner node finds its range and split independently from the
 //!   sorted keys alone (parallel over nodes). Inner node i is node i of the result,
 //!   leaf j (the j-th key) is node n - 1 + j.
-//! - Boxes: one post-order pass.
+//! - Boxes: one post-order pass ([`build_fitted`]); the flattener fits its own, so a
+//!   plain LBVH skips it.
 
 use std::time::Instant;
 
@@ -141,7 +142,8 @@ fn inner_children(keys: &[u64], i: usize) -> (u32, u32) {
     (left as u32, right as u32)
 }
 
-/// Builds the LBVH: leaves of one primitive. Records phases into `phases`.
+/// Builds the LBVH: leaves of one primitive, inner boxes not yet fitted (left
+/// empty). Records phases into `phases`.
 pub fn build(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binary {
     let n = refs.len();
     if n == 0 {
@@ -158,9 +160,17 @@ pub fn build(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binar
     nodes.extend(inner.iter().map(|&(l, r)| BNode { bounds: Aabb::EMPTY, left: l, right: r }));
     nodes.extend(prims.iter().enumerate().map(|(j, &p)| BNode::leaf(refs.bounds[p as usize], j as u32, 1)));
     lap(phases, "hierarchy", t);
-    fit_bounds(&mut nodes, 0);
-    lap(phases, "bounds", t);
     Binary { nodes, root: 0, prims }
+}
+
+/// [`build`] with every inner node's box fitted (what restructuring needs; the
+/// flattener computes boxes on its own).
+pub fn build_fitted(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binary {
+    let mut bin = build(refs, phases, t);
+    let root = bin.root;
+    fit_bounds(&mut bin.nodes, root);
+    lap(phases, "bounds", t);
+    bin
 }
 
 /// Sets every inner node's box to the union of its children's (post-order).

@@ -338,7 +338,7 @@ impl Bvh {
             }
             BvhBuilder::Lbvh => (lbvh::build(&refs, &mut phases, &mut t), None),
             BvhBuilder::Trbvh => {
-                let mut bin = lbvh::build(&refs, &mut phases, &mut t);
+                let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
                 let mut work = treelet::Restructure::new(&bin, &costs);
                 for round in 0..treelet::ROUNDS {
                     work.round(&mut bin, treelet::gamma(round));
@@ -363,7 +363,7 @@ impl Bvh {
             bin,
             refs,
             collapse,
-            nodes: Vec::with_capacity(refs.len() / 2 + 1),
+            nodes: Vec::with_capacity(refs.len()),
             indices: Vec::with_capacity(refs.len()),
             gathered: Vec::new(),
             depth: 0,
