@@ -91,7 +91,8 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         spp: u32,
         /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
-        /// tree), none (brute force).
+        /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
+        /// (LBVH + treelet restructuring), none (brute force).
         #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
         /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
