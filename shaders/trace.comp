@@ -55,6 +55,18 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
 }
 #endif
 
+// Primitive p of the global numbering (triangles first, then spheres), for trees.
+bool intersect_prim(uint p, Ray r, inout Hit h) {
+#if HAS_TRIANGLES && HAS_SPHERES
+    if (p < params.dims.z) return intersect_triangle(p, r, h);
+    return intersect_sphere(p - params.dims.z, r, h);
+#elif HAS_TRIANGLES
+    return intersect_triangle(p, r, h);
+#else
+    return intersect_sphere(p - params.dims.z, r, h);
+#endif
+}
+
 #if defined(ACCEL_NONE)
 #include "accel/none.glsl"
 #elif defined(ACCEL_KDTREE)

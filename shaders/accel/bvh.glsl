@@ -16,17 +16,6 @@ const uint BVH_LEAF = 0x80000000u;
 const uint BVH_EMPTY = 0xffffffffu;
 const float BVH_T_MARGIN = 1e-5;
 
-bool intersect_prim(uint p, Ray r, inout Hit h) {
-#if HAS_TRIANGLES && HAS_SPHERES
-    if (p < params.dims.z) return intersect_triangle(p, r, h);
-    return intersect_sphere(p - params.dims.z, r, h);
-#elif HAS_TRIANGLES
-    return intersect_triangle(p, r, h);
-#else
-    return intersect_sphere(p - params.dims.z, r, h);
-#endif
-}
-
 bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;

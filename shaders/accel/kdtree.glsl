@@ -16,17 +16,6 @@ bool before(float a, float b) {
     return m < b;
 }
 
-bool intersect_prim(uint p, Ray r, inout Hit h) {
-#if HAS_TRIANGLES && HAS_SPHERES
-    if (p < params.dims.z) return intersect_triangle(p, r, h);
-    return intersect_sphere(p - params.dims.z, r, h);
-#elif HAS_TRIANGLES
-    return intersect_triangle(p, r, h);
-#else
-    return intersect_sphere(p - params.dims.z, r, h);
-#endif
-}
-
 // The stack holds (node, tmax) only: the cell popped next always starts where the
 // last visited cell ended (its tmin is the current tmax, carried exactly), except
 // for the sibling pushed by a ray lying inside a split plane, flagged IN_PLANE, which
