@@ -73,6 +73,10 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/kdtree.glsl"
 #elif defined(ACCEL_BVH)
 #include "accel/bvh.glsl"
+#elif defined(ACCEL_GRID)
+#include "accel/grid.glsl"
+#elif defined(ACCEL_OCTREE)
+#include "accel/octree.glsl"
 #endif
 
 const float PI = 3.14159265358979;

@@ -52,7 +52,7 @@ struct BenchArgs {
     tris: Vec<usize>,
     /// Structures to compare; `none` (brute force) is traced on a smaller image of
     /// the same view and gives the speedup column.
-    #[arg(long, value_delimiter = ',', default_values_t = [AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse, AccelKind::BvhSah, AccelKind::Lbvh, AccelKind::Trbvh])]
+    #[arg(long, value_delimiter = ',', default_values_t = [AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse, AccelKind::BvhSah, AccelKind::Lbvh, AccelKind::Trbvh, AccelKind::Grid, AccelKind::Octree])]
     accel: Vec<AccelKind>,
     /// Image size WIDTHxHEIGHT (primary rays).
     #[arg(long, default_value = "256x256", value_name = "WxH")]
@@ -66,6 +66,20 @@ struct BenchArgs {
     /// kd-tree builder parameters (see `render --kd`).
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     kd: String,
+    /// Grid parameters (see `render --grid`).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    grid: String,
+    /// Octree parameters (see `render --octree`).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    octree: String,
+    /// Grid densities to sweep: one grid row per value (cells = lambda x primitives);
+    /// default: the one from --grid.
+    #[arg(long, value_delimiter = ',', value_name = "LAMBDA,...")]
+    lambda: Vec<f32>,
+    /// Extra scenes: builtin:stadium:N (a dense mesh of N triangles inside a huge
+    /// sparse one) or any scene argument; traced beside the blobs of --tris.
+    #[arg(long, value_delimiter = ',', value_name = "SCENE,...")]
+    scene: Vec<String>,
     /// Also trace a shadow ray toward the light from every primary hit (no bounces);
     /// Mrays/s then counts both kinds.
     #[arg(long)]
@@ -92,7 +106,8 @@ enum Command {
         spp: u32,
         /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
         /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
-        /// (LBVH + treelet restructuring), none (brute force).
+        /// (LBVH + treelet restructuring), grid (uniform grid), octree, none (brute
+        /// force).
         #[arg(long, default_value = "kdtree")]
         accel: AccelKind,
         /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
@@ -101,6 +116,14 @@ enum Command {
         /// (true/false), depth (number or auto).
         #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
         kd: String,
+        /// Grid parameters as KEY=VALUE pairs: lambda (cells per primitive, default 2),
+        /// cells (most cells in all, default 16777216).
+        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+        grid: String,
+        /// Octree parameters as KEY=VALUE pairs: leaf (most primitives a node keeps
+        /// without splitting, default 8), depth (deepest level, default 20, at most 24).
+        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+        octree: String,
         /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
         /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
         #[arg(long, value_name = "NAME=PATH,...")]
@@ -134,6 +157,12 @@ enum Command {
         /// kd-tree builder parameters (see `render --kd`).
         #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
         kd: String,
+        /// Grid parameters (see `render --grid`).
+        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+        grid: String,
+        /// Octree parameters (see `render --octree`).
+        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+        octree: String,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -175,6 +204,14 @@ fn context(d: &DeviceArgs) -> Result<Context> {
         Err(_) => None,
     };
     Ok(Context::new(&ContextOptions { device: d.device.clone(), validation, max_storage_range })?)
+}
+
+fn accel_params(kd: &str, grid: &str, octree: &str) -> Result<arbor::accel::AccelParams> {
+    Ok(arbor::accel::AccelParams {
+        kd: arbor::accel::kdtree::KdParams::parse(kd).map_err(anyhow::Error::msg)?,
+        grid: arbor::accel::grid::GridParams::parse(grid).map_err(anyhow::Error::msg)?,
+        octree: arbor::accel::octree::OctreeParams::parse(octree).map_err(anyhow::Error::msg)?,
+    })
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -249,9 +286,11 @@ fn run(cli: Cli) -> Result<()> {
             dispatch_budget,
             quiet,
             kd,
+            grid,
+            octree,
         } => {
             let aovs = parse_aovs(&aov)?;
-            let kd = arbor::accel::kdtree::KdParams::parse(&kd).map_err(anyhow::Error::msg)?;
+            let params = accel_params(&kd, &grid, &octree)?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
             for (_, p) in &aovs {
@@ -271,7 +310,7 @@ fn run(cli: Cli) -> Result<()> {
             settings.spp = spp;
             settings.seed = seed;
             settings.accel = accel;
-            settings.kd = kd;
+            settings.params = params;
             settings.dispatch_budget = dispatch_budget.max(1);
             settings.kernel = if kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
             let pb = progress_bar(quiet);
@@ -333,10 +372,10 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Info { scene, accel, json, kd } => {
-            let kd = arbor::accel::kdtree::KdParams::parse(&kd).map_err(anyhow::Error::msg)?;
+        Command::Info { scene, accel, json, kd, grid, octree } => {
+            let params = accel_params(&kd, &grid, &octree)?;
             let scene = Scene::load(&scene)?;
-            let built = arbor::accel::Accel::build_with(accel, &scene, &kd);
+            let built = arbor::accel::Accel::build_with(accel, &scene, &params);
             let valid = built.validate(&scene);
             let st = built.stats(&scene);
             let bounds = scene.bounds();
@@ -379,7 +418,16 @@ fn run(cli: Cli) -> Result<()> {
                 println!("bounds          {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
                 println!("accel           {}", accel.name());
                 println!("  build         {:.2} ms", st.build_ms);
-                println!("  nodes         {} ({} leaves, {} empty)", st.nodes, st.leaves, st.empty_leaves);
+                println!(
+                    "  nodes         {} ({} leaves, {} empty: {:.1}%)",
+                    st.nodes,
+                    st.leaves,
+                    st.empty_leaves,
+                    100.0 * st.empty_leaves as f64 / st.leaves.max(1) as f64
+                );
+                if let Some(r) = st.resolution {
+                    println!("  resolution    {} x {} x {} cells", r[0], r[1], r[2]);
+                }
                 println!("  depth         max {}, mean leaf {:.2}", st.max_depth, st.mean_leaf_depth);
                 println!("  refs/prim     {:.3} ({:.2} per leaf)", st.refs_per_prim, st.prims_per_leaf);
                 println!("  bytes         {} ({:.2} per primitive)", st.bytes, st.bytes as f64 / n);
@@ -446,7 +494,7 @@ fn bench_case(
     ctx: &Context,
     scene: &Scene,
     kind: AccelKind,
-    kd: &arbor::accel::kdtree::KdParams,
+    params: &arbor::accel::AccelParams,
     size: (u32, u32),
     args: &BenchArgs,
     pb: &ProgressBar,
@@ -458,7 +506,7 @@ fn bench_case(
     let mut case =
         Case { build_ms: Vec::new(), trace_ms: Vec::new(), rates: Vec::new(), stats: Default::default(), size };
     for r in 0..=repeat {
-        let accel = arbor::accel::Accel::build_with(kind, scene, kd);
+        let accel = arbor::accel::Accel::build_with(kind, scene, params);
         let (_, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
         pb.inc(1);
         if r > 0 {
@@ -472,13 +520,40 @@ fn bench_case(
     Ok(case)
 }
 
+/// The structures to run, with the parameters of each row and its label: the grid once
+/// per --lambda value.
+fn bench_variants(
+    args: &BenchArgs,
+    base: &arbor::accel::AccelParams,
+) -> Vec<(AccelKind, arbor::accel::AccelParams, String)> {
+    let mut out = Vec::new();
+    for &kind in &args.accel {
+        if kind == AccelKind::Grid && !args.lambda.is_empty() {
+            for &lambda in &args.lambda {
+                let mut p = *base;
+                p.grid.lambda = lambda;
+                out.push((kind, p, format!("grid:{lambda}")));
+            }
+        } else {
+            out.push((kind, *base, kind.name().to_string()));
+        }
+    }
+    out
+}
+
 fn bench(args: &BenchArgs) -> Result<()> {
     if let Some(p) = &args.json {
         check_writable(p)?;
     }
     let (w, h) = parse_size(&args.size)?;
-    let kd = arbor::accel::kdtree::KdParams::parse(&args.kd).map_err(anyhow::Error::msg)?;
+    let params = accel_params(&args.kd, &args.grid, &args.octree)?;
+    if let Some(bad) = args.lambda.iter().find(|l| !(l.is_finite() && **l > 0.0 && **l <= 1e4)) {
+        bail!("--lambda {bad}: each value must be in (0, 10000]");
+    }
+    let variants = bench_variants(args, &params);
     let repeat = args.repeat.max(1);
+    let scenes: Vec<String> =
+        args.tris.iter().map(|n| format!("builtin:blob:{n}")).chain(args.scene.iter().cloned()).collect();
     let ctx = context(&args.device)?;
     eprintln!(
         "device: {} ({}); {w}x{h} primary rays{} (brute force on a smaller image of the same view), median of {repeat} after 1 warm-up",
@@ -487,35 +562,36 @@ fn bench(args: &BenchArgs) -> Result<()> {
         if args.shadow { " + a shadow ray per hit" } else { "" }
     );
     let pb = progress_bar(false);
-    pb.set_length((args.tris.len() * args.accel.len() * (repeat + 1)) as u64);
+    pb.set_length((scenes.len() * variants.len() * (repeat + 1)) as u64);
     if std::io::stderr().is_terminal() {
         pb.set_draw_target(ProgressDrawTarget::stderr());
     }
-    let mut lines = Vec::new();
     let mut rows = Vec::new();
-    for &n in &args.tris {
-        let mut scene = Scene::load(&format!("builtin:blob:{n}"))?;
+    for name in &scenes {
+        let mut scene = Scene::load(name)?;
         if args.shadow {
             scene.max_depth = 1;
         }
         let nt = scene.triangles.len();
+        let short = name.strip_prefix("builtin:").unwrap_or(name);
         // Brute force over all pixels would take too long: trace a square subset whose
         // side keeps it under about 4e8 primitive tests.
-        let side = ((4e8 / nt.max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
+        let side = ((4e8 / scene.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
         let mut brute_rate = None;
-        for &kind in &args.accel {
-            pb.set_message(format!("{nt} triangles, {kind}"));
+        for (kind, p, label) in &variants {
+            let kind = *kind;
+            pb.set_message(format!("{short}, {label}"));
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
-            let c = match bench_case(&ctx, &scene, kind, &kd, size, args, &pb) {
+            let c = match bench_case(&ctx, &scene, kind, p, size, args, &pb) {
                 Ok(c) => c,
                 // Brute force can exceed a driver's per-invocation loop limit (llvmpipe)
                 // on big scenes with shadow rays: report it and go on without speedups.
                 Err(e) if kind == AccelKind::None => {
-                    pb.suspend(|| eprintln!("{nt} triangles, none: skipped: {e:#}"));
+                    pb.suspend(|| eprintln!("{short}, none: skipped: {e:#}"));
                     pb.inc(repeat as u64 + 1);
                     continue;
                 }
-                Err(e) => return Err(e),
+                Err(e) => return Err(e.context(format!("{short}, {label}"))),
             };
             let rate = median(&mut c.rates.clone());
             if kind == AccelKind::None {
@@ -524,9 +600,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
             let speedup = brute_rate.map(|b| rate / b);
             let st = &c.stats;
             let line = format!(
-                "{:>9} {:>10} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5}",
+                "{:>16} {:>9} {:>10} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5}",
+                short,
                 nt,
-                kind.name(),
+                label,
                 format!("{}x{}", c.size.0, c.size.1),
                 median(&mut c.build_ms.clone()),
                 median(&mut c.trace_ms.clone()),
@@ -540,9 +617,9 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 st.build.max_depth
             );
             pb.suspend(|| println!("{line}"));
-            lines.push(line);
             rows.push(serde_json::json!({
-                "triangles": nt, "accel": kind.name(), "width": c.size.0, "height": c.size.1,
+                "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "params": p,
+                "width": c.size.0, "height": c.size.1,
                 "build_ms_median": median(&mut c.build_ms.clone()), "build_ms_all": c.build_ms,
                 "trace_ms_median": median(&mut c.trace_ms.clone()), "trace_ms_spread": spread(&c.trace_ms),
                 "trace_ms_all": c.trace_ms, "mrays_per_s_median": rate, "speedup_vs_brute_force": speedup,
@@ -559,4 +636,4 @@ fn bench(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-const BENCH_HEADER: &str = "triangles      accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth";
+const BENCH_HEADER: &str = "           scene triangles      accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth";

@@ -66,6 +66,8 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
                 if (any_hit) return true;
             }
         }
+        // A leaf cut short by the step budget must not end the trace as if complete.
+        if (steps >= TREE_STEPS) break;
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];

@@ -10,12 +10,6 @@
 layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer KdNodes { uvec2 kd_nodes[]; };
 layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer KdIndices { uint kd_indices[]; };
 
-// a lies before b by more than the relative margin T_MARGIN (see KdTree::traverse).
-bool before(float a, float b) {
-    precise float m = a * (1.0 + 1e-5);
-    return m < b;
-}
-
 // The stack holds (node, tmax) only: the cell popped next always starts where the
 // last visited cell ended (its tmin is the current tmax, carried exactly), except
 // for the sibling pushed by a ray lying inside a split plane, flagged IN_PLANE, which
@@ -79,6 +73,8 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
                 if (any_hit) return true;
             }
         }
+        // A leaf cut short by the step budget must not end the trace as if complete.
+        if (steps >= TREE_STEPS) break;
         // Pop until a cell may still hold a hit before the best (no early return
         // on this cell's tmax: a ray inside a split plane pushes a sibling with
         // the same interval).

@@ -74,6 +74,13 @@ bool ray_box(vec3 bmin, vec3 bmax, vec3 origin, vec3 inv_dir, float tmin, float 
     return enter <= exit_t;
 }
 
+// a lies before b by more than the relative margin T_MARGIN = 1e-5 of the trees'
+// and grids' cell boundaries (see `before` in src/accel/kdtree/mod.rs).
+bool before(float a, float b) {
+    precise float m = a * (1.0 + 1e-5);
+    return m < b;
+}
+
 float dot3(vec3 a, vec3 b) {
     precise float r = a.x * b.x + a.y * b.y + a.z * b.z;
     return r;

@@ -8,13 +8,17 @@
 //! - [`AccelKind::BspCourse`]: the lecture's simple BSP tree, same layout and kernel.
 //! - [`AccelKind::BvhSah`], [`AccelKind::Lbvh`], [`AccelKind::Trbvh`]: BVHs from
 //!   three builders, one layout and one kernel (see [`bvh`]).
+//! - [`AccelKind::Grid`]: uniform grid, 3D-DDA (Amanatides & Woo 1987).
+//! - [`AccelKind::Octree`]: octree with child masks, parametric traversal (Revelles 2000).
 
 #![forbid(unsafe_code)]
 
 pub mod bvh;
 pub mod gpu_layout;
+pub mod grid;
 pub mod kdtree;
 pub mod none;
+pub mod octree;
 pub mod prim;
 pub mod sah;
 
@@ -38,6 +42,10 @@ pub enum AccelKind {
     Lbvh,
     /// LBVH with treelet restructuring (Karras & Aila 2013).
     Trbvh,
+    /// Uniform grid, about lambda x N cells (Amanatides & Woo 1987).
+    Grid,
+    /// Octree, subdivided about node centres (Revelles et al. 2000 traversal).
+    Octree,
 }
 
 impl AccelKind {
@@ -49,6 +57,8 @@ impl AccelKind {
         AccelKind::BvhSah,
         AccelKind::Lbvh,
         AccelKind::Trbvh,
+        AccelKind::Grid,
+        AccelKind::Octree,
     ];
 
     /// The CLI / kernel name.
@@ -60,6 +70,8 @@ impl AccelKind {
             AccelKind::BvhSah => "bvh-sah",
             AccelKind::Lbvh => "lbvh",
             AccelKind::Trbvh => "trbvh",
+            AccelKind::Grid => "grid",
+            AccelKind::Octree => "octree",
         }
     }
 
@@ -69,6 +81,8 @@ impl AccelKind {
             AccelKind::None => "none",
             AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
             AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
+            AccelKind::Grid => "grid",
+            AccelKind::Octree => "octree",
         }
     }
 }
@@ -89,6 +103,8 @@ impl FromStr for AccelKind {
             "bvh-sah" | "bvh" => Ok(AccelKind::BvhSah),
             "lbvh" => Ok(AccelKind::Lbvh),
             "trbvh" => Ok(AccelKind::Trbvh),
+            "grid" => Ok(AccelKind::Grid),
+            "octree" => Ok(AccelKind::Octree),
             _ => Err(format!(
                 "unknown structure '{s}'; available: {}",
                 AccelKind::ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
@@ -116,8 +132,11 @@ pub struct BuildStats {
     pub prims_per_leaf: f64,
     /// SAH cost of the tree with the default constants (sah.rs), relative to the root.
     pub sah_cost: f64,
-    /// Build phases in order, CPU wall clock (BVHs).
+    /// Build phases in order, CPU wall clock.
     pub phases: Vec<Phase>,
+    /// Cells per axis (grid only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resolution: Option<[u32; 3]>,
 }
 
 /// One timed phase of a build.
@@ -127,29 +146,41 @@ pub struct Phase {
     pub ms: f64,
 }
 
+/// Builder parameters of every structure that has any.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct AccelParams {
+    pub kd: kdtree::KdParams,
+    pub grid: grid::GridParams,
+    pub octree: octree::OctreeParams,
+}
+
 /// A built structure of any kind, with the common surface.
 #[derive(Debug, Clone)]
 pub enum Accel {
     None(none::BruteForce),
     Kd(kdtree::KdTree),
     Bvh(bvh::Bvh),
+    Grid(grid::Grid),
+    Octree(octree::Octree),
 }
 
 impl Accel {
     /// Builds `kind` for `scene` with default parameters.
     pub fn build(kind: AccelKind, scene: &crate::scene::Scene) -> Accel {
-        Self::build_with(kind, scene, &kdtree::KdParams::default())
+        Self::build_with(kind, scene, &AccelParams::default())
     }
 
-    /// Builds `kind` for `scene`; `kd` applies to the SAH kd-tree.
-    pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, kd: &kdtree::KdParams) -> Accel {
+    /// Builds `kind` for `scene` with `params` (each structure reads its own part).
+    pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, params: &AccelParams) -> Accel {
         match kind {
             AccelKind::None => Accel::None(none::BruteForce::build(scene)),
-            AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, kd)),
+            AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, &params.kd)),
             AccelKind::BspCourse => Accel::Kd(kdtree::KdTree::build_course(scene)),
             AccelKind::BvhSah => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
             AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Trbvh)),
+            AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
+            AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
         }
     }
 
@@ -159,6 +190,8 @@ impl Accel {
             Accel::None(b) => b.validate(),
             Accel::Kd(t) => t.validate(scene),
             Accel::Bvh(t) => t.validate(scene),
+            Accel::Grid(t) => t.validate(scene),
+            Accel::Octree(t) => t.validate(scene),
         }
     }
 
@@ -167,6 +200,8 @@ impl Accel {
             Accel::None(b) => b.stats(scene),
             Accel::Kd(t) => t.stats(),
             Accel::Bvh(t) => t.stats(),
+            Accel::Grid(t) => t.stats(),
+            Accel::Octree(t) => t.stats(),
         }
     }
 
@@ -176,6 +211,8 @@ impl Accel {
             Accel::None(b) => b.bounds,
             Accel::Kd(t) => t.bounds,
             Accel::Bvh(t) => t.bounds,
+            Accel::Grid(t) => t.bounds,
+            Accel::Octree(t) => t.bounds,
         }
     }
 
@@ -185,6 +222,8 @@ impl Accel {
             Accel::None(b) => b.intersect(scene, ray),
             Accel::Kd(t) => t.intersect(scene, ray),
             Accel::Bvh(t) => t.intersect(scene, ray),
+            Accel::Grid(t) => t.intersect(scene, ray),
+            Accel::Octree(t) => t.intersect(scene, ray),
         }
     }
 
@@ -194,6 +233,35 @@ impl Accel {
             Accel::None(b) => b.occluded(scene, ray),
             Accel::Kd(t) => t.occluded(scene, ray),
             Accel::Bvh(t) => t.occluded(scene, ray),
+            Accel::Grid(t) => t.occluded(scene, ray),
+            Accel::Octree(t) => t.occluded(scene, ray),
+        }
+    }
+
+    /// Node and index words as the kernel reads them (None for brute force).
+    pub fn gpu_buffers(&self) -> Option<(std::borrow::Cow<'_, [u8]>, &[u32])> {
+        use std::borrow::Cow;
+        match self {
+            Accel::None(_) => None,
+            Accel::Kd(t) => Some((Cow::Borrowed(bytemuck::cast_slice(t.to_gpu().0)), t.to_gpu().1)),
+            Accel::Bvh(t) => Some((Cow::Borrowed(bytemuck::cast_slice(t.to_gpu().0)), t.to_gpu().1)),
+            Accel::Grid(t) => {
+                let (w, i) = t.to_gpu();
+                Some((Cow::Owned(bytemuck::cast_slice(&w).to_vec()), i))
+            }
+            Accel::Octree(t) => {
+                let (w, i) = t.to_gpu();
+                Some((Cow::Owned(bytemuck::cast_slice(&w).to_vec()), i))
+            }
+        }
+    }
+
+    /// Entries the traversal kernel's stack needs (1 for structures without a stack).
+    pub fn stack_size(&self) -> u32 {
+        match self {
+            Accel::Kd(t) => t.depth + 1,
+            Accel::Bvh(t) => t.depth + 1,
+            Accel::None(_) | Accel::Grid(_) | Accel::Octree(_) => 1,
         }
     }
 }

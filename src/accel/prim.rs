@@ -129,6 +129,67 @@ pub fn clip_triangle(v: &[Vec3; 3], b: &Aabb) -> Option<Aabb> {
     (!r.is_empty()).then_some(r)
 }
 
+/// `b` grown by a relative 1e-5 of its extent and at least 8 ulps of its coordinates
+/// (the twin of `kdtree::shrink`). Grids and octrees insert a primitive into every cell
+/// whose grown box it overlaps, so that a hit lying on (or within rounding of) a cell
+/// face is listed on both sides and traversal may enter either.
+pub fn grow(b: &Aabb) -> Aabb {
+    let mag = b.min.abs().max(b.max.abs());
+    let pad = (b.extent() * 1e-5).max(mag * 1e-6).max(Vec3::splat(1e-30));
+    Aabb { min: b.min - pad, max: b.max + pad }
+}
+
+/// Whether the primitive touches the closed box `b`: the separating axis test of
+/// Akenine-Moller (2001) for triangles (box normals, triangle normal, the nine edge
+/// cross products), the closest-point distance for spheres (Arvo 1990). Evaluated in
+/// f64 from the f32 inputs, so the answer is exact up to a relative 1e-15: callers
+/// pass boxes grown by [`grow`], far larger than that.
+pub fn overlaps(g: &PrimGeom, b: &Aabb) -> bool {
+    if b.is_empty() {
+        return false;
+    }
+    let lo = b.min.as_dvec3();
+    let hi = b.max.as_dvec3();
+    match *g {
+        PrimGeom::Sphere(c, r) => {
+            let c = c.as_dvec3();
+            let d = c - c.clamp(lo, hi);
+            let r = f64::from(r);
+            d.length_squared() <= r * r
+        }
+        PrimGeom::Triangle(v) => {
+            let (tmin, tmax) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+            if tmax.cmplt(b.min).any() || tmin.cmpgt(b.max).any() {
+                return false;
+            }
+            if tmin.cmpge(b.min).all() && tmax.cmple(b.max).all() {
+                return true;
+            }
+            let c = (lo + hi) * 0.5;
+            let h = (hi - lo) * 0.5;
+            let p = [v[0].as_dvec3() - c, v[1].as_dvec3() - c, v[2].as_dvec3() - c];
+            let e = [p[1] - p[0], p[2] - p[1], p[0] - p[2]];
+            // Separated along `axis` when the triangle's projection misses the box's.
+            let separated = |axis: DVec3| {
+                let (a, b2, c2) = (axis.dot(p[0]), axis.dot(p[1]), axis.dot(p[2]));
+                let r = h.x * axis.x.abs() + h.y * axis.y.abs() + h.z * axis.z.abs();
+                a.min(b2).min(c2) > r || a.max(b2).max(c2) < -r
+            };
+            if separated(e[0].cross(e[1])) {
+                return false;
+            }
+            for edge in e {
+                for unit in [DVec3::X, DVec3::Y, DVec3::Z] {
+                    if separated(edge.cross(unit)) {
+                        return false;
+                    }
+                }
+            }
+            true
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -152,5 +213,48 @@ mod tests {
         let b = Aabb { min: Vec3::new(2.0, 1.0, -1.0), max: Vec3::new(4.0, 4.0, 1.0) };
         let c = clip_triangle(&tri, &b).expect("overlaps");
         assert!((c.max.y - 2.0).abs() < 1e-6, "{c:?}");
+    }
+
+    #[test]
+    fn overlap_test_separates_by_edges_and_planes() {
+        let tri = PrimGeom::Triangle([Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)]);
+        // Inside the triangle's box but beyond its hypotenuse: only an edge axis separates.
+        let beyond = Aabb { min: Vec3::new(2.5, 2.5, -1.0), max: Vec3::new(3.0, 3.0, 1.0) };
+        assert!(!overlaps(&tri, &beyond));
+        // Touching the hypotenuse at (2, 2) counts.
+        let touching = Aabb { min: Vec3::new(2.0, 2.0, -1.0), max: Vec3::new(3.0, 3.0, 1.0) };
+        assert!(overlaps(&tri, &touching));
+        // Above the plane z = 0.
+        let above = Aabb { min: Vec3::new(0.5, 0.5, 0.1), max: Vec3::new(1.0, 1.0, 1.0) };
+        assert!(!overlaps(&tri, &above));
+        let sphere = PrimGeom::Sphere(Vec3::ZERO, 1.0);
+        let corner = Aabb { min: Vec3::splat(0.6), max: Vec3::splat(2.0) };
+        assert!(!overlaps(&sphere, &corner), "0.6 * sqrt(3) > 1");
+        let near = Aabb { min: Vec3::splat(0.5), max: Vec3::splat(2.0) };
+        assert!(overlaps(&sphere, &near));
+    }
+
+    #[test]
+    fn overlap_agrees_with_clipping_on_random_boxes() {
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0
+        };
+        for _ in 0..20_000 {
+            let tri = [Vec3::new(rnd(), rnd(), rnd()), Vec3::new(rnd(), rnd(), rnd()), Vec3::new(rnd(), rnd(), rnd())];
+            let (a, b) = (Vec3::new(rnd(), rnd(), rnd()), Vec3::new(rnd(), rnd(), rnd()));
+            let bx = Aabb { min: a.min(b), max: a.max(b) };
+            let sat = overlaps(&PrimGeom::Triangle(tri), &bx);
+            // Clipping to a slightly shrunk box never finds overlap the test denies, and
+            // clipping to a slightly grown box always finds overlap the test reports.
+            if !sat {
+                assert!(clip_triangle(&tri, &crate::accel::kdtree::shrink(&bx)).is_none(), "{tri:?} {bx:?}");
+            } else {
+                assert!(clip_triangle(&tri, &grow(&bx)).is_some(), "{tri:?} {bx:?}");
+            }
+        }
     }
 }

@@ -115,6 +115,10 @@ fn tests_per_sample(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> 
         Accel::None(_) => scene.prim_count().max(1) as u64,
         Accel::Kd(t) => 4 * (u64::from(t.depth) + 8),
         Accel::Bvh(t) => 4 * (u64::from(t.depth) + 8),
+        // About half the cells along the diagonal, a few primitives each.
+        Accel::Grid(g) => g.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,
+        // A descent from the root per cell visited.
+        Accel::Octree(t) => 8 * (u64::from(t.depth) + 4),
     };
     let rays = if settings.primary_only { 1 } else { 1 + scene.lights.len() as u64 + 1 };
     per_ray * rays
@@ -171,7 +175,7 @@ pub fn render(
 ) -> Result<(Frame, RenderStats)> {
     // validate() is for tests and `arbor info`: on a 1M-triangle tree it costs more
     // than the build, and render_with checks what the kernel depends on (depth).
-    let accel = Accel::build_with(settings.accel, scene, &settings.kd);
+    let accel = Accel::build_with(settings.accel, scene, &settings.params);
     render_with(ctx, scene, settings, &accel, progress)
 }
 
@@ -238,7 +242,7 @@ pub fn render_with(
     };
     let (per_trace, tree_steps) = match accel {
         Accel::None(_) => (brute_iterations(scene, unroll), 0u64),
-        Accel::Kd(_) | Accel::Bvh(_) => {
+        Accel::Kd(_) | Accel::Bvh(_) | Accel::Grid(_) | Accel::Octree(_) => {
             let steps = match ctx.loop_budget() {
                 Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
                 None => TREE_STEPS_UNLIMITED,
@@ -253,11 +257,7 @@ pub fn render_with(
             (steps, steps)
         }
     };
-    let stack = match accel {
-        Accel::Kd(t) => t.depth + 1,
-        Accel::Bvh(t) => t.depth + 1,
-        Accel::None(_) => 1,
-    };
+    let stack = accel.stack_size();
     let spec = [
         (SPEC_SHADOWS, u32::from(use_lights)),
         (SPEC_MAX_DEPTH, max_depth),
@@ -308,15 +308,13 @@ pub fn render_with(
             BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&gs.triangles))?,
             BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&gs.spheres))?,
             BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&gs.shading))?,
-            BINDING_ACCEL_NODES => match accel {
-                Accel::Kd(t) => upload_checked(ctx, "accel_nodes", bytemuck::cast_slice(t.to_gpu().0))?,
-                Accel::Bvh(t) => upload_checked(ctx, "accel_nodes", bytemuck::cast_slice(t.to_gpu().0))?,
-                Accel::None(_) => return Err(Error::Usage("brute force has no nodes".into())),
+            BINDING_ACCEL_NODES => match accel.gpu_buffers() {
+                Some((nodes, _)) => upload_checked(ctx, "accel_nodes", &nodes)?,
+                None => return Err(Error::Usage("brute force has no nodes".into())),
             },
-            BINDING_ACCEL_INDICES => match accel {
-                Accel::Kd(t) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(t.to_gpu().1))?,
-                Accel::Bvh(t) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(t.to_gpu().1))?,
-                Accel::None(_) => return Err(Error::Usage("brute force has no indices".into())),
+            BINDING_ACCEL_INDICES => match accel.gpu_buffers() {
+                Some((_, indices)) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?,
+                None => return Err(Error::Usage("brute force has no indices".into())),
             },
             BINDING_PIXELS => {
                 let size = chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;

@@ -32,8 +32,8 @@ pub struct RenderSettings {
     pub spp: u32,
     pub seed: u32,
     pub accel: AccelKind,
-    /// Parameters of the SAH kd-tree builder.
-    pub kd: crate::accel::kdtree::KdParams,
+    /// Builder parameters (kd-tree, grid, octree).
+    pub params: crate::accel::AccelParams,
     pub kernel: KernelChoice,
     /// Trace camera rays only (no shadows, no bounces): the benchmark's primary-ray mode.
     pub primary_only: bool,
@@ -50,7 +50,7 @@ impl RenderSettings {
             spp: 1,
             seed: 0,
             accel: AccelKind::None,
-            kd: Default::default(),
+            params: Default::default(),
             kernel: KernelChoice::Specialized,
             primary_only: false,
             dispatch_budget: DEFAULT_DISPATCH_BUDGET,

@@ -5,6 +5,9 @@
 //! - `cornell`: a Cornell box (quads) with a mirror sphere and a glass sphere.
 //! - `blob:N`: one blob of about N triangles, auto-framed (benchmarks).
 //! - `spheres`: spheres only, no triangles (tests the sphere-only kernel).
+//! - `stadium:N`: "the teapot in a stadium": a blob of about N triangles and radius 1
+//!   inside a coarse blob of 2000 triangles and radius 500, seen from close to the
+//!   small one; uniform grids are known to fail here.
 
 use glam::Vec3;
 
@@ -15,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::math::Aabb;
 
 /// Names accepted after `builtin:`.
-pub const NAMES: &str = "default, cornell, spheres, blob:N (N = triangle count)";
+pub const NAMES: &str = "default, cornell, spheres, blob:N, stadium:N (N = triangle count)";
 
 fn mat(name: &str, kind: MaterialKind, color: Vec3) -> Material {
     Material { kind, ..Material::lambert(name, color) }
@@ -33,6 +36,12 @@ pub fn load(name: &str) -> Result<Scene> {
                     Error::scene(format!("builtin:{name}"), "blob:N needs N between 8 and 50000000 triangles")
                 })?;
                 return blob_scene(n);
+            }
+            if let Some(n) = name.strip_prefix("stadium:") {
+                let n: usize = n.parse().ok().filter(|&n| (8..=50_000_000).contains(&n)).ok_or_else(|| {
+                    Error::scene(format!("builtin:{name}"), "stadium:N needs N between 8 and 50000000 triangles")
+                })?;
+                return stadium_scene(n);
             }
             Err(Error::scene(format!("builtin:{name}"), format!("unknown built-in scene; known: {NAMES}")))
         }
@@ -124,6 +133,20 @@ fn blob_scene(n: usize) -> Result<Scene> {
     for p in &b.scene.positions {
         bounds.grow(*p);
     }
+    b.scene.camera = framed_camera(&bounds, 45.0);
+    b.scene.lights.push(super::default_light());
+    b.finish()
+}
+
+fn stadium_scene(n: usize) -> Result<Scene> {
+    let mut b = SceneBuilder::new(&format!("builtin:stadium:{n}"));
+    let teapot = blob(n, 0.15, 1);
+    let mut bounds = Aabb::EMPTY;
+    for p in &teapot.positions {
+        bounds.grow(*p);
+    }
+    b.mesh(&teapot, 1.0, Vec3::ZERO, None);
+    b.mesh(&blob(2000, 0.05, 7), 500.0, Vec3::ZERO, None);
     b.scene.camera = framed_camera(&bounds, 45.0);
     b.scene.lights.push(super::default_light());
     b.finish()

@@ -451,6 +451,7 @@ impl Bvh {
             prims_per_leaf: refs as f64 / leaves.max(1) as f64,
             sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
             phases: self.phases.clone(),
+            resolution: None,
         }
     }
 

@@ -269,6 +269,7 @@ impl KdTree {
             prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
             sah_cost: cost,
             phases: Vec::new(),
+            resolution: None,
         }
     }
 

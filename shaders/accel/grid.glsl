@@ -1,0 +1,102 @@
+// Uniform grid traversal by 3D-DDA (Amanatides & Woo 1987) in ray parameter t only.
+// Mirrors Grid::traverse in src/accel/grid.rs, where the layout is documented:
+//   accel_nodes: uvec4(res, cells), vec4(cell size, 0), then ncells + 1 cell starts
+//   accel_indices: the primitives of cell c are [start[c], start[c + 1])
+// The first cell comes from a binary search over the boundaries' t values, each step
+// crosses the boundary with the smallest t, and a hit ends traversal only when it lies
+// before the current cell's exit. Every trace takes at most TREE_STEPS steps (search
+// steps, cells and primitive tests), beyond which the pixel is flagged.
+
+layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer GridCells {
+    uvec4 grid_res;
+    vec4 grid_cell;
+    uint grid_start[];
+};
+layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer GridIndices { uint grid_indices[]; };
+
+// Coordinate of boundary k on axis a; Grid::boundary.
+float grid_boundary(uint a, uint k) {
+    precise float b = params.scene_min[a] + float(k) * grid_cell[a];
+    return b;
+}
+
+// Ray parameter at boundary k on axis a.
+float grid_tb(uint a, uint k, Ray r, vec3 inv) {
+    precise float t = (grid_boundary(a, k) - r.origin[a]) * inv[a];
+    return t;
+}
+
+bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
+    vec3 inv = safe_rcp3(r.dir);
+    float t_enter, t_far;
+    if (grid_res.w == 0u) return false;
+    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, t_enter, t_far)) return false;
+    const float INF = uintBitsToFloat(0x7f800000u);
+    uvec3 res = grid_res.xyz;
+    uvec3 idx = uvec3(0u);
+    vec3 t_next = vec3(INF);
+    uint steps = 0u;
+    for (uint a = 0u; a < 3u; a++) {
+        bool flat_axis = abs(inv[a]) >= 1e30;
+        // Largest k whose boundary the ray at t_enter lies at or above.
+        uint lo = 0u;
+        uint hi = res[a] - 1u;
+        while (lo < hi && steps < TREE_STEPS) {
+            steps += 1u;
+            uint mid = (lo + hi + 1u) / 2u;
+            bool above;
+            if (flat_axis) {
+                above = grid_boundary(a, mid) <= r.origin[a];
+            } else if (inv[a] > 0.0) {
+                above = grid_tb(a, mid, r, inv) <= t_enter;
+            } else {
+                above = grid_tb(a, mid, r, inv) > t_enter;
+            }
+            if (above) lo = mid; else hi = mid - 1u;
+        }
+        idx[a] = lo;
+        if (!flat_axis) t_next[a] = inv[a] > 0.0 ? grid_tb(a, lo + 1u, r, inv) : grid_tb(a, lo, r, inv);
+    }
+    bool found = false;
+    while (steps < TREE_STEPS) {
+        steps += 1u;
+        g_nodes += 1u;
+        uint c = idx.x + res.x * (idx.y + res.y * idx.z);
+        uint first = grid_start[c];
+        uint last = grid_start[c + 1u];
+        for (uint k = first; k < last && steps < TREE_STEPS; k++) {
+            steps += 1u;
+            if (intersect_prim(grid_indices[k], r, h)) {
+                found = true;
+                if (any_hit) return true;
+            }
+        }
+        if (steps >= TREE_STEPS) break;
+        uint a = 0u;
+        if (t_next.y < t_next[a]) a = 1u;
+        if (t_next.z < t_next[a]) a = 2u;
+        float t_exit = t_next[a];
+        if (before(h.t, t_exit) || isinf(t_exit)) return found;
+        if (inv[a] > 0.0) {
+            idx[a] += 1u;
+            if (idx[a] >= res[a]) return found;
+            t_next[a] = grid_tb(a, idx[a] + 1u, r, inv);
+        } else {
+            if (idx[a] == 0u) return found;
+            idx[a] -= 1u;
+            t_next[a] = grid_tb(a, idx[a], r, inv);
+        }
+    }
+    g_overflow = true;
+    return found;
+}
+
+bool trace_closest(Ray r, inout Hit h) {
+    return grid_traverse(r, h, false);
+}
+
+bool trace_any(Ray r) {
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    return grid_traverse(r, h, true);
+}

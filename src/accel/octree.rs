@@ -1,0 +1,492 @@
+//! Octree: a cube around the scene subdivided about node centres into eight octants
+//! (the lecture's "book keeping with 8 child pointers per node", here one pointer and
+//! a child mask). Traversal follows the parametric idea of Revelles, Urena & Lastra
+//! ("An efficient parametric algorithm for octree traversal", WSCG 2000): every
+//! decision compares the ray parameter t with the t at which the ray crosses a node's
+//! mid-planes, with negative directions mirrored and zero components handled without
+//! division; see `Octree::traverse` for the stackless form used here.
+//!
+//! # Node layout (8 bytes, `[u32; 2]`, read by shaders/accel/octree.glsl)
+//!
+//! ```text
+//! word 0: bit 31 set: leaf, bits 0..31 = number of primitives
+//!         bit 31 clear: inner node, bits 0..8 = child mask (bit k: octant k exists)
+//! word 1: leaf: first entry in the index array
+//!         inner: index of the first existing child; the existing children follow it
+//!                in octant order, so octant k is at first + popcount(mask & (2^k - 1))
+//! octant k: bit 0 = upper half in x, bit 1 = upper in y, bit 2 = upper in z
+//! ```
+//!
+//! Worked example: an inner node whose octants 0, 3 and 6 exist, stored from node 12,
+//! is `[0b0100_1001, 12] = [0x49, 12]`; octant 6 is node 12 + popcount(0x49 & 0x3f) =
+//! 14. A leaf with 5 primitives from index 40 is `[0x8000_0005, 40]`. Absent octants
+//! are empty space: nothing is stored for them.
+//!
+//! The GPU buffer starts with two vec4 (the root cube's min and max, w unused), then
+//! the nodes. A node's centre is `0.5 min + 0.5 max` of its box, computed the same way
+//! here and in the kernel, so a child's faces are bit for bit its ancestors' centres.
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::kdtree::{before, shrink};
+use super::prim::{self, PrimGeom};
+use super::sah::{self, SahCosts};
+use super::BuildStats;
+use crate::math::aabb::FLAT_RCP;
+use crate::math::intersect::intersect_prim;
+use crate::math::{Aabb, Hit, Ray};
+use crate::scene::Scene;
+
+/// Deepest octree the builder makes.
+pub const MAX_OCTREE_DEPTH: u32 = 24;
+/// Leaf flag in word 0.
+pub const LEAF: u32 = 0x8000_0000;
+/// Words of the header before the nodes in the GPU layout.
+pub const HEADER_WORDS: usize = 8;
+
+/// Parameters of the octree builder.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct OctreeParams {
+    /// Nodes with at most this many primitives become leaves.
+    pub leaf_size: usize,
+    /// Deepest level (root = 0), at most [`MAX_OCTREE_DEPTH`].
+    pub max_depth: u32,
+}
+
+impl Default for OctreeParams {
+    fn default() -> Self {
+        OctreeParams { leaf_size: 8, max_depth: 20 }
+    }
+}
+
+impl OctreeParams {
+    /// Parses `leaf=N,depth=N` pairs (either optional) over the default.
+    pub fn parse(spec: &str) -> Result<OctreeParams, String> {
+        let mut p = OctreeParams::default();
+        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if item == "default" {
+                p = OctreeParams::default();
+                continue;
+            }
+            let (k, v) = item.split_once('=').ok_or_else(|| format!("--octree {item:?}: expected KEY=VALUE"))?;
+            let num = v.parse::<u32>().map_err(|_| format!("--octree {k}={v}: expected a whole number"))?;
+            match k {
+                "leaf" if (1..=1 << 20).contains(&num) => p.leaf_size = num as usize,
+                "leaf" => return Err(format!("--octree leaf={v}: expected 1..=1048576")),
+                "depth" if num <= MAX_OCTREE_DEPTH => p.max_depth = num,
+                "depth" => return Err(format!("--octree depth={v}: expected 0..={MAX_OCTREE_DEPTH}")),
+                _ => return Err(format!("--octree: unknown key '{k}' (leaf, depth)")),
+            }
+        }
+        Ok(p)
+    }
+}
+
+/// The tree as the builder produces it.
+enum BuildNode {
+    Leaf(Vec<u32>),
+    Inner(Vec<(u8, BuildNode)>),
+}
+
+/// A built octree in its GPU layout.
+#[derive(Debug, Clone)]
+pub struct Octree {
+    /// The root cube (contains the scene box).
+    pub bounds: Aabb,
+    pub nodes: Vec<[u32; 2]>,
+    pub indices: Vec<u32>,
+    pub depth: u32,
+    pub prims: usize,
+    pub params: OctreeParams,
+    build_ms: f64,
+    phases: Vec<super::Phase>,
+}
+
+/// The centre a node is split about (see the module doc).
+#[inline]
+pub fn centre(b: &Aabb) -> Vec3 {
+    b.min * 0.5 + b.max * 0.5
+}
+
+/// The box of octant `k` of a node with box `b` and centre `c`.
+#[inline]
+pub fn octant_box(b: &Aabb, c: Vec3, k: usize) -> Aabb {
+    let mut r = *b;
+    for a in 0..3 {
+        if k >> a & 1 == 1 {
+            r.min[a] = c[a];
+        } else {
+            r.max[a] = c[a];
+        }
+    }
+    r
+}
+
+/// Whether a node box can be split: its centre lies strictly inside on every axis,
+/// and its cells stay above 1e-4 of its coordinates (so grown boxes stay tight).
+fn splittable(b: &Aabb) -> bool {
+    let c = centre(b);
+    let mag = b.min.abs().max(b.max.abs()).max_element();
+    c.cmpgt(b.min).all() && c.cmplt(b.max).all() && b.extent().min_element() * 0.5 > mag * 1e-4
+}
+
+/// A cube containing `b`: same minimum, side the longest extent (min + side is
+/// raised to b.max where rounding falls short).
+pub fn root_cube(b: &Aabb) -> Aabb {
+    if b.is_empty() {
+        return Aabb::EMPTY;
+    }
+    let side = b.extent().max_element().max(f32::MIN_POSITIVE);
+    Aabb { min: b.min, max: (b.min + Vec3::splat(side)).max(b.max) }
+}
+
+impl Octree {
+    /// Builds the octree of `scene`.
+    pub fn build(scene: &Scene, params: &OctreeParams) -> Octree {
+        let start = Instant::now();
+        let mut t = Instant::now();
+        let mut phases = Vec::new();
+        let n = scene.prim_count();
+        let bounds = root_cube(&scene.bounds());
+        let geoms: Vec<PrimGeom> = (0..n as u32).map(|p| prim::geom(scene, p)).collect();
+        let params = OctreeParams { max_depth: params.max_depth.min(MAX_OCTREE_DEPTH), ..*params };
+        let all: Vec<u32> = (0..n as u32).collect();
+        let root = if n == 0 { BuildNode::Leaf(Vec::new()) } else { subdivide(&geoms, all, bounds, 0, &params) };
+        super::bvh::lap(&mut phases, "subdivide", &mut t);
+        let mut o = Octree {
+            bounds,
+            nodes: Vec::new(),
+            indices: Vec::new(),
+            depth: 0,
+            prims: n,
+            params,
+            build_ms: 0.0,
+            phases: Vec::new(),
+        };
+        o.flatten(root);
+        super::bvh::lap(&mut phases, "flatten", &mut t);
+        o.phases = phases;
+        o.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        o
+    }
+
+    /// Breadth-first: each inner node's existing children are contiguous.
+    fn flatten(&mut self, root: BuildNode) {
+        self.nodes.push([0, 0]);
+        let mut queue = VecDeque::from([(root, 0usize, 0u32)]);
+        while let Some((node, slot, depth)) = queue.pop_front() {
+            self.depth = self.depth.max(depth);
+            match node {
+                BuildNode::Leaf(list) => {
+                    self.nodes[slot] = [LEAF | list.len() as u32, self.indices.len() as u32];
+                    self.indices.extend(list);
+                }
+                BuildNode::Inner(children) => {
+                    let first = self.nodes.len();
+                    let mut mask = 0u32;
+                    for (k, child) in children {
+                        mask |= 1 << k;
+                        let s = self.nodes.len();
+                        self.nodes.push([0, 0]);
+                        queue.push_back((child, s, depth + 1));
+                    }
+                    self.nodes[slot] = [mask, first as u32];
+                }
+            }
+        }
+    }
+
+    /// Bytes as uploaded: header, nodes, indices.
+    pub fn bytes(&self) -> u64 {
+        ((HEADER_WORDS + 2 * self.nodes.len() + self.indices.len()) * 4) as u64
+    }
+
+    /// Calls `f(box, node, depth)` for every stored node, and `absent(box, depth)` for
+    /// every octant an inner node leaves out.
+    fn walk(&self, mut f: impl FnMut(&Aabb, usize, u32), mut absent: impl FnMut(&Aabb, u32)) {
+        let mut stack = vec![(0usize, self.bounds, 0u32)];
+        while let Some((n, b, d)) = stack.pop() {
+            f(&b, n, d);
+            let [w0, w1] = self.nodes[n];
+            if w0 & LEAF == 0 {
+                let c = centre(&b);
+                let mut next = w1 as usize;
+                for k in 0..8 {
+                    let ob = octant_box(&b, c, k);
+                    if w0 >> k & 1 == 1 {
+                        stack.push((next, ob, d + 1));
+                        next += 1;
+                    } else {
+                        absent(&ob, d + 1);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Statistics for `arbor info` and the stats JSON. Absent octants count as empty
+    /// leaves (they are empty cells a ray steps through).
+    pub fn stats(&self) -> BuildStats {
+        let costs = SahCosts::default();
+        let root = f64::from(sah::area(&self.bounds).max(f32::MIN_POSITIVE));
+        let (mut leaves, mut empty, mut depth_sum, mut refs, mut cost) = (0u64, 0u64, 0u64, 0u64, 0.0f64);
+        let mut absent = (0u64, 0u64, 0.0f64);
+        self.walk(
+            |b, n, d| {
+                let [w0, _] = self.nodes[n];
+                let p = f64::from(sah::area(b)) / root;
+                if w0 & LEAF != 0 {
+                    let count = w0 & !LEAF;
+                    leaves += 1;
+                    depth_sum += u64::from(d);
+                    refs += u64::from(count);
+                    empty += u64::from(count == 0);
+                    cost += p * f64::from(costs.intersect) * f64::from(count);
+                } else {
+                    cost += p * f64::from(costs.traversal);
+                }
+            },
+            |b, d| {
+                absent.0 += 1;
+                absent.1 += u64::from(d);
+                absent.2 += f64::from(sah::area(b)) / root * f64::from(costs.traversal);
+            },
+        );
+        let stored_leaves = leaves;
+        BuildStats {
+            kind: "octree".into(),
+            build_ms: self.build_ms,
+            bytes: self.bytes(),
+            nodes: self.nodes.len() as u64,
+            max_depth: self.depth,
+            leaves: leaves + absent.0,
+            empty_leaves: empty + absent.0,
+            mean_leaf_depth: (depth_sum + absent.1) as f64 / (leaves + absent.0).max(1) as f64,
+            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
+            prims_per_leaf: refs as f64 / (stored_leaves - empty).max(1) as f64,
+            // An absent octant costs the descent that finds it empty.
+            sah_cost: cost + absent.2,
+            phases: self.phases.clone(),
+            resolution: None,
+        }
+    }
+
+    /// Checks the invariants: links in range, children contiguous, depth within the
+    /// limit, indices valid and ascending per leaf, and every primitive listed in every
+    /// leaf whose box (shrunk by a relative 1e-5) it overlaps and present in no absent
+    /// octant it overlaps.
+    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+        if self.depth > MAX_OCTREE_DEPTH {
+            return Err(format!("depth {} exceeds {MAX_OCTREE_DEPTH}", self.depth));
+        }
+        let n = self.nodes.len();
+        let np = scene.prim_count() as u32;
+        for (i, &[w0, w1]) in self.nodes.iter().enumerate() {
+            if w0 & LEAF != 0 {
+                let (first, count) = (w1 as usize, (w0 & !LEAF) as usize);
+                let Some(list) = self.indices.get(first..first + count) else {
+                    return Err(format!("leaf {i} indexes past the index array"));
+                };
+                if let Some(bad) = list.iter().find(|&&p| p >= np) {
+                    return Err(format!("leaf {i} references primitive {bad} of {np}"));
+                }
+                if list.windows(2).any(|w| w[0] >= w[1]) {
+                    return Err(format!("leaf {i}: primitive list not strictly ascending"));
+                }
+            } else {
+                let kids = (w0 & 0xff).count_ones() as usize;
+                if w0 & !0xff != 0 || kids == 0 || w1 as usize <= i || w1 as usize + kids > n {
+                    return Err(format!("inner node {i}: mask {w0:#x} / first child {w1} invalid"));
+                }
+            }
+        }
+        let missing = (0..np).into_par_iter().find_map_first(|p| {
+            let g = prim::geom(scene, p);
+            let mut stack = vec![(0usize, self.bounds)];
+            while let Some((node, b)) = stack.pop() {
+                let [w0, w1] = self.nodes[node];
+                if w0 & LEAF != 0 {
+                    let inner = shrink(&b);
+                    if inner.is_empty() || !prim::overlaps(&g, &inner) {
+                        continue;
+                    }
+                    let first = w1 as usize;
+                    if self.indices[first..first + (w0 & !LEAF) as usize].binary_search(&p).is_err() {
+                        return Some(format!("primitive {p} overlaps leaf {node} ({b:?}) but is not in it"));
+                    }
+                    continue;
+                }
+                let c = centre(&b);
+                let mut next = w1 as usize;
+                for k in 0..8 {
+                    let ob = octant_box(&b, c, k);
+                    let present = w0 >> k & 1 == 1;
+                    if prim::overlaps(&g, &ob) {
+                        if present {
+                            stack.push((next, ob));
+                        } else {
+                            let inner = shrink(&ob);
+                            if !inner.is_empty() && prim::overlaps(&g, &inner) {
+                                return Some(format!("primitive {p} overlaps absent octant {k} of node {node}"));
+                            }
+                        }
+                    }
+                    next += usize::from(present);
+                }
+            }
+            None
+        });
+        match missing {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Nearest hit, same rules and order as shaders/accel/octree.glsl.
+    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
+        let mut best = Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, false);
+        (best.prim != u32::MAX).then_some(best)
+    }
+
+    /// Whether anything lies in (tmin, tmax].
+    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
+        let mut best = Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, true)
+    }
+
+    /// Front-to-back traversal without a stack. Starting from t = entry, descend from
+    /// the root to the cell (leaf or absent octant) the ray is in just after t: at each
+    /// node, the ray is in the upper half of axis a when it moves up and has crossed the
+    /// mid-plane (tm = (c - o) / d <= t) or moves down and has not; a zero direction
+    /// component decides by the origin. Test the leaf, then set t to the cell's exit
+    /// (the nearest far face). That face is some ancestor's centre, bit for bit, so the
+    /// next descent crosses it and reaches the next cell: traversal always advances.
+    /// It stops when the best hit lies before the cell's exit or the exit is the root's.
+    ///
+    /// Each cell costs a descent from the root (depth node reads) but no stack: on
+    /// llvmpipe, stack arrays live in scratch memory and cost more than the reads.
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        if self.prims == 0 {
+            return false;
+        }
+        let inv = Aabb::inv_dir(ray.dir);
+        let Some((t_enter, _)) = self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax) else {
+            return false;
+        };
+        let o = ray.origin;
+        let flat = inv.abs().cmpge(Vec3::splat(FLAT_RCP));
+        let up = inv.cmpgt(Vec3::ZERO);
+        let exit_of = |b: &Aabb| {
+            let mut t = f32::INFINITY;
+            for a in 0..3 {
+                if !flat.test(a) {
+                    let face = if up.test(a) { b.max[a] } else { b.min[a] };
+                    t = t.min((face - o[a]) * inv[a]);
+                }
+            }
+            t
+        };
+        let root_exit = exit_of(&self.bounds);
+        let mut t = t_enter;
+        let mut found = false;
+        for _ in 0..1 << 24 {
+            let mut b = self.bounds;
+            let mut node = 0usize;
+            let leaf = loop {
+                let [w0, w1] = self.nodes[node];
+                if w0 & LEAF != 0 {
+                    break Some((w1 as usize, (w0 & !LEAF) as usize));
+                }
+                let c = centre(&b);
+                let mut k = 0;
+                for a in 0..3 {
+                    let upper = if flat.test(a) { o[a] >= c[a] } else { up.test(a) == ((c[a] - o[a]) * inv[a] <= t) };
+                    if upper {
+                        k |= 1 << a;
+                        b.min[a] = c[a];
+                    } else {
+                        b.max[a] = c[a];
+                    }
+                }
+                if w0 >> k & 1 == 0 {
+                    break None;
+                }
+                node = w1 as usize + (w0 & ((1 << k) - 1)).count_ones() as usize;
+            };
+            if let Some((first, count)) = leaf {
+                for &p in &self.indices[first..first + count] {
+                    if intersect_prim(scene, p, ray, best) {
+                        found = true;
+                        if any {
+                            return true;
+                        }
+                    }
+                }
+            }
+            let t_exit = exit_of(&b);
+            if before(best.t, t_exit) || t_exit >= root_exit {
+                return found;
+            }
+            t = t_exit;
+        }
+        debug_assert!(false, "octree traversal did not finish: {ray:?}");
+        found
+    }
+
+    /// Header words (root min, root max) followed by the nodes, and the index array.
+    pub fn to_gpu(&self) -> (Vec<u32>, &[u32]) {
+        let (mn, mx) = (self.bounds.min, self.bounds.max);
+        let mut words = Vec::with_capacity(HEADER_WORDS + 2 * self.nodes.len());
+        words.extend_from_slice(&[mn.x.to_bits(), mn.y.to_bits(), mn.z.to_bits(), 0]);
+        words.extend_from_slice(&[mx.x.to_bits(), mx.y.to_bits(), mx.z.to_bits(), 0]);
+        words.extend(self.nodes.iter().flatten());
+        (words, &self.indices)
+    }
+}
+
+/// Primitives at which subdivision fans out over threads.
+const PARALLEL_PRIMS: usize = 4096;
+
+fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &OctreeParams) -> BuildNode {
+    if prims.len() <= params.leaf_size || depth >= params.max_depth || !splittable(&b) {
+        return BuildNode::Leaf(prims);
+    }
+    let c = centre(&b);
+    let grown: Vec<Aabb> = (0..8).map(|k| prim::grow(&octant_box(&b, c, k))).collect();
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); 8];
+    for &p in &prims {
+        let g = &geoms[p as usize];
+        let pb = prim::bounds(g);
+        for (k, gb) in grown.iter().enumerate() {
+            if gb.max.cmplt(pb.min).any() || gb.min.cmpgt(pb.max).any() {
+                continue;
+            }
+            if prim::overlaps(g, gb) {
+                lists[k].push(p);
+            }
+        }
+    }
+    // No octant separates anything (every primitive in every non-empty octant, e.g.
+    // coincident triangles): splitting again would only copy the list. And primitives
+    // that reach only into this node's grown margin may fall in no octant at all.
+    let non_empty = lists.iter().filter(|l| !l.is_empty()).count();
+    if non_empty == 0 || (non_empty > 1 && lists.iter().all(|l| l.is_empty() || l.len() == prims.len())) {
+        return BuildNode::Leaf(prims);
+    }
+    let n = prims.len();
+    drop(prims);
+    let work: Vec<(u8, Vec<u32>)> =
+        lists.into_iter().enumerate().filter(|(_, l)| !l.is_empty()).map(|(k, l)| (k as u8, l)).collect();
+    let build = |(k, l): (u8, Vec<u32>)| (k, subdivide(geoms, l, octant_box(&b, c, k as usize), depth + 1, params));
+    let children: Vec<(u8, BuildNode)> = if n >= PARALLEL_PRIMS {
+        work.into_par_iter().map(build).collect()
+    } else {
+        work.into_iter().map(build).collect()
+    };
+    BuildNode::Inner(children)
+}
