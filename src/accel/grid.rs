@@ -7,8 +7,9 @@
 //! to the box: `res[a] = round(extent[a] * k)` with `k = (lambda N / volume)^(1/d)`,
 //! where `d` counts the axes that are not flat (an axis shorter than 1e-3 of the
 //! longest gets one cell). Each side is capped at [`MAX_RES`], the total at
-//! [`GridParams::max_cells`], and a cell is never smaller than 1e-4 of the largest
-//! coordinate, so cells stay far above float resolution far from the origin.
+//! [`GridParams::max_cells`], and a cell is never smaller than 4e-6 of the largest
+//! coordinate (about 64 ulps), four times the padding of [`prim::grow`], so that far
+//! from the origin cells stay well above float resolution.
 //!
 //! # Layout (words of `u32`, read by shaders/accel/grid.glsl)
 //!
@@ -130,7 +131,7 @@ pub fn resolution(bounds: &Aabb, n: usize, params: &GridParams) -> [u32; 3] {
     let volume: f64 = active.iter().map(|&a| f64::from(e[a])).product();
     let target = (f64::from(params.lambda) * n as f64).clamp(1.0, params.max_cells as f64);
     let mag = bounds.min.abs().max(bounds.max.abs()).max_element();
-    let min_cell = f64::from(mag) * 1e-4;
+    let min_cell = f64::from(mag) * 4e-6;
     let mut k = (target / volume).powf(1.0 / active.len() as f64);
     loop {
         let mut res = [1u32; 3];
@@ -232,20 +233,7 @@ impl Grid {
 
     /// Appends (cell, p) for every cell whose grown box `g` overlaps.
     fn insert(&self, g: &PrimGeom, p: u32, out: &mut Vec<(u32, u32)>) {
-        let b = prim::bounds(g);
-        let mut lo = [0u32; 3];
-        let mut hi = [0u32; 3];
-        for a in 0..3 {
-            if self.cell[a] > 0.0 {
-                // A hundredth of a cell either side covers the grown boxes (whose pad is
-                // at most 1e-5 of a cell plus 1e-6 of the coordinates, which the
-                // resolution keeps below 1e-2 of a cell).
-                let f = |x: f32| ((x - self.bounds.min[a]) / self.cell[a]) as f64;
-                let last = f64::from(self.res[a] - 1);
-                lo[a] = (f(b.min[a]) - 0.01).floor().clamp(0.0, last) as u32;
-                hi[a] = (f(b.max[a]) + 0.01).floor().clamp(0.0, last) as u32;
-            }
-        }
+        let (lo, hi) = self.candidates(&prim::bounds(g));
         let single = lo == hi;
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
@@ -257,6 +245,25 @@ impl Grid {
                 }
             }
         }
+    }
+
+    /// The range of cells whose grown boxes a primitive with bounds `b` may overlap.
+    fn candidates(&self, b: &Aabb) -> ([u32; 3], [u32; 3]) {
+        let mut lo = [0u32; 3];
+        let mut hi = [0u32; 3];
+        for a in 0..3 {
+            if self.cell[a] > 0.0 {
+                // Candidates: cells within the grown boxes' pad (1e-5 of a cell plus
+                // 1e-6 of the coordinates) and a hundredth of a cell for rounding.
+                let mag = self.bounds.min.abs().max(self.bounds.max.abs()).max_element();
+                let m = 0.01 + 1e-5 + f64::from(mag) * 1e-6 / f64::from(self.cell[a]);
+                let f = |x: f32| f64::from(x - self.bounds.min[a]) / f64::from(self.cell[a]);
+                let last = f64::from(self.res[a] - 1);
+                lo[a] = (f(b.min[a]) - m).floor().clamp(0.0, last) as u32;
+                hi[a] = (f(b.max[a]) + m).floor().clamp(0.0, last) as u32;
+            }
+        }
+        (lo, hi)
     }
 
     /// Bytes as uploaded: header, cell starts, indices.
@@ -326,9 +333,11 @@ impl Grid {
         let missing = (0..np).into_par_iter().find_map_first(|p| {
             let g = prim::geom(scene, p);
             let b = prim::bounds(&g);
-            for z in 0..self.res[2] {
-                for y in 0..self.res[1] {
-                    for x in 0..self.res[0] {
+            // Every cell the primitive's box touches (candidates() is a superset).
+            let (lo, hi) = self.candidates(&b);
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
                         let cb = self.cell_box([x, y, z]);
                         if cb.max.cmplt(b.min).any() || cb.min.cmpgt(b.max).any() {
                             continue;
@@ -469,8 +478,11 @@ mod tests {
         let flat = Aabb { min: Vec3::ZERO, max: Vec3::new(10.0, 10.0, 0.0) };
         let r = resolution(&flat, 100, &GridParams { lambda: 1.0, ..Default::default() });
         assert_eq!(r, [10, 10, 1]);
-        let far = Aabb { min: Vec3::splat(1e6), max: Vec3::splat(1e6 + 1.0) };
+        let near = Aabb { min: Vec3::splat(1e3), max: Vec3::splat(1e3 + 1.0) };
+        let r = resolution(&near, 1_000_000, &GridParams::default());
+        assert_eq!(r, [126, 126, 126], "cbrt(2e6) = 126 cells of 0.008, above 4e-6 x 1001");
+        let far = Aabb { min: Vec3::splat(1e5), max: Vec3::splat(1e5 + 1.0) };
         let r = resolution(&far, 1_000_000, &GridParams::default());
-        assert_eq!(r, [10, 10, 10], "cells stay above 1e-4 of the coordinates");
+        assert_eq!(r, [2, 2, 2], "cells stay above 4e-6 of the coordinates: 0.4");
     }
 }

@@ -51,7 +51,8 @@ pub const HEADER_WORDS: usize = 8;
 /// Parameters of the octree builder.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct OctreeParams {
-    /// Nodes with at most this many primitives become leaves.
+    /// Nodes with at most this many primitives become leaves; larger ones split while
+    /// the SAH says splitting pays.
     pub leaf_size: usize,
     /// Deepest level (root = 0), at most [`MAX_OCTREE_DEPTH`].
     pub max_depth: u32,
@@ -127,11 +128,12 @@ pub fn octant_box(b: &Aabb, c: Vec3, k: usize) -> Aabb {
 }
 
 /// Whether a node box can be split: its centre lies strictly inside on every axis,
-/// and its cells stay above 1e-4 of its coordinates (so grown boxes stay tight).
+/// and its children stay above 4e-6 of its coordinates (about 64 ulps, four times the
+/// padding of [`prim::grow`]), as grid cells do.
 fn splittable(b: &Aabb) -> bool {
     let c = centre(b);
     let mag = b.min.abs().max(b.max.abs()).max_element();
-    c.cmpgt(b.min).all() && c.cmplt(b.max).all() && b.extent().min_element() * 0.5 > mag * 1e-4
+    c.cmpgt(b.min).all() && c.cmplt(b.max).all() && b.extent().min_element() * 0.5 > mag * 4e-6
 }
 
 /// A cube containing `b`: same minimum, side the longest extent (min + side is
@@ -471,14 +473,29 @@ fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &
             }
         }
     }
-    // No octant separates anything (every primitive in every non-empty octant, e.g.
-    // coincident triangles): splitting again would only copy the list. And primitives
-    // that reach only into this node's grown margin may fall in no octant at all.
+    // Keep a leaf when splitting does not separate or does not pay:
+    // - an octant keeps every primitive while another octant is not empty: the
+    //   primitives meet inside the node (a shared vertex or edge, a fan, crossing
+    //   triangles) and no depth separates them. (An octant holding everything alone
+    //   is fine: the node shrinks toward a small dense mesh, the teapot in a stadium.)
+    // - the SAH (sah.rs), taking the octants as leaves, finds splitting dearer:
+    //   Kt + Ki sum(area_k / area n_k) >= Ki n. An octant has a quarter of the
+    //   node's area, so this refuses splits that about quadruple the references.
+    // - primitives reaching only into the node's grown margin fall in no octant.
+    let n = prims.len();
     let non_empty = lists.iter().filter(|l| !l.is_empty()).count();
-    if non_empty == 0 || (non_empty > 1 && lists.iter().all(|l| l.is_empty() || l.len() == prims.len())) {
+    if non_empty > 1 && lists.iter().any(|l| l.len() == n) {
         return BuildNode::Leaf(prims);
     }
-    let n = prims.len();
+    let costs = SahCosts::default();
+    let parent_area = sah::area(&b);
+    let mut split = costs.traversal;
+    for (k, l) in lists.iter().enumerate() {
+        split += costs.intersect * sah::area(&octant_box(&b, c, k)) / parent_area * l.len() as f32;
+    }
+    if lists.iter().all(Vec::is_empty) || split >= costs.leaf(prims.len()) {
+        return BuildNode::Leaf(prims);
+    }
     drop(prims);
     let work: Vec<(u8, Vec<u32>)> =
         lists.into_iter().enumerate().filter(|(_, l)| !l.is_empty()).map(|(k, l)| (k as u8, l)).collect();
