@@ -47,8 +47,9 @@ struct DeviceArgs {
 
 #[derive(clap::Args)]
 struct BenchArgs {
-    /// Triangle counts of the procedural meshes (builtin:blob:N).
-    #[arg(long, value_delimiter = ',', default_values_t = [1000usize, 10_000, 100_000])]
+    /// Triangle counts of the procedural meshes (builtin:blob:N); default 1000,10000,100000
+    /// unless --scene is given.
+    #[arg(long, value_delimiter = ',')]
     tris: Vec<usize>,
     /// Structures to compare; `none` (brute force) is traced on a smaller image of
     /// the same view and gives the speedup column.
@@ -552,8 +553,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
     }
     let variants = bench_variants(args, &params);
     let repeat = args.repeat.max(1);
+    let tris =
+        if args.tris.is_empty() && args.scene.is_empty() { vec![1000, 10_000, 100_000] } else { args.tris.clone() };
     let scenes: Vec<String> =
-        args.tris.iter().map(|n| format!("builtin:blob:{n}")).chain(args.scene.iter().cloned()).collect();
+        tris.iter().map(|n| format!("builtin:blob:{n}")).chain(args.scene.iter().cloned()).collect();
     let ctx = context(&args.device)?;
     eprintln!(
         "device: {} ({}); {w}x{h} primary rays{} (brute force on a smaller image of the same view), median of {repeat} after 1 warm-up",

@@ -26,7 +26,6 @@
 //! the nodes. A node's centre is `0.5 min + 0.5 max` of its box, computed the same way
 //! here and in the kernel, so a child's faces are bit for bit its ancestors' centres.
 
-use std::collections::VecDeque;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -90,7 +89,28 @@ impl OctreeParams {
 /// The tree as the builder produces it.
 enum BuildNode {
     Leaf(Vec<u32>),
-    Inner(Vec<(u8, BuildNode)>),
+    /// Children by octant, and the subtree's size below this node.
+    Inner {
+        children: Vec<(u8, BuildNode)>,
+        size: Size,
+    },
+}
+
+/// Stored nodes below a node (not counting it) and index entries in its subtree.
+#[derive(Debug, Clone, Copy, Default)]
+struct Size {
+    nodes: usize,
+    refs: usize,
+    depth: u32,
+}
+
+impl BuildNode {
+    fn size(&self) -> Size {
+        match self {
+            BuildNode::Leaf(l) => Size { nodes: 0, refs: l.len(), depth: 0 },
+            BuildNode::Inner { size, .. } => *size,
+        }
+    }
 }
 
 /// A built octree in its GPU layout.
@@ -176,30 +196,16 @@ impl Octree {
         o
     }
 
-    /// Breadth-first: each inner node's existing children are contiguous.
+    /// Depth-first: a node's existing children are one contiguous block, followed by
+    /// the first child's descendants, then the second's, and so on. Subtree sizes are
+    /// known, so subtrees are written in parallel into disjoint slices.
     fn flatten(&mut self, root: BuildNode) {
-        self.nodes.push([0, 0]);
-        let mut queue = VecDeque::from([(root, 0usize, 0u32)]);
-        while let Some((node, slot, depth)) = queue.pop_front() {
-            self.depth = self.depth.max(depth);
-            match node {
-                BuildNode::Leaf(list) => {
-                    self.nodes[slot] = [LEAF | list.len() as u32, self.indices.len() as u32];
-                    self.indices.extend(list);
-                }
-                BuildNode::Inner(children) => {
-                    let first = self.nodes.len();
-                    let mut mask = 0u32;
-                    for (k, child) in children {
-                        mask |= 1 << k;
-                        let s = self.nodes.len();
-                        self.nodes.push([0, 0]);
-                        queue.push_back((child, s, depth + 1));
-                    }
-                    self.nodes[slot] = [mask, first as u32];
-                }
-            }
-        }
+        let size = root.size();
+        self.depth = size.depth;
+        self.nodes = vec![[0, 0]; 1 + size.nodes];
+        self.indices = vec![0; size.refs];
+        let (head, rest) = self.nodes.split_at_mut(1);
+        fill(root, &mut head[0], rest, 1, &mut self.indices, 0);
     }
 
     /// Bytes as uploaded: header, nodes, indices.
@@ -460,15 +466,27 @@ fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &
     }
     let c = centre(&b);
     let grown: Vec<Aabb> = (0..8).map(|k| prim::grow(&octant_box(&b, c, k))).collect();
+    // A grown octant's interval on an axis depends only on its side: lower is
+    // grown[0] there, upper grown[7].
+    let (lo_max, hi_min) = (grown[0].max, grown[7].min);
     let mut lists: Vec<Vec<u32>> = vec![Vec::new(); 8];
     for &p in &prims {
         let g = &geoms[p as usize];
         let pb = prim::bounds(g);
-        for (k, gb) in grown.iter().enumerate() {
-            if gb.max.cmplt(pb.min).any() || gb.min.cmpgt(pb.max).any() {
+        let lower = pb.min.cmple(lo_max).bitmask();
+        let upper = pb.max.cmpge(hi_min).bitmask();
+        if (lower ^ upper) == 0b111 {
+            // On one side of every mid-plane's margin: one candidate octant, and the
+            // box within it unless it sticks out of the node's own grown box.
+            let k = upper as usize;
+            if pb.min.cmpge(grown[k].min).all() && pb.max.cmple(grown[k].max).all() {
+                lists[k].push(p);
                 continue;
             }
-            if prim::overlaps(g, gb) {
+        }
+        for (k, gb) in grown.iter().enumerate() {
+            let side_ok = (0..3).all(|a| if k >> a & 1 == 1 { upper >> a & 1 == 1 } else { lower >> a & 1 == 1 });
+            if side_ok && prim::overlaps(g, gb) {
                 lists[k].push(p);
             }
         }
@@ -505,5 +523,58 @@ fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &
     } else {
         work.into_iter().map(build).collect()
     };
-    BuildNode::Inner(children)
+    let mut size = Size { nodes: children.len(), ..Size::default() };
+    for (_, ch) in &children {
+        let s = ch.size();
+        size.nodes += s.nodes;
+        size.refs += s.refs;
+        size.depth = size.depth.max(s.depth + 1);
+    }
+    BuildNode::Inner { children, size }
+}
+
+/// Writes `node` into `slot`, its descendants into `below` (which starts at global
+/// node index `base`) and its primitive references into `refs` (from global `rbase`).
+fn fill(node: BuildNode, slot: &mut [u32; 2], below: &mut [[u32; 2]], base: usize, refs: &mut [u32], rbase: usize) {
+    match node {
+        BuildNode::Leaf(list) => {
+            *slot = [LEAF | list.len() as u32, rbase as u32];
+            refs.copy_from_slice(&list);
+        }
+        BuildNode::Inner { children, size } => {
+            let k = children.len();
+            let mut mask = 0u32;
+            for (o, _) in &children {
+                mask |= 1 << o;
+            }
+            *slot = [mask, base as u32];
+            let (block, mut rest) = below.split_at_mut(k);
+            let mut refs = refs;
+            let (mut nb, mut rb) = (base + k, rbase);
+            let mut jobs = Vec::with_capacity(k);
+            for ((_, child), s) in children.into_iter().zip(block.iter_mut()) {
+                let cs = child.size();
+                let (mine, r) = std::mem::take(&mut rest).split_at_mut(cs.nodes);
+                rest = r;
+                let (my_refs, r) = std::mem::take(&mut refs).split_at_mut(cs.refs);
+                refs = r;
+                jobs.push((child, s, mine, nb, my_refs, rb));
+                nb += cs.nodes;
+                rb += cs.refs;
+            }
+            let run = |(child, s, mine, nb, my_refs, rb): (
+                BuildNode,
+                &mut [u32; 2],
+                &mut [[u32; 2]],
+                usize,
+                &mut [u32],
+                usize,
+            )| { fill(child, s, mine, nb, my_refs, rb) };
+            if size.refs >= PARALLEL_PRIMS {
+                jobs.into_par_iter().for_each(run);
+            } else {
+                jobs.into_iter().for_each(run);
+            }
+        }
+    }
 }
