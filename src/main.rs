@@ -587,14 +587,18 @@ fn bench(args: &BenchArgs) -> Result<()> {
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
             let c = match bench_case(&ctx, &scene, kind, p, size, args, &pb) {
                 Ok(c) => c,
-                // Brute force can exceed a driver's per-invocation loop limit (llvmpipe)
-                // on big scenes with shadow rays: report it and go on without speedups.
-                Err(e) if kind == AccelKind::None => {
-                    pb.suspend(|| eprintln!("{short}, none: skipped: {e:#}"));
+                // A structure can fail on a scene where it degenerates (the grid in the
+                // stadium needs more steps per ray than llvmpipe's loop limit; brute
+                // force too with shadow rays on big scenes): report it and go on.
+                Err(e) => {
+                    let msg = format!("{e:#}");
+                    pb.suspend(|| println!("{short:>16} {nt:>9} {label:>10} failed: {msg}"));
+                    rows.push(serde_json::json!({
+                        "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "error": msg,
+                    }));
                     pb.inc(repeat as u64 + 1);
                     continue;
                 }
-                Err(e) => return Err(e.context(format!("{short}, {label}"))),
             };
             let rate = median(&mut c.rates.clone());
             if kind == AccelKind::None {
