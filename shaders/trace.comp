@@ -12,6 +12,7 @@ layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
 layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
 layout(constant_id = SPEC_BRUTE_UNROLL) const uint BRUTE_UNROLL = 1u;
+layout(constant_id = SPEC_INTERSECT) const uint INTERSECT_MODE = 0u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -31,8 +32,12 @@ bool intersect_triangle(uint i, Ray r, inout Hit h) {
     Ray rr = r;
     rr.tmax = h.t;
     // Closer wins; at equal t the lower index wins (same rule as Hit::closer in Rust).
-    if (ray_triangle(rr, vertices[tri.x].position.xyz, vertices[tri.y].position.xyz, vertices[tri.z].position.xyz, t, u, v)
-        && (t < h.t || i < h.prim)) {
+    vec3 v0 = vertices[tri.x].position.xyz;
+    vec3 v1 = vertices[tri.y].position.xyz;
+    vec3 v2 = vertices[tri.z].position.xyz;
+    bool hit = INTERSECT_MODE == 0u ? ray_triangle_watertight(rr, v0, v1, v2, t, u, v)
+                                    : ray_triangle_fast(rr, v0, v1, v2, t, u, v);
+    if (hit && (t < h.t || i < h.prim)) {
         h.t = t; h.prim = i; h.u = u; h.v = v;
         return true;
     }
@@ -81,15 +86,18 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 
 const float PI = 3.14159265358979;
 
-// Shading frame at a hit: geometric normal, shading normal, material index.
-void surface(Hit h, vec3 p, out vec3 gn, out vec3 sn, out uint mat) {
+// Shading frame at a hit: the point (recomputed on the surface) and its error bound
+// for spawning rays, geometric normal, shading normal, material index.
+void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, out uint mat) {
     gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u;
+    p = r.origin + r.dir * h.t; err = vec3(0.0);
 #if HAS_TRIANGLES
     if (h.prim < params.dims.z) {
         uvec4 tri = triangles[h.prim];
         Vertex a = vertices[tri.x];
         Vertex b = vertices[tri.y];
         Vertex c = vertices[tri.z];
+        triangle_point(a.position.xyz, b.position.xyz, c.position.xyz, h.u, h.v, p, err);
         gn = normalize(cross(b.position.xyz - a.position.xyz, c.position.xyz - a.position.xyz));
         sn = gn;
         if (a.normal.w > 0.5 && b.normal.w > 0.5 && c.normal.w > 0.5) {
@@ -102,6 +110,7 @@ void surface(Hit h, vec3 p, out vec3 gn, out vec3 sn, out uint mat) {
 #endif
 #if HAS_SPHERES
     Sphere s = spheres[h.prim - params.dims.z];
+    sphere_point(r.origin, r.dir, h.t, s.center_radius.xyz, s.center_radius.w, p, err);
     gn = (p - s.center_radius.xyz) / s.center_radius.w;
     gn = normalize(gn);
     sn = gn;
@@ -113,21 +122,20 @@ vec4 mat_row(uint mat, uint row) { return shading[mat * MATERIAL_ROWS + row]; }
 
 // Direct light from every light at p (normal n facing the viewer, geometric gn
 // facing the viewer) toward view direction v.
-vec3 direct_light(vec3 p, vec3 n, vec3 gn, vec3 v, uint mat) {
+vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
     vec3 total = vec3(0.0);
     if (!USE_LIGHTS) return total;
     vec4 c = mat_row(mat, 0u);
     vec4 spec = mat_row(mat, 1u);
     uint kind = floatBitsToUint(c.w);
     uint base = params.counts.y * MATERIAL_ROWS;
-    vec3 origin = offset_ray_origin(p, gn);
     for (uint l = 0u; l < params.counts.x; l++) {
         vec4 a = shading[base + l * LIGHT_ROWS];
         vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
         vec3 wi;
         float dist;
         if (a.w > 0.5) {
-            vec3 to = a.xyz - origin;
+            vec3 to = a.xyz - p;
             dist = length(to);
             wi = to / dist;
             li /= max(dist * dist, 1e-30);
@@ -138,7 +146,9 @@ vec3 direct_light(vec3 p, vec3 n, vec3 gn, vec3 v, uint mat) {
         float ndotl = dot(n, wi);
         if (ndotl <= 0.0 || dot(gn, wi) <= 0.0) continue;
         Ray sr;
-        sr.origin = origin; sr.dir = wi; sr.tmin = 0.0; sr.tmax = dist;
+        sr.origin = offset_ray_origin(p, err, gn, wi); sr.dir = wi; sr.tmin = 0.0;
+        // A point light is not geometry: the ray ends at it. A directional one: never.
+        sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
         g_rays += 1u;
         if (trace_any(sr)) continue;
         vec3 f = c.rgb / PI;
@@ -188,10 +198,9 @@ void main() {
             g_nodes = 0u; g_tests = 0u;
             g_rays += 1u;
             bool hit = trace_closest(r, h);
-            vec3 p = r.origin + r.dir * h.t;
-            vec3 gn, sn;
+            vec3 p, err, gn, sn;
             uint mat;
-            if (hit) surface(h, p, gn, sn, mat);
+            if (hit) surface(h, r, p, err, gn, sn, mat);
             if (s == 0u && depth == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
                 out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
@@ -206,12 +215,12 @@ void main() {
             vec3 snf = dot(sn, r.dir) < 0.0 ? sn : -sn;
             if (kind == MAT_LAMBERT || kind == MAT_PHONG) {
                 L += beta * (c.rgb * params.background.a * params.background.rgb
-                             + direct_light(p, snf, gnf, -r.dir, mat));
+                             + direct_light(p, err, snf, gnf, -r.dir, mat));
                 break;
             } else if (kind == MAT_MIRROR) {
                 beta *= c.rgb;
                 r.dir = normalize(reflect(r.dir, snf));
-                r.origin = offset_ray_origin(p, gnf);
+                r.origin = offset_ray_origin(p, err, gnf, r.dir);
             } else if (kind == MAT_GLASS) {
                 float eta = front ? 1.0 / em.a : em.a;
                 float cos_i = min(dot(-r.dir, snf), 1.0);
@@ -225,12 +234,11 @@ void main() {
                 }
                 if (rng_next(rng) < fresnel) {
                     r.dir = normalize(reflect(r.dir, snf));
-                    r.origin = offset_ray_origin(p, gnf);
                 } else {
                     beta *= c.rgb;
                     r.dir = normalize(refract(r.dir, snf, eta));
-                    r.origin = offset_ray_origin(p, -gnf);
                 }
+                r.origin = offset_ray_origin(p, err, gnf, r.dir);
             } else {
                 break; // emissive
             }

@@ -81,6 +81,11 @@ struct BenchArgs {
     /// sparse one) or any scene argument; traced beside the blobs of --tris.
     #[arg(long, value_delimiter = ',', value_name = "SCENE,...")]
     scene: Vec<String>,
+    /// Ray/triangle tests to compare (watertight, fast): one row per structure and mode.
+    /// On builtin:inside:N (a closed mesh around the camera) every miss is a ray that
+    /// escaped through the mesh: the miss/M column counts them per million rays.
+    #[arg(long, value_delimiter = ',', default_value = "watertight", value_name = "MODE,...")]
+    intersect: Vec<arbor::math::intersect::IntersectMode>,
     /// Also trace a shadow ray toward the light from every primary hit (no bounces);
     /// Mrays/s then counts both kinds.
     #[arg(long)]
@@ -125,6 +130,11 @@ enum Command {
         /// without splitting, default 8), depth (deepest level, default 20, at most 24).
         #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
         octree: String,
+        /// Ray/triangle test: watertight (Woop, Benthin & Wald 2013: no ray slips
+        /// between triangles sharing an edge) or fast (Moller-Trumbore: fewer operations,
+        /// rays can escape through shared edges and vertices).
+        #[arg(long, default_value = "watertight", value_name = "MODE")]
+        intersect: arbor::math::intersect::IntersectMode,
         /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
         /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
         #[arg(long, value_name = "NAME=PATH,...")]
@@ -289,6 +299,7 @@ fn run(cli: Cli) -> Result<()> {
             kd,
             grid,
             octree,
+            intersect,
         } => {
             let aovs = parse_aovs(&aov)?;
             let params = accel_params(&kd, &grid, &octree)?;
@@ -304,7 +315,8 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--spp must be 1..=1048576, got {spp}");
             }
             let size = size.as_deref().map(parse_size).transpose()?;
-            let scene = Scene::load(&scene)?;
+            let mut scene = Scene::load(&scene)?;
+            scene.intersect = intersect;
             let (w, h) = size.unwrap_or((scene.width, scene.height));
             let ctx = context(&device)?;
             let mut settings = RenderSettings::for_size(w, h);
@@ -489,6 +501,8 @@ struct Case {
     rates: Vec<f64>,
     stats: render::RenderStats,
     size: (u32, u32),
+    /// Camera rays that hit nothing (last repeat; the same in every repeat).
+    misses: u64,
 }
 
 fn bench_case(
@@ -504,11 +518,18 @@ fn bench_case(
     let mut settings = RenderSettings::for_size(size.0, size.1);
     settings.primary_only = !args.shadow;
     settings.accel = kind;
-    let mut case =
-        Case { build_ms: Vec::new(), trace_ms: Vec::new(), rates: Vec::new(), stats: Default::default(), size };
+    let mut case = Case {
+        build_ms: Vec::new(),
+        trace_ms: Vec::new(),
+        rates: Vec::new(),
+        stats: Default::default(),
+        size,
+        misses: 0,
+    };
     for r in 0..=repeat {
         let accel = arbor::accel::Accel::build_with(kind, scene, params);
-        let (_, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
+        let (frame, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
+        case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
         pb.inc(1);
         if r > 0 {
             let ms = st.trace_ms.unwrap_or(st.wall_ms);
@@ -565,16 +586,17 @@ fn bench(args: &BenchArgs) -> Result<()> {
         if args.shadow { " + a shadow ray per hit" } else { "" }
     );
     let pb = progress_bar(false);
-    pb.set_length((scenes.len() * variants.len() * (repeat + 1)) as u64);
+    pb.set_length((scenes.len() * args.intersect.len() * variants.len() * (repeat + 1)) as u64);
     if std::io::stderr().is_terminal() {
         pb.set_draw_target(ProgressDrawTarget::stderr());
     }
     let mut rows = Vec::new();
-    for name in &scenes {
+    for (name, &mode) in scenes.iter().flat_map(|n| args.intersect.iter().map(move |m| (n, m))) {
         let mut scene = Scene::load(name)?;
         if args.shadow {
             scene.max_depth = 1;
         }
+        scene.intersect = mode;
         let nt = scene.triangles.len();
         let short = name.strip_prefix("builtin:").unwrap_or(name);
         // Brute force over all pixels would take too long: trace a square subset whose
@@ -583,6 +605,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         let mut brute_rate = None;
         for (kind, p, label) in &variants {
             let kind = *kind;
+            let label = if args.intersect.len() > 1 { format!("{label}/{mode}") } else { label.clone() };
             pb.set_message(format!("{short}, {label}"));
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
             let c = match bench_case(&ctx, &scene, kind, p, size, args, &pb) {
@@ -592,7 +615,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 // force too with shadow rays on big scenes): report it and go on.
                 Err(e) => {
                     let msg = format!("{e:#}");
-                    pb.suspend(|| println!("{short:>16} {nt:>9} {label:>10} failed: {msg}"));
+                    pb.suspend(|| println!("{short:>16} {nt:>9} {label:>16} failed: {msg}"));
                     rows.push(serde_json::json!({
                         "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "error": msg,
                     }));
@@ -606,8 +629,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
             }
             let speedup = brute_rate.map(|b| rate / b);
             let st = &c.stats;
+            let pixels = u64::from(c.size.0) * u64::from(c.size.1);
+            let miss_per_m = c.misses as f64 * 1e6 / pixels.max(1) as f64;
             let line = format!(
-                "{:>16} {:>9} {:>10} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5}",
+                "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5} {:>9.1}",
                 short,
                 nt,
                 label,
@@ -621,11 +646,13 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 st.mean_prims_tested,
                 st.build.bytes as f64 / nt.max(1) as f64,
                 st.build.sah_cost,
-                st.build.max_depth
+                st.build.max_depth,
+                miss_per_m
             );
             pb.suspend(|| println!("{line}"));
             rows.push(serde_json::json!({
                 "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "params": p,
+                "intersect": mode, "misses": c.misses, "misses_per_million": miss_per_m,
                 "width": c.size.0, "height": c.size.1,
                 "build_ms_median": median(&mut c.build_ms.clone()), "build_ms_all": c.build_ms,
                 "trace_ms_median": median(&mut c.trace_ms.clone()), "trace_ms_spread": spread(&c.trace_ms),
@@ -643,4 +670,4 @@ fn bench(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-const BENCH_HEADER: &str = "           scene triangles      accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth";
+const BENCH_HEADER: &str = "           scene triangles            accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth    miss/M";

@@ -64,7 +64,7 @@ impl BruteForce {
         }
         scene.triangles.iter().any(|t| {
             let [a, b, c] = t.map(|k| scene.positions[k as usize]);
-            crate::math::intersect::ray_triangle(ray, a, b, c).is_some()
+            crate::math::intersect::ray_triangle(ray, a, b, c, scene.intersect).is_some()
         }) || scene.spheres.iter().any(|s| crate::math::intersect::ray_sphere(ray, s.center, s.radius).is_some())
     }
 }

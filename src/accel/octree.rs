@@ -533,6 +533,10 @@ fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &
     BuildNode::Inner { children, size }
 }
 
+/// One subtree to write: node, its slot, its descendants' slice and global start, its
+/// references' slice and global start.
+type FillJob<'a> = (BuildNode, &'a mut [u32; 2], &'a mut [[u32; 2]], usize, &'a mut [u32], usize);
+
 /// Writes `node` into `slot`, its descendants into `below` (which starts at global
 /// node index `base`) and its primitive references into `refs` (from global `rbase`).
 fn fill(node: BuildNode, slot: &mut [u32; 2], below: &mut [[u32; 2]], base: usize, refs: &mut [u32], rbase: usize) {
@@ -562,14 +566,7 @@ fn fill(node: BuildNode, slot: &mut [u32; 2], below: &mut [[u32; 2]], base: usiz
                 nb += cs.nodes;
                 rb += cs.refs;
             }
-            let run = |(child, s, mine, nb, my_refs, rb): (
-                BuildNode,
-                &mut [u32; 2],
-                &mut [[u32; 2]],
-                usize,
-                &mut [u32],
-                usize,
-            )| { fill(child, s, mine, nb, my_refs, rb) };
+            let run = |(child, s, mine, nb, my_refs, rb): FillJob<'_>| fill(child, s, mine, nb, my_refs, rb);
             if size.refs >= PARALLEL_PRIMS {
                 jobs.into_par_iter().for_each(run);
             } else {

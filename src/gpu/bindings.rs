@@ -43,6 +43,8 @@ pub const SPEC_STACK_SIZE: u32 = 2;
 pub const SPEC_TREE_STEPS: u32 = 3;
 /// Unroll factor of the brute-force loops (one of BRUTE_UNROLL_FACTORS).
 pub const SPEC_BRUTE_UNROLL: u32 = 4;
+/// Ray/triangle test: 0 watertight (Woop et al. 2013), 1 fast (Moller-Trumbore).
+pub const SPEC_INTERSECT: u32 = 5;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -63,5 +65,6 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
     ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
     ("SPEC_BRUTE_UNROLL", SPEC_BRUTE_UNROLL),
+    ("SPEC_INTERSECT", SPEC_INTERSECT),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
 ];

@@ -23,26 +23,55 @@ pub fn safe_rcp(x: f32) -> f32 {
     }
 }
 
-/// Moves a hit point off its surface along the geometric normal `n` so that a ray
-/// spawned from it does not hit the same surface again: Wächter & Binder, "A Fast
-/// and Robust Method for Avoiding Self-Intersection", Ray Tracing Gems (2019), ch. 6.
-/// Far from the origin the point moves by a fixed number of ulps (integer offset of
-/// the float bits); near it, by a small absolute amount.
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-    const INT_SCALE: f32 = 256.0;
-    let of_i = [(INT_SCALE * n.x) as i32, (INT_SCALE * n.y) as i32, (INT_SCALE * n.z) as i32];
-    let pa = p.to_array();
-    let na = n.to_array();
-    let mut out = [0.0f32; 3];
-    for k in 0..3 {
-        let bits = pa[k].to_bits() as i32;
-        let moved = if pa[k] < 0.0 { bits.wrapping_sub(of_i[k]) } else { bits.wrapping_add(of_i[k]) };
-        let p_i = f32::from_bits(moved as u32);
-        out[k] = if pa[k].abs() < ORIGIN { pa[k] + FLOAT_SCALE * na[k] } else { p_i };
+/// Moves a hit point `p`, known to within `err` per component, off its surface so
+/// that a ray spawned from it toward `w` can not hit that surface again: pbrt-v4's
+/// `OffsetRayOrigin` (Pharr, Jakob & Humphreys, "Physically Based Rendering", 4th
+/// ed., §6.8.6). The offset along the geometric normal `n` is the error box projected
+/// on it, `d = |n| · err`, toward the side `w` leaves to; the result is then rounded
+/// one ulp further away from `p` per component. The offset scales with the
+/// coordinates' own error, so it is right for scenes a micrometre or a megametre
+/// across, near the origin or far from it: there is no fixed epsilon.
+/// Twin: `offset_ray_origin` in ray.glsl, same operations in the same order.
+pub fn offset_ray_origin(p: Vec3, err: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.x.abs() * err.x + n.y.abs() * err.y + n.z.abs() * err.z;
+    let mut offset = n * d;
+    if w.x * n.x + w.y * n.y + w.z * n.z < 0.0 {
+        offset = -offset;
     }
-    Vec3::from_array(out)
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = po[i].next_up();
+        } else if offset[i] < 0.0 {
+            po[i] = po[i].next_down();
+        }
+    }
+    po
+}
+
+/// A point on triangle (p0, p1, p2) at barycentrics (u, v) of p1 and p2, and the
+/// bound on its rounding error: pbrt-v4's `gamma(7) (|b0 p0| + |b1 p1| + |b2 p2|)`.
+/// Twin: `triangle_point` in ray.glsl.
+pub fn triangle_point(p0: Vec3, p1: Vec3, p2: Vec3, u: f32, v: f32) -> (Vec3, Vec3) {
+    let b0 = 1.0 - u - v;
+    let (a, b, c) = (p0 * b0, p1 * u, p2 * v);
+    let p = a + b + c;
+    let err = (a.abs() + b.abs() + c.abs()) * gamma(7);
+    (p, err)
+}
+
+/// The hit point of a ray at `t` on the sphere (centre, radius), projected back onto
+/// the sphere, and its error bound: pbrt-v4's reprojection (gamma(5) |p - c|) plus the
+/// rounding of adding the centre back (gamma(1) |p|). Twin: `sphere_point` in ray.glsl.
+pub fn sphere_point(origin: Vec3, dir: Vec3, t: f32, center: Vec3, radius: f32) -> (Vec3, Vec3) {
+    let mut pc = (origin + dir * t) - center;
+    let len = (pc.x * pc.x + pc.y * pc.y + pc.z * pc.z).sqrt();
+    if len > 0.0 {
+        pc *= radius / len;
+    }
+    let p = center + pc;
+    let err = pc.abs() * gamma(5) + p.abs() * gamma(1);
+    (p, err)
 }
 
 #[cfg(test)]
@@ -58,15 +87,40 @@ mod tests {
     }
 
     #[test]
+    fn glsl_gamma_literals_match() {
+        let glsl = include_str!("../../shaders/common/ray.glsl");
+        for n in [1u32, 5, 7] {
+            let key = format!("const float GAMMA_{n} = ");
+            let at = glsl.find(&key).unwrap_or_else(|| panic!("ray.glsl lacks {key}")) + key.len();
+            let lit = &glsl[at..at + glsl[at..].find(';').expect("literal ends with ;")];
+            let v: f32 = lit.parse().expect("a float literal");
+            assert_eq!(v.to_bits(), gamma(n).to_bits(), "GAMMA_{n} = {lit} is not gamma({n})");
+        }
+    }
+
+    #[test]
     fn offset_moves_off_surface_at_every_scale() {
         for scale in [1e-6f32, 1.0, 1e6] {
-            let p = Vec3::new(0.3, -0.7, 0.2) * scale;
-            let n = Vec3::new(0.0, 1.0, 0.0);
-            let q = offset_ray_origin(p, n);
-            assert!(q.y > p.y, "scale {scale}: {q:?} not above {p:?}");
-            // Near the origin the move is 1/65536 absolute; elsewhere 256 ulps.
-            let bound = if p.y.abs() < 1.0 / 32.0 { 1.0 / 65536.0 } else { 256.0 * p.y.abs() * f32::EPSILON };
-            assert!((q.y - p.y).abs() <= bound * 1.0001, "scale {scale}: moved {}", q.y - p.y);
+            for shift in [0.0f32, 1e6] {
+                if shift > 0.0 && scale < 1.0 {
+                    continue; // a micrometre triangle at 1e6 collapses to one point
+                }
+                let (p0, p1, p2) = (
+                    Vec3::new(0.0, 0.0, 0.0) * scale + Vec3::splat(shift),
+                    Vec3::new(1.0, 0.0, 0.1) * scale + Vec3::splat(shift),
+                    Vec3::new(0.0, 0.3, 1.0) * scale + Vec3::splat(shift),
+                );
+                let n = (p1 - p0).cross(p2 - p0).normalize();
+                let (p, err) = triangle_point(p0, p1, p2, 0.3, 0.4);
+                let up = offset_ray_origin(p, err, n, n);
+                let down = offset_ray_origin(p, err, n, -n);
+                // Each side of the plane, in f64, by more than the error projected on n.
+                let side = |q: Vec3| (q - p0).as_dvec3().dot(n.as_dvec3());
+                assert!(side(up) > 0.0 && side(down) < 0.0, "scale {scale} shift {shift}: {up:?} {down:?}");
+                // And not absurdly far: within 64 ulps of the coordinates.
+                let ulp = p.abs().max_element().max(f32::MIN_POSITIVE) * f32::EPSILON;
+                assert!((up - p).abs().max_element() <= 64.0 * ulp, "scale {scale}: moved {:?}", up - p);
+            }
         }
     }
 }

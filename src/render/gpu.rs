@@ -264,6 +264,7 @@ pub fn render_with(
         (SPEC_STACK_SIZE, stack),
         (SPEC_TREE_STEPS, tree_steps as u32),
         (SPEC_BRUTE_UNROLL, unroll),
+        (SPEC_INTERSECT, scene.intersect.spec()),
     ];
     let mut kernel =
         ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;

@@ -5,6 +5,8 @@
 //! - `cornell`: a Cornell box (quads) with a mirror sphere and a glass sphere.
 //! - `blob:N`: one blob of about N triangles, auto-framed (benchmarks).
 //! - `spheres`: spheres only, no triangles (tests the sphere-only kernel).
+//! - `inside:N`: the camera at the centre of a closed blob of about N triangles,
+//!   looking out: every camera ray must hit it, so a miss is a crack (robustness).
 //! - `stadium:N`: "the teapot in a stadium": a blob of about N triangles and radius 1
 //!   inside a coarse blob of 2000 triangles and radius 500, seen from close to the
 //!   small one; uniform grids are known to fail here.
@@ -18,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::math::Aabb;
 
 /// Names accepted after `builtin:`.
-pub const NAMES: &str = "default, cornell, spheres, blob:N, stadium:N (N = triangle count)";
+pub const NAMES: &str = "default, cornell, spheres, blob:N, inside:N, stadium:N (N = triangle count)";
 
 fn mat(name: &str, kind: MaterialKind, color: Vec3) -> Material {
     Material { kind, ..Material::lambert(name, color) }
@@ -36,6 +38,12 @@ pub fn load(name: &str) -> Result<Scene> {
                     Error::scene(format!("builtin:{name}"), "blob:N needs N between 8 and 50000000 triangles")
                 })?;
                 return blob_scene(n);
+            }
+            if let Some(n) = name.strip_prefix("inside:") {
+                let n: usize = n.parse().ok().filter(|&n| (8..=50_000_000).contains(&n)).ok_or_else(|| {
+                    Error::scene(format!("builtin:{name}"), "inside:N needs N between 8 and 50000000 triangles")
+                })?;
+                return inside_scene(n);
             }
             if let Some(n) = name.strip_prefix("stadium:") {
                 let n: usize = n.parse().ok().filter(|&n| (8..=50_000_000).contains(&n)).ok_or_else(|| {
@@ -148,6 +156,16 @@ fn stadium_scene(n: usize) -> Result<Scene> {
     b.mesh(&teapot, 1.0, Vec3::ZERO, None);
     b.mesh(&blob(2000, 0.05, 7), 500.0, Vec3::ZERO, None);
     b.scene.camera = framed_camera(&bounds, 45.0);
+    b.scene.lights.push(super::default_light());
+    b.finish()
+}
+
+fn inside_scene(n: usize) -> Result<Scene> {
+    let mut b = SceneBuilder::new(&format!("builtin:inside:{n}"));
+    b.mesh(&blob(n, 0.15, 1), 1.0, Vec3::ZERO, None);
+    // Off-centre and looking at a slant, so rays meet edges at every angle.
+    b.scene.camera =
+        Camera { eye: Vec3::new(0.05, 0.03, -0.02), look_at: Vec3::new(1.0, 0.7, 0.4), up: Vec3::Y, vfov: 100.0 };
     b.scene.lights.push(super::default_light());
     b.finish()
 }
