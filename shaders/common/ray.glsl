@@ -27,6 +27,7 @@ const uint NO_PRIM = 0xffffffffu;
 const float GAMMA_1 = 5.96046519e-8;
 const float GAMMA_5 = 2.98023309e-7;
 const float GAMMA_7 = 4.17232684e-7;
+const float GAMMA_32 = 1.90735227e-6;
 
 // Reciprocal that is never inf or NaN; -0 counts as negative. See src/math/float.rs.
 float safe_rcp(float x) {
@@ -69,15 +70,18 @@ vec3 offset_ray_origin(vec3 p, vec3 err, vec3 n, vec3 w) {
     return po;
 }
 
-// Point on a triangle at barycentrics (u, v) of p1, p2, and its error bound
-// gamma(7) (|b0 p0| + |b1 p1| + |b2 p2|) (pbrt-v4). See src/math/float.rs.
+// Point on a triangle at barycentrics (u, v) of p1, p2, and its error bound for
+// spawning rays: gamma(7) (|b0 p0| + |b1 p1| + |b2 p2|) (pbrt-v4) plus gamma(32) x the
+// triangle's size. See src/math/float.rs.
 void triangle_point(vec3 p0, vec3 p1, vec3 p2, float u, float v, out vec3 p, out vec3 err) {
     precise float b0 = 1.0 - u - v;
     precise vec3 a = p0 * b0;
     precise vec3 b = p1 * u;
     precise vec3 c = p2 * v;
     precise vec3 pp = a + b + c;
-    precise vec3 e = (abs(a) + abs(b) + abs(c)) * GAMMA_7;
+    vec3 ext = max(max(p0, p1), p2) - min(min(p0, p1), p2);
+    precise float size = max(max(ext.x, ext.y), ext.z) * GAMMA_32;
+    precise vec3 e = (abs(a) + abs(b) + abs(c)) * GAMMA_7 + vec3(size);
     p = pp;
     err = e;
 }

@@ -50,13 +50,20 @@ pub fn offset_ray_origin(p: Vec3, err: Vec3, n: Vec3, w: Vec3) -> Vec3 {
 }
 
 /// A point on triangle (p0, p1, p2) at barycentrics (u, v) of p1 and p2, and the
-/// bound on its rounding error: pbrt-v4's `gamma(7) (|b0 p0| + |b1 p1| + |b2 p2|)`.
+/// bound on its error for spawning rays: pbrt-v4's rounding bound of the point,
+/// `gamma(7) (|b0 p0| + |b1 p1| + |b2 p2|)`, plus `gamma(32)` times the triangle's
+/// largest extent on every axis. The second term stands for the rounding of the
+/// spawned ray's own test against this triangle, which grows with the triangle's size
+/// (pbrt rejects such hits with a conservative t > 0 test instead; that test also
+/// rejects real hits on slivers, which would break watertightness). It matters where
+/// the first term is zero: a point on a plane x, y or z = 0 is exact across it.
 /// Twin: `triangle_point` in ray.glsl.
 pub fn triangle_point(p0: Vec3, p1: Vec3, p2: Vec3, u: f32, v: f32) -> (Vec3, Vec3) {
     let b0 = 1.0 - u - v;
     let (a, b, c) = (p0 * b0, p1 * u, p2 * v);
     let p = a + b + c;
-    let err = (a.abs() + b.abs() + c.abs()) * gamma(7);
+    let size = (p0.max(p1).max(p2) - p0.min(p1).min(p2)).max_element();
+    let err = (a.abs() + b.abs() + c.abs()) * gamma(7) + Vec3::splat(size * gamma(32));
     (p, err)
 }
 
@@ -89,7 +96,7 @@ mod tests {
     #[test]
     fn glsl_gamma_literals_match() {
         let glsl = include_str!("../../shaders/common/ray.glsl");
-        for n in [1u32, 5, 7] {
+        for n in [1u32, 5, 7, 32] {
             let key = format!("const float GAMMA_{n} = ");
             let at = glsl.find(&key).unwrap_or_else(|| panic!("ray.glsl lacks {key}")) + key.len();
             let lit = &glsl[at..at + glsl[at..].find(';').expect("literal ends with ;")];

@@ -40,7 +40,15 @@ pub fn blob(target_tris: usize, amplitude: f32, seed: u32) -> MeshData {
         let theta = std::f32::consts::PI * j as f32 / stacks as f32;
         for i in 0..slices {
             let phi = 2.0 * std::f32::consts::PI * i as f32 / slices as f32;
-            let dir = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            // At the poles every slice's vertex must be the same point, or the mesh
+            // has a hole there: sin(pi) in f32 is -8.7e-8, not 0.
+            let dir = if j == 0 {
+                Vec3::Y
+            } else if j == stacks {
+                Vec3::NEG_Y
+            } else {
+                Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+            };
             let r = 1.0 + amplitude * displacement(dir, seed);
             positions.push(dir * r);
         }
@@ -89,6 +97,16 @@ pub fn quad(corners: [Vec3; 4]) -> MeshData {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn blob_poles_are_single_points() {
+        let m = blob(1000, 0.2, 3);
+        let first = m.positions[0];
+        let last = *m.positions.last().expect("vertices");
+        let stacks = ((1000.0f64 / 4.0).sqrt().round()) as usize;
+        assert!(m.positions[..2 * stacks].iter().all(|&p| p == first), "north pole");
+        assert!(m.positions[m.positions.len() - 2 * stacks..].iter().all(|&p| p == last), "south pole");
+    }
 
     #[test]
     fn blob_hits_target_and_is_closed_indices() {
