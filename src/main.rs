@@ -631,8 +631,18 @@ fn bench(args: &BenchArgs) -> Result<()> {
             let st = &c.stats;
             let pixels = u64::from(c.size.0) * u64::from(c.size.1);
             let miss_per_m = c.misses as f64 * 1e6 / pixels.max(1) as f64;
+            // Inside a closed mesh: also rays aimed at its vertices and edges (CPU
+            // traversal of the same structure), where cracks show.
+            // (Not brute force: on the CPU that would take minutes.)
+            let aimed = if name.starts_with("builtin:inside:") && kind != AccelKind::None {
+                let accel = arbor::accel::Accel::build_with(kind, &scene, p);
+                let rays = render::cracks::aimed_rays(&scene, glam::Vec3::ZERO, 0.3, AIMED_RAYS, 11);
+                Some(render::cracks::escapes(&scene, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
+            } else {
+                None
+            };
             let line = format!(
-                "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5} {:>9.1}",
+                "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9}",
                 short,
                 nt,
                 label,
@@ -647,12 +657,14 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 st.build.bytes as f64 / nt.max(1) as f64,
                 st.build.sah_cost,
                 st.build.max_depth,
-                miss_per_m
+                miss_per_m,
+                aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
             );
             pb.suspend(|| println!("{line}"));
             rows.push(serde_json::json!({
                 "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "params": p,
                 "intersect": mode, "misses": c.misses, "misses_per_million": miss_per_m,
+                "aimed_escapes_per_million": aimed,
                 "width": c.size.0, "height": c.size.1,
                 "build_ms_median": median(&mut c.build_ms.clone()), "build_ms_all": c.build_ms,
                 "trace_ms_median": median(&mut c.trace_ms.clone()), "trace_ms_spread": spread(&c.trace_ms),
@@ -670,4 +682,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-const BENCH_HEADER: &str = "           scene triangles            accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth    miss/M";
+/// Rays aimed at vertices and edges from inside `builtin:inside:N` per bench row.
+const AIMED_RAYS: usize = 300_000;
+
+const BENCH_HEADER: &str = "           scene triangles            accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth    miss/M  aimed/M";

@@ -11,11 +11,10 @@ use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind};
 use arbor::math::float::{offset_ray_origin, triangle_point};
 use arbor::math::intersect::{edge_function, IntersectMode};
 use arbor::math::Ray;
-use arbor::render::{gpu, Frame, RenderSettings};
+use arbor::render::{cracks, gpu, Frame, RenderSettings};
 use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, MeshData, Scene, SceneBuilder, Sphere};
 use common::scenes::Rng;
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// (name, scale, shift): the transforms every test runs at.
 const SCALES: [(&str, f32, f32); 4] = [("unit", 1.0, 0.0), ("1e-6", 1e-6, 0.0), ("1e6", 1e6, 0.0), ("far", 1.0, 1e6)];
@@ -40,29 +39,6 @@ fn mesh_scene(name: &str, mesh: &MeshData, scale: f32, shift: f32) -> Scene {
     b.finish().expect("valid scene")
 }
 
-/// Rays from inside a closed mesh around `centre` (radius about `r`): a third in random
-/// directions, a third aimed at vertices, a third at edge midpoints.
-fn inside_rays(scene: &Scene, centre: Vec3, r: f32, n: usize, seed: u64) -> Vec<Ray> {
-    let mut rng = Rng(seed);
-    (0..n)
-        .map(|k| {
-            let origin = centre + rng.dir() * (0.3 * r * rng.next());
-            let target = match k % 3 {
-                0 => origin + rng.dir(),
-                1 => scene.positions[(rng.next() * scene.positions.len() as f32) as usize % scene.positions.len()],
-                _ => {
-                    let t =
-                        scene.triangles[(rng.next() * scene.triangles.len() as f32) as usize % scene.triangles.len()];
-                    let e = (rng.next() * 3.0) as usize % 3;
-                    (scene.positions[t[e] as usize] + scene.positions[t[(e + 1) % 3] as usize]) * 0.5
-                }
-            };
-            let dir = (target - origin).try_normalize().unwrap_or(Vec3::X);
-            Ray { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
-        })
-        .collect()
-}
-
 #[test]
 fn watertight_rays_never_escape_closed_meshes_on_the_cpu() {
     // 10^6 rays per mesh (250k at each of the four transforms), through a BVH (the
@@ -73,10 +49,10 @@ fn watertight_rays_never_escape_closed_meshes_on_the_cpu() {
         for (label, scale, shift) in SCALES {
             let mut scene = mesh_scene(mesh_name, mesh, scale, shift);
             let accel = Accel::build(AccelKind::BvhSah, &scene);
-            let rays = inside_rays(&scene, Vec3::splat(shift), scale, 250_000, 5);
+            let rays = cracks::aimed_rays(&scene, Vec3::splat(shift), 0.3 * scale, 250_000, 5);
             for mode in [IntersectMode::Watertight, IntersectMode::Fast] {
                 scene.intersect = mode;
-                let escapes = rays.par_iter().filter(|r| accel.intersect(&scene, r).is_none()).count();
+                let escapes = cracks::escapes(&scene, &accel, &rays);
                 report.push(format!("{mesh_name} {label} {mode}: {escapes} escapes of {}", rays.len()));
                 if mode == IntersectMode::Watertight {
                     if escapes > 0 {

@@ -4,6 +4,7 @@
 #![forbid(unsafe_code)]
 
 pub mod cpu;
+pub mod cracks;
 pub mod gpu;
 pub mod output;
 
