@@ -591,20 +591,25 @@ fn bench(args: &BenchArgs) -> Result<()> {
         pb.set_draw_target(ProgressDrawTarget::stderr());
     }
     let mut rows = Vec::new();
-    for (name, &mode) in scenes.iter().flat_map(|n| args.intersect.iter().map(move |m| (n, m))) {
+    for name in &scenes {
         let mut scene = Scene::load(name)?;
         if args.shadow {
             scene.max_depth = 1;
         }
-        scene.intersect = mode;
         let nt = scene.triangles.len();
         let short = name.strip_prefix("builtin:").unwrap_or(name);
         // Brute force over all pixels would take too long: trace a square subset whose
         // side keeps it under about 4e8 primitive tests.
         let side = ((4e8 / scene.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
-        let mut brute_rate = None;
-        for (kind, p, label) in &variants {
+        // Brute-force rate per intersection mode, for the speedup column.
+        let mut brute_rates: Vec<Option<f64>> = vec![None; args.intersect.len()];
+        // Each structure's modes run back to back, so that their Mrays/s compare
+        // under the same machine load.
+        let cases = variants.iter().flat_map(|v| args.intersect.iter().enumerate().map(move |m| (v, m)));
+        for ((kind, p, label), (mi, &mode)) in cases {
             let kind = *kind;
+            scene.intersect = mode;
+            let brute_rate = &mut brute_rates[mi];
             let label = if args.intersect.len() > 1 { format!("{label}/{mode}") } else { label.clone() };
             pb.set_message(format!("{short}, {label}"));
             let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
@@ -625,7 +630,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
             };
             let rate = median(&mut c.rates.clone());
             if kind == AccelKind::None {
-                brute_rate = Some(rate);
+                *brute_rate = Some(rate);
             }
             let speedup = brute_rate.map(|b| rate / b);
             let st = &c.stats;
