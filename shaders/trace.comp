@@ -110,9 +110,9 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 #endif
 #if HAS_SPHERES
     Sphere s = spheres[h.prim - params.dims.z];
-    sphere_point(r.origin, r.dir, h.t, s.center_radius.xyz, s.center_radius.w, p, err);
-    gn = (p - s.center_radius.xyz) / s.center_radius.w;
-    gn = normalize(gn);
+    vec3 rel;
+    sphere_point(r.origin, r.dir, h.t, s.center_radius.xyz, s.center_radius.w, p, err, rel);
+    gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
     sn = gn;
     mat = s.material.x;
 #endif

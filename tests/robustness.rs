@@ -297,3 +297,49 @@ fn robustness_helpers_agree_bit_for_bit_with_the_device() {
         assert_eq!(g.to_bits(), e.to_bits(), "record {} {}: GPU {g:e} vs CPU {e:e}", i / 12, names[i % 12]);
     }
 }
+
+#[test]
+fn tiny_far_and_huge_near_spheres_are_hit() {
+    // A sphere of radius 1e-6 seen from 1e3 away, and one of radius 1e6 seen from 1
+    // unit off its surface: rays at the centre hit at the right distance, rays just
+    // past the silhouette miss.
+    let cases = [(Vec3::new(0.0, 0.0, -1e3), 1e-6f32), (Vec3::new(0.0, 0.0, -(1e6 + 1.0)), 1e6)];
+    let ctx = common::gpu();
+    for (centre, radius) in cases {
+        let mut b = SceneBuilder::new("sphere");
+        b.scene.spheres.push(Sphere { center: centre, radius, material: 0 });
+        b.scene.lights.push(Light::Directional { direction: Vec3::NEG_Z, radiance: Vec3::ONE });
+        // A narrow camera that sees the sphere's edge: vfov spans 4 radii at the front.
+        let front = -centre.z - radius;
+        let half = (2.0 * radius / front).atan().to_degrees().min(80.0);
+        b.scene.camera = Camera { eye: Vec3::ZERO, look_at: Vec3::NEG_Z, up: Vec3::Y, vfov: 2.0 * half };
+        let scene = b.finish().expect("scene");
+        for &kind in AccelKind::ALL {
+            let accel = Accel::build(kind, &scene);
+            let at = Ray { origin: Vec3::ZERO, dir: Vec3::NEG_Z, tmin: 0.0, tmax: f32::INFINITY };
+            let h = accel.intersect(&scene, &at).unwrap_or_else(|| panic!("r {radius} {kind}: centre ray missed"));
+            assert!((h.t - front).abs() <= front * 1e-5, "r {radius} {kind}: t {} vs {front}", h.t);
+            let off = (2.0 * radius / front).atan();
+            let past = Ray { dir: Vec3::new(off.sin(), 0.0, -off.cos()), ..at };
+            assert!(accel.intersect(&scene, &past).is_none(), "r {radius} {kind}: ray past the edge hit");
+            if let Some(ctx) = &ctx {
+                let f = render(ctx, &scene, kind, 33, 33, false);
+                let centre_px = 16 * 33 + 16;
+                assert_eq!(f.prim[centre_px], 0, "r {radius} {kind}: GPU centre pixel");
+                assert!(
+                    (f.depth[centre_px] - front).abs() <= front * 1e-5,
+                    "r {radius} {kind}: depth {}",
+                    f.depth[centre_px]
+                );
+                let hits = f.prim.iter().filter(|&&p| p == 0).count();
+                if radius < 1.0 {
+                    // The disc spans half the image height: about pi/16 of the pixels.
+                    assert!(hits > 100 && hits < 400, "r {radius} {kind}: {hits} pixels hit");
+                } else {
+                    // From 1 unit off its surface the sphere fills the 160-degree view.
+                    assert_eq!(hits, f.prim.len(), "r {radius} {kind}");
+                }
+            }
+        }
+    }
+}

@@ -86,9 +86,16 @@ void triangle_point(vec3 p0, vec3 p1, vec3 p2, float u, float v, out vec3 p, out
     err = e;
 }
 
-// Hit point at t reprojected onto the sphere, and its error bound. See float.rs.
-void sphere_point(vec3 origin, vec3 dir, float t, vec3 center, float radius, out vec3 p, out vec3 err) {
-    precise vec3 pc = (origin + dir * t) - center;
+// Hit point at t on the sphere, its error bound, and its offset from the centre
+// rebuilt from the ray's closest approach (exact for spheres below the float spacing
+// at their position). See sphere_point in src/math/float.rs.
+void sphere_point(vec3 origin, vec3 dir, float t, vec3 center, float radius, out vec3 p, out vec3 err, out vec3 rel) {
+    precise vec3 f = origin - center;
+    precise float b = -(f.x * dir.x + f.y * dir.y + f.z * dir.z);
+    precise vec3 l = f + dir * b;
+    precise float disc = max(radius * radius - (l.x * l.x + l.y * l.y + l.z * l.z), 0.0);
+    precise float sq = sqrt(disc);
+    precise vec3 pc = t < b ? l - dir * sq : l + dir * sq;
     precise float len = sqrt(pc.x * pc.x + pc.y * pc.y + pc.z * pc.z);
     if (len > 0.0) {
         precise float k = radius / len;
@@ -98,6 +105,7 @@ void sphere_point(vec3 origin, vec3 dir, float t, vec3 center, float radius, out
     precise vec3 e = abs(pc) * GAMMA_5 + abs(pp) * GAMMA_1;
     p = pp;
     err = e;
+    rel = pc;
 }
 
 // Slab test; far padded by 1 + 2 gamma(7) (Ize 2013; Vulkan's 2.5-ulp division). A
@@ -229,7 +237,11 @@ bool ray_sphere(Ray r, vec3 center, float radius, out float t) {
     precise float r2 = radius * radius;
     precise float disc = r2 - dot3(l, l);
     if (disc < 0.0) return false;
-    precise float c = dot3(f, f) - r2;
+    precise float hx = f.x * f.x;
+    precise float hy = f.y * f.y;
+    precise float hz = f.z * f.z;
+    precise float lo = two_product_error(f.x, f.x, hx) + two_product_error(f.y, f.y, hy) + two_product_error(f.z, f.z, hz);
+    precise float c = ((hx + hy + hz) - r2) + (lo - two_product_error(radius, radius, r2));
     precise float q = b >= 0.0 ? b + sqrt(disc) : b - sqrt(disc);
     if (q == 0.0) return false;
     precise float t0 = c / q;

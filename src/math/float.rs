@@ -67,18 +67,28 @@ pub fn triangle_point(p0: Vec3, p1: Vec3, p2: Vec3, u: f32, v: f32) -> (Vec3, Ve
     (p, err)
 }
 
-/// The hit point of a ray at `t` on the sphere (centre, radius), projected back onto
-/// the sphere, and its error bound: pbrt-v4's reprojection (gamma(5) |p - c|) plus the
-/// rounding of adding the centre back (gamma(1) |p|). Twin: `sphere_point` in ray.glsl.
-pub fn sphere_point(origin: Vec3, dir: Vec3, t: f32, center: Vec3, radius: f32) -> (Vec3, Vec3) {
-    let mut pc = (origin + dir * t) - center;
+/// The hit point of a ray at `t` on the sphere (centre, radius) as (point, error
+/// bound, offset from the centre). The offset is rebuilt from the ray's closest
+/// approach to the centre, `l = f + b d` with `f = o - c`, `b = -f·d`, plus or minus
+/// `sqrt(r² - |l|²) d` (Haines, Günther & Akenine-Möller's quantities): accurate to
+/// the radius's own precision even for a sphere far smaller than the float spacing
+/// at its position, where `o + t d - c` would be zero (and its normal NaN). It is then
+/// projected onto the sphere (pbrt-v4); the error bound is gamma(5) |offset| plus the
+/// rounding of adding the centre back, gamma(1) |p|. Twin: `sphere_point` in ray.glsl.
+pub fn sphere_point(origin: Vec3, dir: Vec3, t: f32, center: Vec3, radius: f32) -> (Vec3, Vec3, Vec3) {
+    let f = origin - center;
+    let b = -(f.x * dir.x + f.y * dir.y + f.z * dir.z);
+    let l = f + dir * b;
+    let disc = (radius * radius - (l.x * l.x + l.y * l.y + l.z * l.z)).max(0.0);
+    let s = disc.sqrt();
+    let mut pc = if t < b { l - dir * s } else { l + dir * s };
     let len = (pc.x * pc.x + pc.y * pc.y + pc.z * pc.z).sqrt();
     if len > 0.0 {
         pc *= radius / len;
     }
     let p = center + pc;
     let err = pc.abs() * gamma(5) + p.abs() * gamma(1);
-    (p, err)
+    (p, err, pc)
 }
 
 #[cfg(test)]

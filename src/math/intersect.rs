@@ -269,7 +269,11 @@ pub fn ray_sphere(ray: &Ray, center: Vec3, radius: f32) -> Option<f32> {
     if disc < 0.0 {
         return None;
     }
-    let c = dot3(f, f) - r2;
+    // |f|² - r², which cancels for a huge sphere seen from near its surface: square
+    // exactly (Dekker) and subtract the high and low parts separately.
+    let (hx, hy, hz) = (f.x * f.x, f.y * f.y, f.z * f.z);
+    let lo = two_product_error(f.x, f.x, hx) + two_product_error(f.y, f.y, hy) + two_product_error(f.z, f.z, hz);
+    let c = ((hx + hy + hz) - r2) + (lo - two_product_error(radius, radius, r2));
     let q = if b >= 0.0 { b + disc.sqrt() } else { b - disc.sqrt() };
     if q == 0.0 {
         return None;
