@@ -13,6 +13,7 @@ layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
 layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
 layout(constant_id = SPEC_BRUTE_UNROLL) const uint BRUTE_UNROLL = 1u;
 layout(constant_id = SPEC_INTERSECT) const uint INTERSECT_MODE = 0u;
+layout(constant_id = SPEC_DIFFUSE_PROBE) const bool DIFFUSE_PROBE = false;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -85,6 +86,19 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 
 const float PI = 3.14159265358979;
+
+// A cosine-distributed direction about unit n from two uniform numbers (Malley's
+// method; orthonormal basis of Duff et al. 2017).
+vec3 cosine_direction(vec3 n, float u1, float u2) {
+    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (sgn + n.z);
+    float b = n.x * n.y * a;
+    vec3 t = vec3(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
+    vec3 bt = vec3(b, sgn + n.y * n.y * a, -n.y);
+    float r = sqrt(u1);
+    float phi = 2.0 * PI * u2;
+    return normalize(t * (r * cos(phi)) + bt * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - u1)));
+}
 
 // Shading frame at a hit: the point (recomputed on the surface) and its error bound
 // for spawning rays, geometric normal, shading normal, material index.
@@ -206,6 +220,21 @@ void main() {
                 out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
             }
             if (!hit) { L += beta * params.background.rgb; break; }
+            if (DIFFUSE_PROBE) {
+                // The benchmark's incoherent rays: one cosine-distributed ray from the
+                // hit, on the side the camera ray came from. The pixel shows whether it
+                // escaped (ambient occlusion).
+                vec3 n = dot(gn, r.dir) < 0.0 ? gn : -gn;
+                vec3 d = cosine_direction(n, rng_next(rng), rng_next(rng));
+                Ray dr;
+                dr.origin = offset_ray_origin(p, err, n, d); dr.dir = d;
+                dr.tmin = 0.0; dr.tmax = uintBitsToFloat(0x7f800000u);
+                Hit dh;
+                dh.t = dr.tmax; dh.prim = NO_PRIM; dh.u = 0.0; dh.v = 0.0;
+                g_rays += 1u;
+                if (!trace_closest(dr, dh)) L += beta * params.background.rgb;
+                break;
+            }
             vec4 c = mat_row(mat, 0u);
             vec4 em = mat_row(mat, 2u);
             uint kind = floatBitsToUint(c.w);

@@ -86,12 +86,44 @@ struct BenchArgs {
     /// escaped through the mesh: the miss/M column counts them per million rays.
     #[arg(long, value_delimiter = ',', default_value = "watertight", value_name = "MODE,...")]
     intersect: Vec<arbor::math::intersect::IntersectMode>,
-    /// Also trace a shadow ray toward the light from every primary hit (no bounces);
-    /// Mrays/s then counts both kinds.
-    #[arg(long)]
+    /// Ray kinds, one set of rows each: primary (camera rays), shadow (camera rays plus
+    /// a shadow ray toward each light from every hit), diffuse (camera rays plus one
+    /// cosine-distributed ray from every hit, seeded: incoherent). Mrays/s counts all.
+    #[arg(long, value_delimiter = ',', default_value = "primary", value_name = "KIND,...")]
+    rays: Vec<RayKind>,
+    /// Same as --rays shadow (kept for older command lines).
+    #[arg(long, hide = true)]
     shadow: bool,
+    /// Write bench.csv and bench.json (every figure, documented in the README) here;
+    /// the directory is created if missing.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// A small run for CI and a first look: blobs of 1000 and 10000 triangles (unless
+    /// --tris or --scene), 128x128, one repeat, primary and diffuse rays (unless --rays
+    /// is given explicitly).
+    #[arg(long)]
+    quick: bool,
     #[command(flatten)]
     device: DeviceArgs,
+}
+
+/// A kind of ray the benchmark traces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+enum RayKind {
+    Primary,
+    Shadow,
+    Diffuse,
+}
+
+impl RayKind {
+    fn name(self) -> &'static str {
+        match self {
+            RayKind::Primary => "primary",
+            RayKind::Shadow => "shadow",
+            RayKind::Diffuse => "diffuse",
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -503,20 +535,34 @@ struct Case {
     size: (u32, u32),
     /// Camera rays that hit nothing (last repeat; the same in every repeat).
     misses: u64,
+    /// 99th percentile of nodes visited and primitives tested per camera ray.
+    nodes_p99: u32,
+    prims_p99: u32,
+}
+
+/// The `q` quantile (0..=1) of `v` by the nearest-rank method.
+fn quantile(v: &[u32], q: f64) -> u32 {
+    if v.is_empty() {
+        return 0;
+    }
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    let rank = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len());
+    s[rank - 1]
 }
 
 fn bench_case(
     ctx: &Context,
     scene: &Scene,
-    kind: AccelKind,
-    params: &arbor::accel::AccelParams,
+    (kind, params): (AccelKind, &arbor::accel::AccelParams),
     size: (u32, u32),
-    args: &BenchArgs,
+    rays: RayKind,
+    repeat: usize,
     pb: &ProgressBar,
 ) -> Result<Case> {
-    let repeat = args.repeat.max(1);
     let mut settings = RenderSettings::for_size(size.0, size.1);
-    settings.primary_only = !args.shadow;
+    settings.primary_only = rays == RayKind::Primary;
+    settings.diffuse_probe = rays == RayKind::Diffuse;
     settings.accel = kind;
     let mut case = Case {
         build_ms: Vec::new(),
@@ -525,11 +571,15 @@ fn bench_case(
         stats: Default::default(),
         size,
         misses: 0,
+        nodes_p99: 0,
+        prims_p99: 0,
     };
     for r in 0..=repeat {
         let accel = arbor::accel::Accel::build_with(kind, scene, params);
         let (frame, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
         case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
+        case.nodes_p99 = quantile(&frame.nodes, 0.99);
+        case.prims_p99 = quantile(&frame.tests, 0.99);
         pb.inc(1);
         if r > 0 {
             let ms = st.trace_ms.unwrap_or(st.wall_ms);
@@ -563,126 +613,322 @@ fn bench_variants(
     out
 }
 
+/// One row of the benchmark's output (bench.json, bench.csv; columns in the README).
+#[derive(serde::Serialize)]
+struct Row {
+    scene: String,
+    triangles: usize,
+    accel: String,
+    label: String,
+    intersect: String,
+    rays: String,
+    width: u32,
+    height: u32,
+    device: String,
+    build_ms: f64,
+    build_ms_spread: f64,
+    trace_ms: f64,
+    trace_ms_spread: f64,
+    rays_traced: u64,
+    mrays_per_s: f64,
+    speedup: Option<f64>,
+    bytes: u64,
+    sah_cost: f64,
+    depth: u32,
+    nodes_mean: f64,
+    nodes_p99: u32,
+    prims_mean: f64,
+    prims_p99: u32,
+    misses_per_million: f64,
+    aimed_escapes_per_million: Option<f64>,
+    error: Option<String>,
+}
+
+/// Columns of bench.csv, in order (the fields of `Row`).
+const CSV_COLUMNS: &[&str] = &[
+    "scene",
+    "triangles",
+    "accel",
+    "label",
+    "intersect",
+    "rays",
+    "width",
+    "height",
+    "device",
+    "build_ms",
+    "build_ms_spread",
+    "trace_ms",
+    "trace_ms_spread",
+    "rays_traced",
+    "mrays_per_s",
+    "speedup",
+    "bytes",
+    "sah_cost",
+    "depth",
+    "nodes_mean",
+    "nodes_p99",
+    "prims_mean",
+    "prims_p99",
+    "misses_per_million",
+    "aimed_escapes_per_million",
+    "error",
+];
+
+fn csv_field(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Null => String::new(),
+        serde_json::Value::String(s) if s.contains([',', '"', '\n']) => format!("\"{}\"", s.replace('"', "\"\"")),
+        serde_json::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+fn to_csv(rows: &[Row]) -> Result<String> {
+    let mut out = CSV_COLUMNS.join(",");
+    out.push('\n');
+    for r in rows {
+        let v = serde_json::to_value(r)?;
+        let line: Vec<String> = CSV_COLUMNS.iter().map(|c| csv_field(&v[*c])).collect();
+        out.push_str(&line.join(","));
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Time to image: build plus trace for `spp` samples per pixel, per structure, and the
+/// samples per pixel from which each structure beats every one that builds faster.
+fn time_to_image(rows: &[&Row]) -> Vec<serde_json::Value> {
+    let mut list: Vec<&Row> =
+        rows.iter().copied().filter(|r| r.error.is_none() && r.accel != "none" && r.trace_ms > 0.0).collect();
+    list.sort_by(|a, b| a.build_ms.total_cmp(&b.build_ms));
+    let mut out = Vec::new();
+    for (k, r) in list.iter().enumerate() {
+        // Against each faster-building structure: build_r + s trace_r < build_o + s trace_o.
+        let mut wins_from: Option<f64> = Some(0.0);
+        for o in &list[..k] {
+            if r.trace_ms >= o.trace_ms {
+                wins_from = None;
+                break;
+            }
+            let s = (r.build_ms - o.build_ms) / (o.trace_ms - r.trace_ms);
+            wins_from = wins_from.map(|w| w.max(s));
+        }
+        let totals: Vec<(u32, f64)> =
+            [1u32, 4, 16, 64, 256].iter().map(|&s| (s, r.build_ms + f64::from(s) * r.trace_ms)).collect();
+        out.push(serde_json::json!({
+            "label": r.label, "build_ms": r.build_ms, "trace_ms_per_spp": r.trace_ms,
+            "beats_faster_builders_from_spp": wins_from, "total_ms": totals,
+        }));
+    }
+    out
+}
+
 fn bench(args: &BenchArgs) -> Result<()> {
     if let Some(p) = &args.json {
         check_writable(p)?;
     }
-    let (w, h) = parse_size(&args.size)?;
+    if let Some(d) = &args.out {
+        std::fs::create_dir_all(d).with_context(|| format!("--out {}: cannot create the directory", d.display()))?;
+    }
+    let (w, h) = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
     let params = accel_params(&args.kd, &args.grid, &args.octree)?;
     if let Some(bad) = args.lambda.iter().find(|l| !(l.is_finite() && **l > 0.0 && **l <= 1e4)) {
         bail!("--lambda {bad}: each value must be in (0, 10000]");
     }
     let variants = bench_variants(args, &params);
-    let repeat = args.repeat.max(1);
-    let tris =
-        if args.tris.is_empty() && args.scene.is_empty() { vec![1000, 10_000, 100_000] } else { args.tris.clone() };
+    let repeat = if args.quick { 1 } else { args.repeat.max(1) };
+    let tris = match (args.tris.is_empty() && args.scene.is_empty(), args.quick) {
+        (true, true) => vec![1000, 10_000],
+        (true, false) => vec![1000, 10_000, 100_000],
+        _ => args.tris.clone(),
+    };
+    let mut kinds = args.rays.clone();
+    if args.quick && kinds == [RayKind::Primary] {
+        kinds = vec![RayKind::Primary, RayKind::Diffuse];
+    }
+    if args.shadow && !kinds.contains(&RayKind::Shadow) {
+        kinds.push(RayKind::Shadow);
+    }
     let scenes: Vec<String> =
         tris.iter().map(|n| format!("builtin:blob:{n}")).chain(args.scene.iter().cloned()).collect();
     let ctx = context(&args.device)?;
     eprintln!(
-        "device: {} ({}); {w}x{h} primary rays{} (brute force on a smaller image of the same view), median of {repeat} after 1 warm-up",
+        "device: {} ({}); {w}x{h} camera rays, kinds {}; brute force on a smaller image of the same view; median of {repeat} after 1 warm-up",
         ctx.info().name,
         ctx.info().kind,
-        if args.shadow { " + a shadow ray per hit" } else { "" }
+        kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
     );
     let pb = progress_bar(false);
-    pb.set_length((scenes.len() * args.intersect.len() * variants.len() * (repeat + 1)) as u64);
+    pb.set_length((scenes.len() * kinds.len() * args.intersect.len() * variants.len() * (repeat + 1)) as u64);
     if std::io::stderr().is_terminal() {
         pb.set_draw_target(ProgressDrawTarget::stderr());
     }
-    let mut rows = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
+    let mut tti = Vec::new();
     for name in &scenes {
-        let mut scene = Scene::load(name)?;
-        if args.shadow {
-            scene.max_depth = 1;
-        }
-        let nt = scene.triangles.len();
-        let short = name.strip_prefix("builtin:").unwrap_or(name);
+        let base = Scene::load(name)?;
+        let nt = base.triangles.len();
+        let short = name.strip_prefix("builtin:").unwrap_or(name).to_string();
         // Brute force over all pixels would take too long: trace a square subset whose
         // side keeps it under about 4e8 primitive tests.
-        let side = ((4e8 / scene.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
-        // Brute-force rate per intersection mode, for the speedup column.
-        let mut brute_rates: Vec<Option<f64>> = vec![None; args.intersect.len()];
-        // Each structure's modes run back to back, so that their Mrays/s compare
-        // under the same machine load.
-        let cases = variants.iter().flat_map(|v| args.intersect.iter().enumerate().map(move |m| (v, m)));
-        for ((kind, p, label), (mi, &mode)) in cases {
-            let kind = *kind;
-            scene.intersect = mode;
-            let brute_rate = &mut brute_rates[mi];
-            let label = if args.intersect.len() > 1 { format!("{label}/{mode}") } else { label.clone() };
-            pb.set_message(format!("{short}, {label}"));
-            let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
-            let c = match bench_case(&ctx, &scene, kind, p, size, args, &pb) {
-                Ok(c) => c,
-                // A structure can fail on a scene where it degenerates (the grid in the
-                // stadium needs more steps per ray than llvmpipe's loop limit; brute
-                // force too with shadow rays on big scenes): report it and go on.
-                Err(e) => {
-                    let msg = format!("{e:#}");
-                    pb.suspend(|| println!("{short:>16} {nt:>9} {label:>16} failed: {msg}"));
-                    rows.push(serde_json::json!({
-                        "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "error": msg,
-                    }));
-                    pb.inc(repeat as u64 + 1);
-                    continue;
-                }
-            };
-            let rate = median(&mut c.rates.clone());
-            if kind == AccelKind::None {
-                *brute_rate = Some(rate);
+        let side = ((4e8 / base.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
+        for &kind_of_rays in &kinds {
+            let mut scene = base.clone();
+            if kind_of_rays == RayKind::Shadow {
+                scene.max_depth = 1;
             }
-            let speedup = brute_rate.map(|b| rate / b);
-            let st = &c.stats;
-            let pixels = u64::from(c.size.0) * u64::from(c.size.1);
-            let miss_per_m = c.misses as f64 * 1e6 / pixels.max(1) as f64;
-            // Inside a closed mesh: also rays aimed at its vertices and edges (CPU
-            // traversal of the same structure), where cracks show.
-            // (Not brute force: on the CPU that would take minutes.)
-            let aimed = if name.starts_with("builtin:inside:") && kind != AccelKind::None {
-                let accel = arbor::accel::Accel::build_with(kind, &scene, p);
-                let rays = render::cracks::aimed_rays(&scene, glam::Vec3::ZERO, 0.3, AIMED_RAYS, 11);
-                Some(render::cracks::escapes(&scene, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
-            } else {
-                None
-            };
-            let line = format!(
-                "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>8.1} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9}",
-                short,
-                nt,
-                label,
-                format!("{}x{}", c.size.0, c.size.1),
-                median(&mut c.build_ms.clone()),
-                median(&mut c.trace_ms.clone()),
-                spread(&c.trace_ms),
-                rate,
-                speedup.map(|s| format!("{s:.0}x")).unwrap_or_else(|| "-".into()),
-                st.mean_nodes_visited,
-                st.mean_prims_tested,
-                st.build.bytes as f64 / nt.max(1) as f64,
-                st.build.sah_cost,
-                st.build.max_depth,
-                miss_per_m,
-                aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
-            );
-            pb.suspend(|| println!("{line}"));
-            rows.push(serde_json::json!({
-                "scene": name, "triangles": nt, "accel": kind.name(), "label": label, "params": p,
-                "intersect": mode, "misses": c.misses, "misses_per_million": miss_per_m,
-                "aimed_escapes_per_million": aimed,
-                "width": c.size.0, "height": c.size.1,
-                "build_ms_median": median(&mut c.build_ms.clone()), "build_ms_all": c.build_ms,
-                "trace_ms_median": median(&mut c.trace_ms.clone()), "trace_ms_spread": spread(&c.trace_ms),
-                "trace_ms_all": c.trace_ms, "mrays_per_s_median": rate, "speedup_vs_brute_force": speedup,
-                "nodes_per_ray": st.mean_nodes_visited, "prims_per_ray": st.mean_prims_tested,
-                "bytes": st.build.bytes, "bytes_per_triangle": st.build.bytes as f64 / nt.max(1) as f64,
-                "build": st.build, "device": ctx.info().name,
-            }));
+            let first_row = rows.len();
+            // Brute-force rate per intersection mode, for the speedup column.
+            let mut brute_rates: Vec<Option<f64>> = vec![None; args.intersect.len()];
+            // Each structure's modes run back to back, so that their Mrays/s compare
+            // under the same machine load.
+            let cases = variants.iter().flat_map(|v| args.intersect.iter().enumerate().map(move |m| (v, m)));
+            for ((kind, p, label), (mi, &mode)) in cases {
+                let kind = *kind;
+                scene.intersect = mode;
+                let brute_rate = &mut brute_rates[mi];
+                let mut label = label.clone();
+                if args.intersect.len() > 1 {
+                    label = format!("{label}/{mode}");
+                }
+                if kinds.len() > 1 {
+                    label = format!("{label}/{}", kind_of_rays.name());
+                }
+                pb.set_message(format!("{short}, {label}"));
+                let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
+                let mut row = Row {
+                    scene: name.clone(),
+                    triangles: nt,
+                    accel: kind.name().into(),
+                    label: label.clone(),
+                    intersect: mode.name().into(),
+                    rays: kind_of_rays.name().into(),
+                    width: size.0,
+                    height: size.1,
+                    device: ctx.info().name.clone(),
+                    build_ms: 0.0,
+                    build_ms_spread: 0.0,
+                    trace_ms: 0.0,
+                    trace_ms_spread: 0.0,
+                    rays_traced: 0,
+                    mrays_per_s: 0.0,
+                    speedup: None,
+                    bytes: 0,
+                    sah_cost: 0.0,
+                    depth: 0,
+                    nodes_mean: 0.0,
+                    nodes_p99: 0,
+                    prims_mean: 0.0,
+                    prims_p99: 0,
+                    misses_per_million: 0.0,
+                    aimed_escapes_per_million: None,
+                    error: None,
+                };
+                let c = match bench_case(&ctx, &scene, (kind, p), size, kind_of_rays, repeat, &pb) {
+                    Ok(c) => c,
+                    // A structure can fail on a scene where it degenerates (the grid in
+                    // the stadium needs more steps per ray than llvmpipe's loop limit;
+                    // brute force too with shadow rays on big scenes): report it, go on.
+                    Err(e) => {
+                        let msg = format!("{e:#}");
+                        pb.suspend(|| println!("{short:>16} {nt:>9} {label:>16} failed: {msg}"));
+                        row.error = Some(msg);
+                        rows.push(row);
+                        pb.inc(repeat as u64 + 1);
+                        continue;
+                    }
+                };
+                let rate = median(&mut c.rates.clone());
+                if kind == AccelKind::None {
+                    *brute_rate = Some(rate);
+                }
+                let st = &c.stats;
+                let pixels = u64::from(c.size.0) * u64::from(c.size.1);
+                // Inside a closed mesh: also rays aimed at its vertices and edges (CPU
+                // traversal of the same structure), where cracks show. (Not brute
+                // force: on the CPU that would take minutes.)
+                let aimed = if name.starts_with("builtin:inside:") && kind != AccelKind::None {
+                    let accel = arbor::accel::Accel::build_with(kind, &scene, p);
+                    let rays = render::cracks::aimed_rays(&scene, glam::Vec3::ZERO, 0.3, AIMED_RAYS, 11);
+                    Some(render::cracks::escapes(&scene, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
+                } else {
+                    None
+                };
+                row.build_ms = median(&mut c.build_ms.clone());
+                row.build_ms_spread = spread(&c.build_ms);
+                row.trace_ms = median(&mut c.trace_ms.clone());
+                row.trace_ms_spread = spread(&c.trace_ms);
+                row.rays_traced = st.rays;
+                row.mrays_per_s = rate;
+                row.speedup = brute_rate.map(|b| rate / b);
+                row.bytes = st.build.bytes;
+                row.sah_cost = st.build.sah_cost;
+                row.depth = st.build.max_depth;
+                row.nodes_mean = st.mean_nodes_visited;
+                row.nodes_p99 = c.nodes_p99;
+                row.prims_mean = st.mean_prims_tested;
+                row.prims_p99 = c.prims_p99;
+                row.misses_per_million = c.misses as f64 * 1e6 / pixels.max(1) as f64;
+                row.aimed_escapes_per_million = aimed;
+                let line = format!(
+                    "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>7} {:>8.1} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9}",
+                    short,
+                    nt,
+                    label,
+                    format!("{}x{}", c.size.0, c.size.1),
+                    row.build_ms,
+                    row.trace_ms,
+                    row.trace_ms_spread,
+                    rate,
+                    row.speedup.map(|s| format!("{s:.0}x")).unwrap_or_else(|| "-".into()),
+                    row.nodes_mean,
+                    row.nodes_p99,
+                    row.prims_mean,
+                    row.prims_p99,
+                    row.bytes as f64 / nt.max(1) as f64,
+                    row.sah_cost,
+                    row.depth,
+                    row.misses_per_million,
+                    aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
+                );
+                pb.suspend(|| println!("{line}"));
+                rows.push(row);
+            }
+            // Time to image for this scene and ray kind.
+            let group: Vec<&Row> = rows[first_row..].iter().collect();
+            let t = time_to_image(&group);
+            let lines: Vec<String> = t
+                .iter()
+                .map(|v| {
+                    let from = match v["beats_faster_builders_from_spp"].as_f64() {
+                        Some(s) if s <= 0.0 => "always".to_string(),
+                        Some(s) => format!("from {s:.1} spp"),
+                        None => "never".to_string(),
+                    };
+                    let totals: Vec<String> = v["total_ms"]
+                        .as_array()
+                        .map(|a| a.iter().map(|p| format!("{:.0}", p[1].as_f64().unwrap_or(0.0))).collect())
+                        .unwrap_or_default();
+                    format!(
+                        "    {:>16}  total ms at 1/4/16/64/256 spp: {:<40} beats faster builders {from}",
+                        v["label"].as_str().unwrap_or(""),
+                        totals.join(" / ")
+                    )
+                })
+                .collect();
+            pb.suspend(|| println!("  time to image, {short}, {} rays:\n{}", kind_of_rays.name(), lines.join("\n")));
+            tti.push(serde_json::json!({ "scene": name, "rays": kind_of_rays.name(), "structures": t }));
         }
     }
     pb.finish_and_clear();
+    let json = serde_json::to_vec_pretty(&serde_json::json!({ "rows": rows, "time_to_image": tti }))?;
     if let Some(p) = &args.json {
-        output::write_atomic(p, &serde_json::to_vec_pretty(&rows)?)?;
+        output::write_atomic(p, &json)?;
+    }
+    if let Some(d) = &args.out {
+        output::write_atomic(&d.join("bench.json"), &json)?;
+        output::write_atomic(&d.join("bench.csv"), to_csv(&rows)?.as_bytes())?;
+        eprintln!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display());
     }
     Ok(())
 }
@@ -690,4 +936,4 @@ fn bench(args: &BenchArgs) -> Result<()> {
 /// Rays aimed at vertices and edges from inside `builtin:inside:N` per bench row.
 const AIMED_RAYS: usize = 300_000;
 
-const BENCH_HEADER: &str = "           scene triangles            accel      rays   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray prims/ray bytes/tri     SAH depth    miss/M  aimed/M";
+const BENCH_HEADER: &str = "           scene triangles            accel    pixels   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray   p99 prims/ray   p99 bytes/tri     SAH depth    miss/M  aimed/M";

@@ -45,6 +45,8 @@ pub const SPEC_TREE_STEPS: u32 = 3;
 pub const SPEC_BRUTE_UNROLL: u32 = 4;
 /// Ray/triangle test: 0 watertight (Woop et al. 2013), 1 fast (Moller-Trumbore).
 pub const SPEC_INTERSECT: u32 = 5;
+/// Trace one cosine-distributed ray from each camera hit instead of shading.
+pub const SPEC_DIFFUSE_PROBE: u32 = 6;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -66,5 +68,6 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
     ("SPEC_BRUTE_UNROLL", SPEC_BRUTE_UNROLL),
     ("SPEC_INTERSECT", SPEC_INTERSECT),
+    ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
 ];

@@ -120,14 +120,22 @@ fn tests_per_sample(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> 
         // A descent from the root per cell visited.
         Accel::Octree(t) => 8 * (u64::from(t.depth) + 4),
     };
-    let rays = if settings.primary_only { 1 } else { 1 + scene.lights.len() as u64 + 1 };
+    let rays = if settings.diffuse_probe {
+        2
+    } else if settings.primary_only {
+        1
+    } else {
+        1 + scene.lights.len() as u64 + 1
+    };
     per_ray * rays
 }
 
 /// Traces one sample may run: at most `max_depth` closest-hit rays and one shadow
 /// ray per light.
 pub fn traces_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
-    if settings.primary_only {
+    if settings.diffuse_probe {
+        2
+    } else if settings.primary_only {
         1
     } else {
         u64::from(scene.max_depth) + scene.lights.len() as u64
@@ -227,8 +235,9 @@ pub fn render_with(
     let spv =
         spirv::get(&kernel_name).ok_or_else(|| Error::Usage(format!("no kernel '{kernel_name}' was compiled")))?;
     let bindings = trace_bindings(family, geometry);
-    let use_lights = !settings.primary_only && !scene.lights.is_empty();
-    let max_depth = if settings.primary_only { 1 } else { scene.max_depth };
+    let probe = settings.primary_only || settings.diffuse_probe;
+    let use_lights = !probe && !scene.lights.is_empty();
+    let max_depth = if probe { 1 } else { scene.max_depth };
     // Loop iterations per trace: fixed for brute force; a step budget for trees, which
     // the kernel enforces (flagging the pixel) so llvmpipe's limit is never crossed.
     let traces = traces_per_sample(scene, settings);
@@ -265,6 +274,7 @@ pub fn render_with(
         (SPEC_TREE_STEPS, tree_steps as u32),
         (SPEC_BRUTE_UNROLL, unroll),
         (SPEC_INTERSECT, scene.intersect.spec()),
+        (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
     ];
     let mut kernel =
         ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;

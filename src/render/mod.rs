@@ -38,6 +38,10 @@ pub struct RenderSettings {
     pub kernel: KernelChoice,
     /// Trace camera rays only (no shadows, no bounces): the benchmark's primary-ray mode.
     pub primary_only: bool,
+    /// Camera rays plus one cosine-distributed ray from each hit, no shading: the
+    /// benchmark's incoherent-ray mode (the image is ambient occlusion). Takes
+    /// precedence over `primary_only`.
+    pub diffuse_probe: bool,
     /// Budget of primitive tests per dispatch; smaller means shorter dispatches.
     pub dispatch_budget: u64,
 }
@@ -54,6 +58,7 @@ impl RenderSettings {
             params: Default::default(),
             kernel: KernelChoice::Specialized,
             primary_only: false,
+            diffuse_probe: false,
             dispatch_budget: DEFAULT_DISPATCH_BUDGET,
         }
     }
