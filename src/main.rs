@@ -89,7 +89,8 @@ struct BenchArgs {
     /// Ray kinds, one set of rows each: primary (camera rays), shadow (camera rays plus
     /// a shadow ray toward each light from every hit), diffuse (camera rays plus one
     /// cosine-distributed ray from every hit, seeded: incoherent). Mrays/s counts all.
-    #[arg(long, value_delimiter = ',', default_value = "primary", value_name = "KIND,...")]
+    /// Default: primary (primary,diffuse with --quick).
+    #[arg(long, value_delimiter = ',', value_name = "KIND,...")]
     rays: Vec<RayKind>,
     /// Same as --rays shadow (kept for older command lines).
     #[arg(long, hide = true)]
@@ -538,6 +539,8 @@ struct Case {
     /// 99th percentile of nodes visited and primitives tested per camera ray.
     nodes_p99: u32,
     prims_p99: u32,
+    /// Nodes visited per camera ray, per pixel (last repeat), for the cost heatmap.
+    nodes: Vec<u32>,
 }
 
 /// The `q` quantile (0..=1) of `v` by the nearest-rank method.
@@ -573,6 +576,7 @@ fn bench_case(
         misses: 0,
         nodes_p99: 0,
         prims_p99: 0,
+        nodes: Vec::new(),
     };
     for r in 0..=repeat {
         let accel = arbor::accel::Accel::build_with(kind, scene, params);
@@ -580,6 +584,7 @@ fn bench_case(
         case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
         case.nodes_p99 = quantile(&frame.nodes, 0.99);
         case.prims_p99 = quantile(&frame.tests, 0.99);
+        case.nodes = frame.nodes;
         pb.inc(1);
         if r > 0 {
             let ms = st.trace_ms.unwrap_or(st.wall_ms);
@@ -743,8 +748,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
         _ => args.tris.clone(),
     };
     let mut kinds = args.rays.clone();
-    if args.quick && kinds == [RayKind::Primary] {
-        kinds = vec![RayKind::Primary, RayKind::Diffuse];
+    if kinds.is_empty() {
+        kinds = if args.quick { vec![RayKind::Primary, RayKind::Diffuse] } else { vec![RayKind::Primary] };
     }
     if args.shadow && !kinds.contains(&RayKind::Shadow) {
         kinds.push(RayKind::Shadow);
@@ -765,6 +770,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
     }
     let mut rows: Vec<Row> = Vec::new();
     let mut tti = Vec::new();
+    // (file stem, title, width, height, nodes per pixel) of the cost heatmaps to draw.
+    let mut heatmaps: Vec<(String, String, u32, u32, Vec<u32>)> = Vec::new();
     for name in &scenes {
         let base = Scene::load(name)?;
         let nt = base.triangles.len();
@@ -892,6 +899,15 @@ fn bench(args: &BenchArgs) -> Result<()> {
                     aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
                 );
                 pb.suspend(|| println!("{line}"));
+                if args.out.is_some() && kind != AccelKind::None && kind_of_rays == RayKind::Primary && mi == 0 {
+                    heatmaps.push((
+                        format!("cost_{}_{}", file_part(&short), file_part(&row.label)),
+                        format!("nodes per camera ray: {short}, {}", row.label),
+                        c.size.0,
+                        c.size.1,
+                        c.nodes,
+                    ));
+                }
                 rows.push(row);
             }
             // Time to image for this scene and ray kind.
@@ -929,8 +945,70 @@ fn bench(args: &BenchArgs) -> Result<()> {
         output::write_atomic(&d.join("bench.json"), &json)?;
         output::write_atomic(&d.join("bench.csv"), to_csv(&rows)?.as_bytes())?;
         eprintln!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display());
+        let plots = bench_plots(&d.join("plots"), &rows, &heatmaps, args.intersect[0].name())?;
+        eprintln!("wrote {} plots in {}", plots.len(), d.join("plots").display());
     }
     Ok(())
+}
+
+/// A file-name-safe version of `s`.
+fn file_part(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' }).collect()
+}
+
+/// Draws the benchmark plots into `dir`; returns the files written.
+fn bench_plots(
+    dir: &Path,
+    rows: &[Row],
+    heatmaps: &[(String, String, u32, u32, Vec<u32>)],
+    first_mode: &str,
+) -> Result<Vec<PathBuf>> {
+    use render::plots;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+    let mut files = Vec::new();
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none() && r.intersect == first_mode).collect();
+    // Per scene and ray kind: Mrays/s bars and time-to-image curves.
+    let mut groups: Vec<(&str, &str)> = ok.iter().map(|r| (r.scene.as_str(), r.rays.as_str())).collect();
+    groups.dedup();
+    for (scene, rays) in groups {
+        let g: Vec<&&Row> = ok.iter().filter(|r| r.scene == scene && r.rays == rays).collect();
+        let short = scene.strip_prefix("builtin:").unwrap_or(scene);
+        let bars: Vec<(String, f64)> = g.iter().map(|r| (r.label.clone(), r.mrays_per_s)).collect();
+        let stem = dir.join(format!("mrays_{}_{rays}", file_part(short)));
+        files.extend(plots::mrays_bars(&stem, &format!("Mrays/s, {short}, {rays} rays"), &bars)?);
+        let spp: Vec<f64> = (0..=10).map(|k| f64::from(1u32 << k)).collect();
+        let series: Vec<(String, Vec<(f64, f64)>)> = g
+            .iter()
+            .filter(|r| r.accel != "none")
+            .map(|r| (r.label.clone(), spp.iter().map(|&s| (s, r.build_ms + s * r.trace_ms)).collect()))
+            .collect();
+        let stem = dir.join(format!("time_to_image_{}_{rays}", file_part(short)));
+        let title = format!("time to image, {short}, {rays} rays");
+        files.extend(plots::loglog(&stem, &title, "samples per pixel", "build + trace ms", &series)?);
+    }
+    // Build time against triangle count over the blobs, per structure.
+    let blobs: Vec<&&Row> = ok.iter().filter(|r| r.scene.starts_with("builtin:blob:") && r.accel != "none").collect();
+    let mut labels: Vec<&str> = blobs.iter().map(|r| r.accel.as_str()).collect();
+    labels.sort_unstable();
+    labels.dedup();
+    let series: Vec<(String, Vec<(f64, f64)>)> = labels
+        .iter()
+        .map(|l| {
+            let mut pts: Vec<(f64, f64)> =
+                blobs.iter().filter(|r| r.accel == *l).map(|r| (r.triangles as f64, r.build_ms)).collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            pts.dedup_by(|a, b| a.0 == b.0);
+            (l.to_string(), pts)
+        })
+        .collect();
+    if series.iter().any(|s| s.1.len() > 1) {
+        let stem = dir.join("build_vs_triangles");
+        files.extend(plots::loglog(&stem, "build time", "triangles", "build ms", &series)?);
+    }
+    for (stem, title, w, h, nodes) in heatmaps {
+        files.push(plots::heatmap(&dir.join(format!("{stem}.png")), title, *w, *h, nodes)?);
+    }
+    Ok(files)
 }
 
 /// Rays aimed at vertices and edges from inside `builtin:inside:N` per bench row.

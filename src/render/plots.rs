@@ -1,0 +1,243 @@
+//! Benchmark plots (PNG and SVG, drawn with plotters): Mrays/s per structure, build
+//! time against triangle count (log-log), time to image against samples per pixel,
+//! and per-pixel cost heatmaps with a colour legend.
+//!
+//! Text needs a TrueType font: `ARBOR_FONT=path.ttf`, else DejaVu Sans from Debian's
+//! `fonts-dejavu-core` (installed by scripts/setup.sh).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::error::{Error, Result};
+
+/// Pixel size of the chart images.
+pub const CHART_SIZE: (u32, u32) = (900, 560);
+
+const FONT_CANDIDATES: &[&str] =
+    &["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf"];
+
+/// Registers the font once; an error names what to install.
+fn font() -> Result<()> {
+    static DONE: OnceLock<std::result::Result<(), String>> = OnceLock::new();
+    DONE.get_or_init(|| {
+        let env = std::env::var("ARBOR_FONT").ok();
+        let paths: Vec<String> = env.iter().cloned().chain(FONT_CANDIDATES.iter().map(|s| s.to_string())).collect();
+        for p in &paths {
+            if let Ok(bytes) = std::fs::read(p) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                return plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+                    .map_err(|_| format!("{p}: not a TrueType/OpenType font"));
+            }
+        }
+        Err(format!(
+            "plots need a TrueType font: none of {} exists (install fonts-dejavu-core or set ARBOR_FONT)",
+            paths.join(", ")
+        ))
+    })
+    .clone()
+    .map_err(Error::Usage)
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Usage(format!("{}: drawing the plot failed: {e}", path.display()))
+}
+
+/// Draws `draw` into `stem.png` and `stem.svg`; returns both paths.
+fn both(
+    stem: &Path,
+    draw: impl Fn(DrawingArea<SVGBackend, Shift>) -> std::result::Result<(), String> + Copy,
+    draw_png: impl Fn(DrawingArea<BitMapBackend, Shift>) -> std::result::Result<(), String>,
+) -> Result<Vec<PathBuf>> {
+    font()?;
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    {
+        let root = BitMapBackend::new(&png, CHART_SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&png, e))?;
+        draw_png(root.clone()).map_err(|e| plot_err(&png, e))?;
+        root.present().map_err(|e| plot_err(&png, e))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, CHART_SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&svg, e))?;
+        draw(root.clone()).map_err(|e| plot_err(&svg, e))?;
+        root.present().map_err(|e| plot_err(&svg, e))?;
+    }
+    Ok(vec![png, svg])
+}
+
+fn color(k: usize) -> RGBColor {
+    const C: [RGBColor; 10] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
+    ];
+    C[k % C.len()]
+}
+
+/// Horizontal bars: Mrays/s per structure.
+pub fn mrays_bars(stem: &Path, title: &str, bars: &[(String, f64)]) -> Result<Vec<PathBuf>> {
+    fn draw<DB: DrawingBackend>(
+        root: DrawingArea<DB, Shift>,
+        title: &str,
+        bars: &[(String, f64)],
+    ) -> std::result::Result<(), String> {
+        let max = bars.iter().map(|b| b.1).fold(0.0f64, f64::max).max(1e-9) * 1.1;
+        let n = bars.len().max(1);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(190)
+            .build_cartesian_2d(0.0..max, (0..n).into_segmented())
+            .map_err(|e| e.to_string())?;
+        // Bar k is drawn in segment n - 1 - k, so the first bar is at the top.
+        let label = |v: &SegmentValue<usize>| match v {
+            SegmentValue::CenterOf(i) if *i < n => bars[n - 1 - *i].0.clone(),
+            _ => String::new(),
+        };
+        chart
+            .configure_mesh()
+            .x_desc("Mrays/s")
+            .y_labels(n)
+            .y_label_formatter(&label)
+            .disable_y_mesh()
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(bars.iter().enumerate().map(|(k, (_, v))| {
+                let y = n - 1 - k;
+                let mut r = Rectangle::new(
+                    [(0.0, SegmentValue::Exact(y)), (*v, SegmentValue::Exact(y + 1))],
+                    color(k).filled(),
+                );
+                r.set_margin(3, 3, 0, 0);
+                r
+            }))
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    }
+    both(stem, |a| draw(a, title, bars), |a| draw(a, title, bars))
+}
+
+/// Lines on log-log axes: one series of (x, y) points per label.
+pub fn loglog(
+    stem: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> Result<Vec<PathBuf>> {
+    fn draw<DB: DrawingBackend>(
+        root: DrawingArea<DB, Shift>,
+        title: &str,
+        x_desc: &str,
+        y_desc: &str,
+        series: &[(String, Vec<(f64, f64)>)],
+    ) -> std::result::Result<(), String> {
+        let pts = series.iter().flat_map(|s| s.1.iter()).filter(|p| p.0 > 0.0 && p.1 > 0.0);
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+        for p in pts {
+            x0 = x0.min(p.0);
+            x1 = x1.max(p.0);
+            y0 = y0.min(p.1);
+            y1 = y1.max(p.1);
+        }
+        if !(x0.is_finite() && y0.is_finite()) {
+            (x0, x1, y0, y1) = (1.0, 10.0, 1.0, 10.0);
+        }
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0 * 0.8..x1 * 1.25).log_scale(), (y0 * 0.8..y1 * 1.25).log_scale())
+            .map_err(|e| e.to_string())?;
+        chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).draw().map_err(|e| e.to_string())?;
+        for (k, (label, points)) in series.iter().enumerate() {
+            let c = color(k);
+            let pts: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(label.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            chart.draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled()))).map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    }
+    both(stem, |a| draw(a, title, x_desc, y_desc, series), |a| draw(a, title, x_desc, y_desc, series))
+}
+
+/// A colour-mapped image of per-pixel values with a legend bar: `values` row-major,
+/// `width` x `height`, row 0 at the top. PNG only.
+pub fn heatmap(path: &Path, title: &str, width: u32, height: u32, values: &[u32]) -> Result<PathBuf> {
+    font()?;
+    let max = values.iter().copied().max().unwrap_or(0).max(1);
+    let scale = (512 / width.max(height)).max(1);
+    let (iw, ih) = (width * scale, height * scale);
+    let size = (iw + 130, ih + 60);
+    {
+        let root = BitMapBackend::new(path, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        root.draw(&Text::new(title.to_string(), (10, 8), ("sans-serif", 18))).map_err(|e| plot_err(path, e))?;
+        for y in 0..height {
+            for x in 0..width {
+                let v = values[(y * width + x) as usize];
+                let c = ramp(f64::from(v) / f64::from(max));
+                for dy in 0..scale {
+                    for dx in 0..scale {
+                        root.draw_pixel(((x * scale + dx) as i32, (y * scale + dy + 40) as i32), &c)
+                            .map_err(|e| plot_err(path, e))?;
+                    }
+                }
+            }
+        }
+        // Legend: the ramp from 0 (bottom) to max (top), with its end labels.
+        let lx = (iw + 20) as i32;
+        for y in 0..ih {
+            let c = ramp(1.0 - f64::from(y) / f64::from(ih.max(1)));
+            root.draw(&Rectangle::new([(lx, (y + 40) as i32), (lx + 20, (y + 41) as i32)], c.filled()))
+                .map_err(|e| plot_err(path, e))?;
+        }
+        root.draw(&Text::new(format!("{max}"), (lx + 26, 40), ("sans-serif", 14))).map_err(|e| plot_err(path, e))?;
+        root.draw(&Text::new("0".to_string(), (lx + 26, (ih + 28) as i32), ("sans-serif", 14)))
+            .map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))?;
+    }
+    Ok(path.to_path_buf())
+}
+
+/// A perceptually ordered ramp (dark blue, magenta, orange, pale yellow) for t in [0, 1].
+fn ramp(t: f64) -> RGBColor {
+    const STOPS: [(f64, [f64; 3]); 5] = [
+        (0.0, [0.05, 0.03, 0.2]),
+        (0.3, [0.45, 0.1, 0.5]),
+        (0.6, [0.85, 0.3, 0.3]),
+        (0.85, [0.98, 0.65, 0.2]),
+        (1.0, [0.99, 0.98, 0.75]),
+    ];
+    let t = t.clamp(0.0, 1.0);
+    let k = STOPS.iter().position(|s| s.0 >= t).unwrap_or(STOPS.len() - 1).max(1);
+    let (a, b) = (STOPS[k - 1], STOPS[k]);
+    let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
+    let mix = |i: usize| ((a.1[i] + (b.1[i] - a.1[i]) * f) * 255.0).round() as u8;
+    RGBColor(mix(0), mix(1), mix(2))
+}
