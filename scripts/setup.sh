@@ -8,7 +8,7 @@ if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
 PACKAGES=(
   mesa-vulkan-drivers vulkan-tools vulkan-validationlayers libvulkan-dev
   libshaderc-dev glslang-dev spirv-tools
-  assimp-testmodels g++ pkg-config
+  assimp-testmodels g++ pkg-config fonts-dejavu-core
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -146,9 +146,10 @@ enum Command {
         /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
         /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
         /// (LBVH + treelet restructuring), grid (uniform grid), octree, none (brute
-        /// force).
-        #[arg(long, default_value = "kdtree")]
-        accel: AccelKind,
+        /// force), or auto: the one a cost model expects to build and trace this scene,
+        /// image size and sample count fastest (`arbor info --accel auto` says why).
+        #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+        accel: String,
         /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
         /// kt, ki (SAH traversal / intersection cost), bonus (empty-space factor),
         /// leaf (most primitives a node keeps without trying to split), perfect
@@ -195,9 +196,10 @@ enum Command {
     Info {
         /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
         scene: String,
-        /// Acceleration structure to build and describe.
-        #[arg(long, default_value = "kdtree")]
-        accel: AccelKind,
+        /// Acceleration structure to build and describe, or auto (see `render --accel`;
+        /// chosen for the scene's own film size and 1 sample per pixel).
+        #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+        accel: String,
         /// kd-tree builder parameters (see `render --kd`).
         #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
         kd: String,
@@ -248,6 +250,16 @@ fn context(d: &DeviceArgs) -> Result<Context> {
         Err(_) => None,
     };
     Ok(Context::new(&ContextOptions { device: d.device.clone(), validation, max_storage_range })?)
+}
+
+/// `--accel`: a structure name, or `auto` resolved by the cost model (with its reason).
+fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Result<(AccelKind, Option<String>)> {
+    if s == "auto" {
+        let (k, why) = arbor::accel::auto::choose(scene, pixels, spp);
+        return Ok((k, Some(why)));
+    }
+    let k: AccelKind = s.parse().map_err(|e: String| anyhow::anyhow!("--accel {s}: {e}, or auto"))?;
+    Ok((k, None))
 }
 
 fn accel_params(kd: &str, grid: &str, octree: &str) -> Result<arbor::accel::AccelParams> {
@@ -351,6 +363,10 @@ fn run(cli: Cli) -> Result<()> {
             let mut scene = Scene::load(&scene)?;
             scene.intersect = intersect;
             let (w, h) = size.unwrap_or((scene.width, scene.height));
+            let (accel, why) = resolve_accel(&accel, &scene, u64::from(w) * u64::from(h), spp)?;
+            if let (Some(why), false) = (&why, quiet) {
+                eprintln!("accel auto: {why}");
+            }
             let ctx = context(&device)?;
             let mut settings = RenderSettings::for_size(w, h);
             settings.spp = spp;
@@ -421,6 +437,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Info { scene, accel, json, kd, grid, octree } => {
             let params = accel_params(&kd, &grid, &octree)?;
             let scene = Scene::load(&scene)?;
+            let (accel, why) = resolve_accel(&accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
             let built = arbor::accel::Accel::build_with(accel, &scene, &params);
             let valid = built.validate(&scene);
             let st = built.stats(&scene);
@@ -441,6 +458,7 @@ fn run(cli: Cli) -> Result<()> {
                 "bounds_min": bounds.min.to_array(),
                 "bounds_max": bounds.max.to_array(),
                 "accel": accel.name(),
+                "accel_auto_reason": why,
                 "build": st,
                 "valid": valid.is_ok(),
                 "kernel": kernel,
@@ -463,6 +481,9 @@ fn run(cli: Cli) -> Result<()> {
                 println!("film            {}x{}", scene.width, scene.height);
                 println!("bounds          {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
                 println!("accel           {}", accel.name());
+                if let Some(why) = &why {
+                    println!("  auto          {why}");
+                }
                 println!("  build         {:.2} ms", st.build_ms);
                 println!(
                     "  nodes         {} ({} leaves, {} empty: {:.1}%)",

@@ -13,6 +13,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod auto;
 pub mod bvh;
 pub mod gpu_layout;
 pub mod grid;

@@ -1,0 +1,75 @@
+//! `--accel auto`: the structure with the lowest expected build plus trace time for a
+//! scene, an image size and a sample count, from a cost model whose constants were
+//! measured with `arbor bench` on lavapipe (README "Choosing a structure").
+//!
+//! Model, per structure: `time = build_ns · N + rays · (trace_ns · (1 + 0.1 log2(N / 1e5)))`
+//! for trees, and `rays · test_ns · N` for brute force; `rays` is pixels x samples x
+//! (1 camera ray + one shadow ray per light + one bounce). Only the ranking matters,
+//! so the constants need only be right relative to each other.
+
+use super::AccelKind;
+use crate::scene::Scene;
+
+/// (kind, build ns per primitive, trace ns per ray at 100k primitives), measured with
+/// `arbor bench --tris 100000,1000000 --size 1024x1024 --repeat 3` on lavapipe (2 cores):
+/// build medians over 100k and 1M triangles, trace medians at 100k.
+const TREES: &[(AccelKind, f64, f64)] = &[
+    (AccelKind::Kdtree, 2100.0, 180.0),
+    (AccelKind::BvhSah, 950.0, 300.0),
+    (AccelKind::Lbvh, 120.0, 290.0),
+    (AccelKind::Trbvh, 850.0, 290.0),
+    (AccelKind::Grid, 180.0, 350.0),
+    (AccelKind::Octree, 1300.0, 330.0),
+];
+
+/// Brute force: ns per primitive test (0.0025 Mrays/s over 99,224 triangles).
+const BRUTE_TEST_NS: f64 = 4.0;
+
+/// The estimated cost of each candidate, cheapest first: (kind, ms).
+pub fn estimates(scene: &Scene, pixels: u64, spp: u32) -> Vec<(AccelKind, f64)> {
+    let n = scene.prim_count().max(1) as f64;
+    let rays_per_sample = 1.0 + scene.lights.len() as f64 + if scene.max_depth > 1 { 1.0 } else { 0.0 };
+    let rays = pixels as f64 * f64::from(spp) * rays_per_sample;
+    let mut out = vec![(AccelKind::None, rays * BRUTE_TEST_NS * n * 1e-6)];
+    let depth_factor = (1.0 + 0.1 * (n / 1e5).log2()).max(0.3);
+    for &(kind, build_ns, trace_ns) in TREES {
+        out.push((kind, (build_ns * n + rays * trace_ns * depth_factor) * 1e-6));
+    }
+    out.sort_by(|a, b| a.1.total_cmp(&b.1));
+    out
+}
+
+/// The structure to use, and a sentence saying why.
+pub fn choose(scene: &Scene, pixels: u64, spp: u32) -> (AccelKind, String) {
+    let est = estimates(scene, pixels, spp);
+    let (best, ms) = est[0];
+    let runner = est.get(1).map(|(k, t)| format!(", then {k} at {t:.0} ms")).unwrap_or_default();
+    let why = format!(
+        "{} primitives, {pixels} pixels x {spp} spp: {best} expected fastest at {ms:.0} ms build + trace{runner} (cost model in src/accel/auto.rs)",
+        scene.prim_count()
+    );
+    (best, why)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{procedural, SceneBuilder};
+
+    fn scene(n: usize) -> Scene {
+        let mut b = SceneBuilder::new("auto");
+        b.mesh(&procedural::blob(n, 0.1, 1), 1.0, glam::Vec3::ZERO, None);
+        b.finish().expect("scene")
+    }
+
+    #[test]
+    fn brute_force_for_a_handful_and_a_tree_for_many() {
+        let (k, why) = choose(&scene(10), 640 * 480, 1);
+        assert_eq!(k, AccelKind::None, "{why}");
+        let (k, why) = choose(&scene(100_000), 640 * 480, 1);
+        assert!(k != AccelKind::None, "{why}");
+        // Many samples make the slower build of the faster tracer pay off.
+        let (k, why) = choose(&scene(100_000), 1920 * 1080, 256);
+        assert_eq!(k, AccelKind::Kdtree, "{why}");
+    }
+}

@@ -1,0 +1,123 @@
+//! `arbor bench` as CI runs it (`--quick`): CSV and JSON with the columns the README
+//! documents, plots of the expected size; GPU timestamps behind the trace times; and
+//! `--accel auto` choosing brute force for a handful of triangles and a tree for many.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use arbor::accel::AccelKind;
+use arbor::render::{gpu, plots, RenderSettings};
+use arbor::scene::Scene;
+
+fn run(args: &[&str]) -> std::process::Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).output().expect("run arbor");
+    assert!(
+        out.status.success(),
+        "arbor {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn quick_bench_writes_documented_csv_json_and_plots() {
+    let Some(_ctx) = common::gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("arbor-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_string_lossy().to_string();
+    run(&["bench", "--quick", "--tris", "1000", "--accel", "none,kdtree,grid", "--out", &d]);
+
+    // CSV: the header is exactly the columns the README documents, in its order.
+    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).expect("README");
+    let section = readme.split("<!-- bench.csv columns -->").nth(1).expect("README documents the CSV columns");
+    let documented: Vec<&str> = section
+        .lines()
+        .skip_while(|l| !l.starts_with("| `"))
+        .take_while(|l| l.starts_with("| `"))
+        .map(|l| l.trim_start_matches("| `").split('`').next().unwrap_or(""))
+        .collect();
+    let csv = std::fs::read_to_string(dir.join("bench.csv")).expect("bench.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    assert_eq!(header, documented, "bench.csv columns differ from the README's list");
+    // 1 scene x 2 ray kinds (primary, diffuse) x 3 structures.
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 6, "{csv}");
+    for r in &rows {
+        assert!(r.contains("builtin:blob:1000"), "{r}");
+    }
+
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("bench.json")).expect("bench.json")).expect("valid JSON");
+    let jrows = json["rows"].as_array().expect("rows");
+    assert_eq!(jrows.len(), 6);
+    for r in jrows {
+        assert!(r["error"].is_null(), "{r}");
+        assert!(r["mrays_per_s"].as_f64().expect("rate") > 0.0, "{r}");
+        assert!(r["trace_ms"].as_f64().expect("trace") > 0.0, "{r}");
+        assert!(r["nodes_p99"].as_u64().expect("p99") as f64 >= r["nodes_mean"].as_f64().expect("mean").floor());
+    }
+    assert!(!json["time_to_image"].as_array().expect("time to image").is_empty());
+
+    // Plots: charts in both formats at the chart size, a heatmap per structure.
+    let mut pngs = 0;
+    for e in std::fs::read_dir(dir.join("plots")).expect("plots dir") {
+        let p = e.expect("entry").path();
+        let name = p.file_name().unwrap_or_default().to_string_lossy().to_string();
+        match p.extension().and_then(|x| x.to_str()) {
+            Some("png") => {
+                let img = image::open(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+                if !name.starts_with("cost_") {
+                    assert_eq!((img.width(), img.height()), plots::CHART_SIZE, "{name}");
+                }
+                // Not blank: more than one colour.
+                let rgb = img.to_rgb8();
+                let first = *rgb.get_pixel(0, 0);
+                assert!(rgb.pixels().any(|px| *px != first), "{name} is blank");
+                pngs += 1;
+            }
+            Some("svg") => {
+                let text = std::fs::read_to_string(&p).expect("svg");
+                assert!(text.contains("<svg") && text.len() > 1000, "{name}");
+            }
+            _ => panic!("unexpected file {name}"),
+        }
+    }
+    // Mrays/s and time to image for 2 ray kinds, and 2 cost heatmaps (kdtree, grid).
+    assert_eq!(pngs, 2 + 2 + 2, "PNG plots");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn trace_times_come_from_gpu_timestamps() {
+    let Some(ctx) = common::gpu() else { return };
+    assert!(ctx.has_timestamps(), "lavapipe and real GPUs time compute dispatches");
+    assert!(ctx.info().timestamp_period_ns > 0.0);
+    let scene = Scene::load("builtin:blob:20000").expect("blob");
+    let mut s = RenderSettings::for_size(96, 96);
+    s.accel = AccelKind::None;
+    s.primary_only = true;
+    let (_, st) = gpu::render(&ctx, &scene, &s, |_, _| {}).expect("render");
+    let t = st.trace_ms.expect("GPU timestamps");
+    // Ticks scaled by timestampPeriod: positive, within the wall clock, and a large
+    // part of it for this tracing-bound frame (unscaled or doubly scaled ticks would
+    // be off by orders of magnitude unless the period is exactly 1 ns).
+    assert!(t > 0.0 && t <= st.wall_ms, "trace {t} ms, wall {} ms", st.wall_ms);
+    assert!(t >= 0.2 * st.wall_ms, "trace {t} ms is a small part of wall {} ms", st.wall_ms);
+}
+
+#[test]
+fn auto_picks_brute_force_for_ten_triangles_and_a_tree_for_100k() {
+    let small = String::from_utf8(run(&["info", "builtin:blob:10", "--accel", "auto"]).stdout).expect("utf8");
+    assert!(small.lines().any(|l| l.starts_with("accel") && l.trim_end().ends_with("none")), "{small}");
+    assert!(small.contains("expected fastest"), "info says why: {small}");
+    let big =
+        String::from_utf8(run(&["info", "builtin:blob:100000", "--accel", "auto", "--json"]).stdout).expect("utf8");
+    let v: serde_json::Value = serde_json::from_str(&big).expect("json");
+    let kind = v["accel"].as_str().expect("accel");
+    assert!(kind != "none", "{big}");
+    assert!(v["accel_auto_reason"].as_str().is_some_and(|w| w.contains(kind)), "{big}");
+}
