@@ -562,6 +562,8 @@ struct Case {
     prims_p99: u32,
     /// Nodes visited per camera ray, per pixel (last repeat), for the cost heatmap.
     nodes: Vec<u32>,
+    /// Primitive hit per pixel (last repeat), for the comparison with the reference.
+    prims: Vec<u32>,
 }
 
 /// The `q` quantile (0..=1) of `v` by the nearest-rank method.
@@ -598,6 +600,7 @@ fn bench_case(
         nodes_p99: 0,
         prims_p99: 0,
         nodes: Vec::new(),
+        prims: Vec::new(),
     };
     for r in 0..=repeat {
         let accel = arbor::accel::Accel::build_with(kind, scene, params);
@@ -606,6 +609,7 @@ fn bench_case(
         case.nodes_p99 = quantile(&frame.nodes, 0.99);
         case.prims_p99 = quantile(&frame.tests, 0.99);
         case.nodes = frame.nodes;
+        case.prims = frame.prim;
         pb.inc(1);
         if r > 0 {
             let ms = st.trace_ms.unwrap_or(st.wall_ms);
@@ -667,6 +671,7 @@ struct Row {
     prims_p99: u32,
     misses_per_million: f64,
     aimed_escapes_per_million: Option<f64>,
+    disagree_per_million: Option<f64>,
     error: Option<String>,
 }
 
@@ -697,6 +702,7 @@ const CSV_COLUMNS: &[&str] = &[
     "prims_p99",
     "misses_per_million",
     "aimed_escapes_per_million",
+    "disagree_per_million",
     "error",
 ];
 
@@ -800,6 +806,12 @@ fn bench(args: &BenchArgs) -> Result<()> {
         // Brute force over all pixels would take too long: trace a square subset whose
         // side keeps it under about 4e8 primitive tests.
         let side = ((4e8 / base.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
+        // The watertight reference for the camera rays (CPU, a sample of the pixels).
+        let stride = ((u64::from(w) * u64::from(h)) / REFERENCE_PIXELS).max(1) as usize;
+        let reference = {
+            let accel = arbor::accel::Accel::build(AccelKind::BvhSah, &base);
+            render::cpu::reference_prims(&base, &accel, w, h, stride)
+        };
         for &kind_of_rays in &kinds {
             let mut scene = base.clone();
             if kind_of_rays == RayKind::Shadow {
@@ -850,6 +862,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
                     prims_p99: 0,
                     misses_per_million: 0.0,
                     aimed_escapes_per_million: None,
+                    disagree_per_million: None,
                     error: None,
                 };
                 let c = match bench_case(&ctx, &scene, (kind, p), size, kind_of_rays, repeat, &pb) {
@@ -898,8 +911,12 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 row.prims_p99 = c.prims_p99;
                 row.misses_per_million = c.misses as f64 * 1e6 / pixels.max(1) as f64;
                 row.aimed_escapes_per_million = aimed;
+                if kind != AccelKind::None {
+                    let differ = reference.iter().filter(|(k, p)| c.prims.get(*k) != Some(p)).count();
+                    row.disagree_per_million = Some(differ as f64 * 1e6 / reference.len().max(1) as f64);
+                }
                 let line = format!(
-                    "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>7} {:>8.1} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9}",
+                    "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>7} {:>8.1} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9} {:>9}",
                     short,
                     nt,
                     label,
@@ -917,7 +934,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
                     row.sah_cost,
                     row.depth,
                     row.misses_per_million,
-                    aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
+                    aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into()),
+                    row.disagree_per_million.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
                 );
                 pb.suspend(|| println!("{line}"));
                 if args.out.is_some() && kind != AccelKind::None && kind_of_rays == RayKind::Primary && mi == 0 {
@@ -1032,7 +1050,10 @@ fn bench_plots(
     Ok(files)
 }
 
+/// Camera rays per scene checked against the watertight CPU reference.
+const REFERENCE_PIXELS: u64 = 16_384;
+
 /// Rays aimed at vertices and edges from inside `builtin:inside:N` per bench row.
 const AIMED_RAYS: usize = 300_000;
 
-const BENCH_HEADER: &str = "           scene triangles            accel    pixels   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray   p99 prims/ray   p99 bytes/tri     SAH depth    miss/M  aimed/M";
+const BENCH_HEADER: &str = "           scene triangles            accel    pixels   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray   p99 prims/ray   p99 bytes/tri     SAH depth    miss/M  aimed/M  differ/M";

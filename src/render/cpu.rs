@@ -77,3 +77,33 @@ pub fn reference_aovs(scene: &Scene, width: u32, height: u32) -> Frame {
     }
     f
 }
+
+/// The primitive hit by the pixel-centre camera ray of every `stride`-th pixel of a
+/// `width` x `height` image, in watertight mode, by CPU traversal of `accel` (every
+/// structure equals brute force, tested): the reference `arbor bench` compares each
+/// row's camera hits with. Returns (pixel index, primitive or u32::MAX).
+pub fn reference_prims(
+    scene: &Scene,
+    accel: &crate::accel::Accel,
+    width: u32,
+    height: u32,
+    stride: usize,
+) -> Vec<(usize, u32)> {
+    let mut sc = scene.clone();
+    sc.intersect = crate::math::intersect::IntersectMode::Watertight;
+    let basis = scene.camera.basis(width, height);
+    let pixels: Vec<usize> = (0..(width as usize * height as usize)).step_by(stride.max(1)).collect();
+    pixels
+        .par_iter()
+        .map(|&k| {
+            let (i, j) = ((k % width as usize) as u32, (k / width as usize) as u32);
+            let ray = Ray {
+                origin: basis.eye,
+                dir: basis.ray_dir(i, j, 0.5, 0.5, width, height),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            };
+            (k, accel.intersect(&sc, &ray).map_or(u32::MAX, |h| h.prim))
+        })
+        .collect()
+}
