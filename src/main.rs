@@ -55,7 +55,7 @@ struct BenchArgs {
     /// the same view and gives the speedup column.
     #[arg(long, value_delimiter = ',', default_values_t = [AccelKind::None, AccelKind::Kdtree, AccelKind::BspCourse, AccelKind::BvhSah, AccelKind::Lbvh, AccelKind::Trbvh, AccelKind::Grid, AccelKind::Octree])]
     accel: Vec<AccelKind>,
-    /// Image size WIDTHxHEIGHT (primary rays).
+    /// Image size WIDTHxHEIGHT of the camera rays (128x128 with --quick unless given).
     #[arg(long, default_value = "256x256", value_name = "WxH")]
     size: String,
     /// Timed repeats per case (after one warm-up run); medians are reported.
@@ -95,8 +95,8 @@ struct BenchArgs {
     /// Same as --rays shadow (kept for older command lines).
     #[arg(long, hide = true)]
     shadow: bool,
-    /// Write bench.csv and bench.json (every figure, documented in the README) here;
-    /// the directory is created if missing.
+    /// Write bench.csv, bench.json (every figure; columns in the README) and plots/
+    /// (PNG and SVG charts, cost heatmaps) here; the directory is created if missing.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// A small run for CI and a first look: blobs of 1000 and 10000 triangles (unless
@@ -215,9 +215,10 @@ enum Command {
     },
     /// List the Vulkan devices arbor can use.
     Devices,
-    /// Benchmark build and primary-ray tracing of each structure on procedural meshes:
-    /// build ms, GPU trace ms (timestamps), Mrays/s, speedup over brute force,
-    /// nodes and primitives per ray, bytes per triangle, SAH cost, depth.
+    /// Benchmark every structure's build and trace on procedural meshes and scenes:
+    /// build ms, GPU trace ms (timestamps), Mrays/s, speedup over brute force, mean and
+    /// p99 nodes and primitives per ray, bytes, SAH cost, cracks and disagreement with
+    /// the watertight reference, time to image; CSV, JSON and plots with --out.
     Bench(BenchArgs),
 }
 
