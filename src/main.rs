@@ -73,6 +73,9 @@ struct BenchArgs {
     /// Octree parameters (see `render --octree`).
     #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
     octree: String,
+    /// trbvh restructuring parameters (see `render --trbvh`).
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    trbvh: String,
     /// Grid densities to sweep: one grid row per value (cells = lambda x primitives);
     /// default: the one from --grid.
     #[arg(long, value_delimiter = ',', value_name = "LAMBDA,...")]
@@ -164,6 +167,10 @@ enum Command {
         /// without splitting, default 8), depth (deepest level, default 20, at most 24).
         #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
         octree: String,
+        /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds; fast:
+        /// 5-leaf treelets, faster build, slightly higher SAH) or leaves=3..7,rounds=N.
+        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+        trbvh: String,
         /// Ray/triangle test: watertight (Woop, Benthin & Wald 2013: no ray slips
         /// between triangles sharing an edge) or fast (Moller-Trumbore: fewer operations,
         /// rays can escape through shared edges and vertices).
@@ -209,6 +216,9 @@ enum Command {
         /// Octree parameters (see `render --octree`).
         #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
         octree: String,
+        /// trbvh restructuring parameters (see `render --trbvh`).
+        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+        trbvh: String,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -263,8 +273,9 @@ fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Result<(Accel
     Ok((k, None))
 }
 
-fn accel_params(kd: &str, grid: &str, octree: &str) -> Result<arbor::accel::AccelParams> {
+fn accel_params(kd: &str, grid: &str, octree: &str, trbvh: &str) -> Result<arbor::accel::AccelParams> {
     Ok(arbor::accel::AccelParams {
+        treelet: arbor::accel::bvh::treelet::TreeletParams::parse(trbvh).map_err(anyhow::Error::msg)?,
         kd: arbor::accel::kdtree::KdParams::parse(kd).map_err(anyhow::Error::msg)?,
         grid: arbor::accel::grid::GridParams::parse(grid).map_err(anyhow::Error::msg)?,
         octree: arbor::accel::octree::OctreeParams::parse(octree).map_err(anyhow::Error::msg)?,
@@ -345,10 +356,11 @@ fn run(cli: Cli) -> Result<()> {
             kd,
             grid,
             octree,
+            trbvh,
             intersect,
         } => {
             let aovs = parse_aovs(&aov)?;
-            let params = accel_params(&kd, &grid, &octree)?;
+            let params = accel_params(&kd, &grid, &octree, &trbvh)?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
             for (_, p) in &aovs {
@@ -435,8 +447,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Info { scene, accel, json, kd, grid, octree } => {
-            let params = accel_params(&kd, &grid, &octree)?;
+        Command::Info { scene, accel, json, kd, grid, octree, trbvh } => {
+            let params = accel_params(&kd, &grid, &octree, &trbvh)?;
             let scene = Scene::load(&scene)?;
             let (accel, why) = resolve_accel(&accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
             let built = arbor::accel::Accel::build_with(accel, &scene, &params);
@@ -764,7 +776,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         std::fs::create_dir_all(d).with_context(|| format!("--out {}: cannot create the directory", d.display()))?;
     }
     let (w, h) = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
-    let params = accel_params(&args.kd, &args.grid, &args.octree)?;
+    let params = accel_params(&args.kd, &args.grid, &args.octree, &args.trbvh)?;
     if let Some(bad) = args.lambda.iter().find(|l| !(l.is_finite() && **l > 0.0 && **l <= 1e4)) {
         bail!("--lambda {bad}: each value must be in (0, 10000]");
     }

@@ -153,6 +153,8 @@ pub struct AccelParams {
     pub kd: kdtree::KdParams,
     pub grid: grid::GridParams,
     pub octree: octree::OctreeParams,
+    /// trbvh's treelet restructuring.
+    pub treelet: bvh::treelet::TreeletParams,
 }
 
 /// A built structure of any kind, with the common surface.
@@ -179,7 +181,7 @@ impl Accel {
             AccelKind::BspCourse => Accel::Kd(kdtree::KdTree::build_course(scene)),
             AccelKind::BvhSah => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
-            AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Trbvh)),
+            AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build_with(scene, bvh::BvhBuilder::Trbvh, &params.treelet)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
         }

@@ -322,8 +322,13 @@ pub fn leaf_range(r: u32) -> (usize, usize) {
 }
 
 impl Bvh {
-    /// Builds with `builder` and flattens.
+    /// Builds with `builder` (default treelet parameters) and flattens.
     pub fn build(scene: &Scene, builder: BvhBuilder) -> Bvh {
+        Self::build_with(scene, builder, &treelet::TreeletParams::default())
+    }
+
+    /// Builds with `builder` and flattens; `tp` applies to trbvh's restructuring.
+    pub fn build_with(scene: &Scene, builder: BvhBuilder, tp: &treelet::TreeletParams) -> Bvh {
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
@@ -339,9 +344,9 @@ impl Bvh {
             BvhBuilder::Lbvh => (lbvh::build(&refs, &mut phases, &mut t), None),
             BvhBuilder::Trbvh => {
                 let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
-                let mut work = treelet::Restructure::new(&bin, &costs);
-                for round in 0..treelet::ROUNDS {
-                    work.round(&mut bin, treelet::gamma(round));
+                let mut work = treelet::Restructure::with_leaves(&bin, &costs, tp.leaves);
+                for round in 0..tp.rounds {
+                    work.round(&mut bin, tp.gamma(round));
                     lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);
                 }
                 let flags = work.collapse_flags(&bin);
