@@ -6,7 +6,7 @@ mod common;
 
 use arbor::accel::bvh::{lbvh, treelet, Binary, Bvh, BvhBuilder, PrimRefs, EMPTY_REF, MAX_BVH_DEPTH};
 use arbor::accel::sah::SahCosts;
-use arbor::accel::{Accel, AccelKind};
+use arbor::accel::{Accel, AccelKind, Traverse};
 use arbor::render::{cpu, gpu, RenderSettings};
 use arbor::scene::{procedural, Camera, Scene};
 use common::scenes::{compare_with_brute_force, edge_cases, scene_from, tris};

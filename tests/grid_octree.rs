@@ -6,7 +6,7 @@ mod common;
 
 use arbor::accel::grid::{Grid, GridParams};
 use arbor::accel::octree::{self, Octree, OctreeParams};
-use arbor::accel::{Accel, AccelKind, AccelParams};
+use arbor::accel::{Accel, AccelKind, AccelParams, Traverse};
 use arbor::math::Ray;
 use arbor::render::{cpu, gpu, RenderSettings};
 use arbor::scene::{procedural, Camera, Scene};

@@ -362,21 +362,8 @@ impl Grid {
         }
     }
 
-    /// Nearest hit, same rules and order as shaders/accel/grid.glsl.
-    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, false);
-        (best.prim != u32::MAX).then_some(best)
-    }
-
-    /// Whether anything lies in (tmin, tmax].
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, true)
-    }
-
     /// 3D-DDA in ray parameter t; see the module doc. Twin of `grid_traverse`.
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         if self.prims == 0 {
             return false;
         }
@@ -462,6 +449,12 @@ impl Grid {
         words.extend_from_slice(&[self.cell.x.to_bits(), self.cell.y.to_bits(), self.cell.z.to_bits(), 0]);
         words.extend_from_slice(&self.start);
         (words, &self.indices)
+    }
+}
+
+impl super::Traverse for Grid {
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(scene, ray, best, any)
     }
 }
 

@@ -147,6 +147,34 @@ pub struct Phase {
     pub ms: f64,
 }
 
+/// CPU traversal, the test oracle of every structure: each implements `traverse` (in
+/// the same order and with the same rules as its kernel) and gets the nearest-hit and
+/// any-hit queries.
+pub trait Traverse {
+    /// Front-to-back traversal that records hits in `best` (whose t bounds the ray);
+    /// with `any`, stops at the first hit. Returns whether it hit.
+    fn traverse(
+        &self,
+        scene: &crate::scene::Scene,
+        ray: &crate::math::Ray,
+        best: &mut crate::math::Hit,
+        any: bool,
+    ) -> bool;
+
+    /// Nearest hit.
+    fn intersect(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> Option<crate::math::Hit> {
+        let mut best = crate::math::Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, false);
+        (best.prim != u32::MAX).then_some(best)
+    }
+
+    /// Whether anything lies in (tmin, tmax].
+    fn occluded(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> bool {
+        let mut best = crate::math::Hit::none(ray.tmax);
+        self.traverse(scene, ray, &mut best, true)
+    }
+}
+
 /// Builder parameters of every structure that has any.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct AccelParams {

@@ -354,19 +354,6 @@ impl Octree {
         }
     }
 
-    /// Nearest hit, same rules and order as shaders/accel/octree.glsl.
-    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, false);
-        (best.prim != u32::MAX).then_some(best)
-    }
-
-    /// Whether anything lies in (tmin, tmax].
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, true)
-    }
-
     /// Front-to-back traversal without a stack. Starting from t = entry, descend from
     /// the root to the cell (leaf or absent octant) the ray is in just after t: at each
     /// node, the ray is in the upper half of axis a when it moves up and has crossed the
@@ -378,7 +365,7 @@ impl Octree {
     ///
     /// Each cell costs a descent from the root (depth node reads) but no stack: on
     /// llvmpipe, stack arrays live in scratch memory and cost more than the reads.
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         if self.prims == 0 {
             return false;
         }
@@ -573,5 +560,11 @@ fn fill(node: BuildNode, slot: &mut [u32; 2], below: &mut [[u32; 2]], base: usiz
                 jobs.into_iter().for_each(run);
             }
         }
+    }
+}
+
+impl super::Traverse for Octree {
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(scene, ray, best, any)
     }
 }

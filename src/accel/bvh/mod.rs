@@ -530,22 +530,10 @@ impl Bvh {
         Ok(())
     }
 
-    /// Nearest hit (the oracle; same algorithm as shaders/accel/bvh.glsl).
-    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, false).then_some(best)
-    }
-
-    /// Any hit.
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, true)
-    }
-
     /// Front-to-back traversal with a stack of child references: at each inner node
     /// both child boxes are tested against [tmin, best t (1 + T_MARGIN)], the nearer
     /// hit child is visited first and the other pushed.
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
             return false;
@@ -603,4 +591,10 @@ fn contains(outer: &Aabb, inner: &Aabb) -> bool {
 pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut Instant) {
     phases.push(Phase { name: name.to_string(), ms: t.elapsed().as_secs_f64() * 1e3 });
     *t = Instant::now();
+}
+
+impl super::Traverse for Bvh {
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(scene, ray, best, any)
+    }
 }

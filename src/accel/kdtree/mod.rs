@@ -358,19 +358,6 @@ impl KdTree {
         }
     }
 
-    /// Nearest hit, same rules and order as shaders/accel/kdtree.glsl.
-    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, false);
-        (best.prim != u32::MAX).then_some(best)
-    }
-
-    /// Whether anything lies in (tmin, tmax].
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
-        let mut best = Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, true)
-    }
-
     /// Front-to-back traversal with a (node, tmin, tmax) stack; stops as soon as every
     /// remaining cell starts after the best hit. Returns whether it hit.
     ///
@@ -378,7 +365,7 @@ impl KdTree {
     /// primitive tests' t, so every comparison against a boundary keeps a relative
     /// margin of [`T_MARGIN`]: a hit within it of a boundary visits both sides, which
     /// makes ties at shared edges resolve exactly as brute force does.
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         let Some((mut tmin, mut tmax)) = self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax) else {
             return false;
@@ -446,5 +433,11 @@ impl KdTree {
     /// Node and index arrays as the kernel reads them.
     pub fn to_gpu(&self) -> (&[[u32; 2]], &[u32]) {
         (&self.nodes, &self.indices)
+    }
+}
+
+impl super::Traverse for KdTree {
+    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(scene, ray, best, any)
     }
 }
