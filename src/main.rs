@@ -24,10 +24,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     about = "Headless Vulkan compute ray tracer for triangle meshes and spheres",
     long_about = "Headless Vulkan compute ray tracer for triangle meshes and spheres, built around \
 spatial data structures. Scenes: a .toml scene file, a mesh (.obj/.ply/.off, camera framed \
-automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N.\n\n\
+automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N | builtin:stadium:N | builtin:inside:N.\n\n\
 Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error fails the run); \
 ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
-VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe)."
+VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots."
 )]
 struct Cli {
     #[command(subcommand)]
