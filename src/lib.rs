@@ -19,6 +19,7 @@
 #![warn(missing_debug_implementations)]
 
 pub mod accel;
+pub mod bench;
 pub mod error;
 #[allow(unsafe_code)]
 pub mod gpu;

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
 use arbor::accel::AccelKind;
+use arbor::bench::{self, RayKind};
 use arbor::gpu::{Context, ContextOptions};
 use arbor::render::{self, output, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
@@ -109,25 +110,6 @@ struct BenchArgs {
     quick: bool,
     #[command(flatten)]
     device: DeviceArgs,
-}
-
-/// A kind of ray the benchmark traces.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-enum RayKind {
-    Primary,
-    Shadow,
-    Diffuse,
-}
-
-impl RayKind {
-    fn name(self) -> &'static str {
-        match self {
-            RayKind::Primary => "primary",
-            RayKind::Shadow => "shadow",
-            RayKind::Diffuse => "diffuse",
-        }
-    }
 }
 
 #[derive(Subcommand)]
@@ -541,98 +523,10 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bench(args) => {
-            println!("{BENCH_HEADER}");
+            println!("{}", bench::HEADER);
             bench(&args)
         }
     }
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-fn spread(v: &[f64]) -> f64 {
-    v.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - v.iter().cloned().fold(f64::INFINITY, f64::min)
-}
-
-/// One measured case of the benchmark.
-struct Case {
-    build_ms: Vec<f64>,
-    trace_ms: Vec<f64>,
-    rates: Vec<f64>,
-    stats: render::RenderStats,
-    size: (u32, u32),
-    /// Camera rays that hit nothing (last repeat; the same in every repeat).
-    misses: u64,
-    /// 99th percentile of nodes visited and primitives tested per camera ray.
-    nodes_p99: u32,
-    prims_p99: u32,
-    /// Nodes visited per camera ray, per pixel (last repeat), for the cost heatmap.
-    nodes: Vec<u32>,
-    /// Primitive hit per pixel (last repeat), for the comparison with the reference.
-    prims: Vec<u32>,
-}
-
-/// The `q` quantile (0..=1) of `v` by the nearest-rank method.
-fn quantile(v: &[u32], q: f64) -> u32 {
-    if v.is_empty() {
-        return 0;
-    }
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    let rank = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len());
-    s[rank - 1]
-}
-
-fn bench_case(
-    ctx: &Context,
-    scene: &Scene,
-    (kind, params): (AccelKind, &arbor::accel::AccelParams),
-    size: (u32, u32),
-    rays: RayKind,
-    repeat: usize,
-    pb: &ProgressBar,
-) -> Result<Case> {
-    let mut settings = RenderSettings::for_size(size.0, size.1);
-    settings.primary_only = rays == RayKind::Primary;
-    settings.diffuse_probe = rays == RayKind::Diffuse;
-    settings.accel = kind;
-    let mut case = Case {
-        build_ms: Vec::new(),
-        trace_ms: Vec::new(),
-        rates: Vec::new(),
-        stats: Default::default(),
-        size,
-        misses: 0,
-        nodes_p99: 0,
-        prims_p99: 0,
-        nodes: Vec::new(),
-        prims: Vec::new(),
-    };
-    for r in 0..=repeat {
-        let accel = arbor::accel::Accel::build_with(kind, scene, params);
-        let (frame, st) = render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
-        case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
-        case.nodes_p99 = quantile(&frame.nodes, 0.99);
-        case.prims_p99 = quantile(&frame.tests, 0.99);
-        case.nodes = frame.nodes;
-        case.prims = frame.prim;
-        pb.inc(1);
-        if r > 0 {
-            let ms = st.trace_ms.unwrap_or(st.wall_ms);
-            case.build_ms.push(st.build.build_ms);
-            case.trace_ms.push(ms);
-            case.rates.push(st.rays as f64 / (ms * 1e3));
-        }
-        case.stats = st;
-    }
-    Ok(case)
 }
 
 /// The structures to run, with the parameters of each row and its label: the grid once
@@ -652,118 +546,6 @@ fn bench_variants(
         } else {
             out.push((kind, *base, kind.name().to_string()));
         }
-    }
-    out
-}
-
-/// One row of the benchmark's output (bench.json, bench.csv; columns in the README).
-#[derive(serde::Serialize)]
-struct Row {
-    scene: String,
-    triangles: usize,
-    accel: String,
-    label: String,
-    intersect: String,
-    rays: String,
-    width: u32,
-    height: u32,
-    device: String,
-    build_ms: f64,
-    build_ms_spread: f64,
-    trace_ms: f64,
-    trace_ms_spread: f64,
-    rays_traced: u64,
-    mrays_per_s: f64,
-    speedup: Option<f64>,
-    bytes: u64,
-    sah_cost: f64,
-    depth: u32,
-    nodes_mean: f64,
-    nodes_p99: u32,
-    prims_mean: f64,
-    prims_p99: u32,
-    misses_per_million: f64,
-    aimed_escapes_per_million: Option<f64>,
-    disagree_per_million: Option<f64>,
-    error: Option<String>,
-}
-
-/// Columns of bench.csv, in order (the fields of `Row`).
-const CSV_COLUMNS: &[&str] = &[
-    "scene",
-    "triangles",
-    "accel",
-    "label",
-    "intersect",
-    "rays",
-    "width",
-    "height",
-    "device",
-    "build_ms",
-    "build_ms_spread",
-    "trace_ms",
-    "trace_ms_spread",
-    "rays_traced",
-    "mrays_per_s",
-    "speedup",
-    "bytes",
-    "sah_cost",
-    "depth",
-    "nodes_mean",
-    "nodes_p99",
-    "prims_mean",
-    "prims_p99",
-    "misses_per_million",
-    "aimed_escapes_per_million",
-    "disagree_per_million",
-    "error",
-];
-
-fn csv_field(v: &serde_json::Value) -> String {
-    match v {
-        serde_json::Value::Null => String::new(),
-        serde_json::Value::String(s) if s.contains([',', '"', '\n']) => format!("\"{}\"", s.replace('"', "\"\"")),
-        serde_json::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    }
-}
-
-fn to_csv(rows: &[Row]) -> Result<String> {
-    let mut out = CSV_COLUMNS.join(",");
-    out.push('\n');
-    for r in rows {
-        let v = serde_json::to_value(r)?;
-        let line: Vec<String> = CSV_COLUMNS.iter().map(|c| csv_field(&v[*c])).collect();
-        out.push_str(&line.join(","));
-        out.push('\n');
-    }
-    Ok(out)
-}
-
-/// Time to image: build plus trace for `spp` samples per pixel, per structure, and the
-/// samples per pixel from which each structure beats every one that builds faster.
-fn time_to_image(rows: &[&Row]) -> Vec<serde_json::Value> {
-    let mut list: Vec<&Row> =
-        rows.iter().copied().filter(|r| r.error.is_none() && r.accel != "none" && r.trace_ms > 0.0).collect();
-    list.sort_by(|a, b| a.build_ms.total_cmp(&b.build_ms));
-    let mut out = Vec::new();
-    for (k, r) in list.iter().enumerate() {
-        // Against each faster-building structure: build_r + s trace_r < build_o + s trace_o.
-        let mut wins_from: Option<f64> = Some(0.0);
-        for o in &list[..k] {
-            if r.trace_ms >= o.trace_ms {
-                wins_from = None;
-                break;
-            }
-            let s = (r.build_ms - o.build_ms) / (o.trace_ms - r.trace_ms);
-            wins_from = wins_from.map(|w| w.max(s));
-        }
-        let totals: Vec<(u32, f64)> =
-            [1u32, 4, 16, 64, 256].iter().map(|&s| (s, r.build_ms + f64::from(s) * r.trace_ms)).collect();
-        out.push(serde_json::json!({
-            "label": r.label, "build_ms": r.build_ms, "trace_ms_per_spp": r.trace_ms,
-            "beats_faster_builders_from_spp": wins_from, "total_ms": totals,
-        }));
     }
     out
 }
@@ -804,269 +586,41 @@ fn bench(args: &BenchArgs) -> Result<()> {
         kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
     );
     let pb = progress_bar(false);
-    pb.set_length((scenes.len() * kinds.len() * args.intersect.len() * variants.len() * (repeat + 1)) as u64);
     if std::io::stderr().is_terminal() {
         pb.set_draw_target(ProgressDrawTarget::stderr());
     }
-    let mut rows: Vec<Row> = Vec::new();
-    let mut tti = Vec::new();
-    // (file stem, title, width, height, nodes per pixel) of the cost heatmaps to draw.
-    let mut heatmaps: Vec<(String, String, u32, u32, Vec<u32>)> = Vec::new();
-    for name in &scenes {
-        let base = Scene::load(name)?;
-        let nt = base.triangles.len();
-        let short = name.strip_prefix("builtin:").unwrap_or(name).to_string();
-        // Brute force over all pixels would take too long: trace a square subset whose
-        // side keeps it under about 4e8 primitive tests.
-        let side = ((4e8 / base.prim_count().max(1) as f64).sqrt() as u32).clamp(8, w.min(h));
-        // The watertight reference for the camera rays (CPU, a sample of the pixels).
-        let stride = ((u64::from(w) * u64::from(h)) / REFERENCE_PIXELS).max(1) as usize;
-        let reference = {
-            let accel = arbor::accel::Accel::build(AccelKind::BvhSah, &base);
-            render::cpu::reference_prims(&base, &accel, w, h, stride)
-        };
-        for &kind_of_rays in &kinds {
-            let mut scene = base.clone();
-            if kind_of_rays == RayKind::Shadow {
-                scene.max_depth = 1;
-            }
-            let first_row = rows.len();
-            // Brute-force rate per intersection mode, for the speedup column.
-            let mut brute_rates: Vec<Option<f64>> = vec![None; args.intersect.len()];
-            // Each structure's modes run back to back, so that their Mrays/s compare
-            // under the same machine load.
-            let cases = variants.iter().flat_map(|v| args.intersect.iter().enumerate().map(move |m| (v, m)));
-            for ((kind, p, label), (mi, &mode)) in cases {
-                let kind = *kind;
-                scene.intersect = mode;
-                let brute_rate = &mut brute_rates[mi];
-                let mut label = label.clone();
-                if args.intersect.len() > 1 {
-                    label = format!("{label}/{mode}");
-                }
-                if kinds.len() > 1 {
-                    label = format!("{label}/{}", kind_of_rays.name());
-                }
-                pb.set_message(format!("{short}, {label}"));
-                let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
-                let mut row = Row {
-                    scene: name.clone(),
-                    triangles: nt,
-                    accel: kind.name().into(),
-                    label: label.clone(),
-                    intersect: mode.name().into(),
-                    rays: kind_of_rays.name().into(),
-                    width: size.0,
-                    height: size.1,
-                    device: ctx.info().name.clone(),
-                    build_ms: 0.0,
-                    build_ms_spread: 0.0,
-                    trace_ms: 0.0,
-                    trace_ms_spread: 0.0,
-                    rays_traced: 0,
-                    mrays_per_s: 0.0,
-                    speedup: None,
-                    bytes: 0,
-                    sah_cost: 0.0,
-                    depth: 0,
-                    nodes_mean: 0.0,
-                    nodes_p99: 0,
-                    prims_mean: 0.0,
-                    prims_p99: 0,
-                    misses_per_million: 0.0,
-                    aimed_escapes_per_million: None,
-                    disagree_per_million: None,
-                    error: None,
-                };
-                let c = match bench_case(&ctx, &scene, (kind, p), size, kind_of_rays, repeat, &pb) {
-                    Ok(c) => c,
-                    // A structure can fail on a scene where it degenerates (the grid in
-                    // the stadium needs more steps per ray than llvmpipe's loop limit;
-                    // brute force too with shadow rays on big scenes): report it, go on.
-                    Err(e) => {
-                        let msg = format!("{e:#}");
-                        pb.suspend(|| println!("{short:>16} {nt:>9} {label:>16} failed: {msg}"));
-                        row.error = Some(msg);
-                        rows.push(row);
-                        pb.inc(repeat as u64 + 1);
-                        continue;
-                    }
-                };
-                let rate = median(&mut c.rates.clone());
-                if kind == AccelKind::None {
-                    *brute_rate = Some(rate);
-                }
-                let st = &c.stats;
-                let pixels = u64::from(c.size.0) * u64::from(c.size.1);
-                // Inside a closed mesh: also rays aimed at its vertices and edges (CPU
-                // traversal of the same structure), where cracks show. (Not brute
-                // force: on the CPU that would take minutes.)
-                let aimed = if name.starts_with("builtin:inside:") && kind != AccelKind::None {
-                    let accel = arbor::accel::Accel::build_with(kind, &scene, p);
-                    let rays = render::cracks::aimed_rays(&scene, glam::Vec3::ZERO, 0.3, AIMED_RAYS, 11);
-                    Some(render::cracks::escapes(&scene, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
-                } else {
-                    None
-                };
-                row.build_ms = median(&mut c.build_ms.clone());
-                row.build_ms_spread = spread(&c.build_ms);
-                row.trace_ms = median(&mut c.trace_ms.clone());
-                row.trace_ms_spread = spread(&c.trace_ms);
-                row.rays_traced = st.rays;
-                row.mrays_per_s = rate;
-                row.speedup = brute_rate.map(|b| rate / b);
-                row.bytes = st.build.bytes;
-                row.sah_cost = st.build.sah_cost;
-                row.depth = st.build.max_depth;
-                row.nodes_mean = st.mean_nodes_visited;
-                row.nodes_p99 = c.nodes_p99;
-                row.prims_mean = st.mean_prims_tested;
-                row.prims_p99 = c.prims_p99;
-                row.misses_per_million = c.misses as f64 * 1e6 / pixels.max(1) as f64;
-                row.aimed_escapes_per_million = aimed;
-                if kind != AccelKind::None {
-                    let differ = reference.iter().filter(|(k, p)| c.prims.get(*k) != Some(p)).count();
-                    row.disagree_per_million = Some(differ as f64 * 1e6 / reference.len().max(1) as f64);
-                }
-                let line = format!(
-                    "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>7} {:>8.1} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9} {:>9}",
-                    short,
-                    nt,
-                    label,
-                    format!("{}x{}", c.size.0, c.size.1),
-                    row.build_ms,
-                    row.trace_ms,
-                    row.trace_ms_spread,
-                    rate,
-                    row.speedup.map(|s| format!("{s:.0}x")).unwrap_or_else(|| "-".into()),
-                    row.nodes_mean,
-                    row.nodes_p99,
-                    row.prims_mean,
-                    row.prims_p99,
-                    row.bytes as f64 / nt.max(1) as f64,
-                    row.sah_cost,
-                    row.depth,
-                    row.misses_per_million,
-                    aimed.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into()),
-                    row.disagree_per_million.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
-                );
-                pb.suspend(|| println!("{line}"));
-                if args.out.is_some() && kind != AccelKind::None && kind_of_rays == RayKind::Primary && mi == 0 {
-                    heatmaps.push((
-                        format!("cost_{}_{}", file_part(&short), file_part(&row.label)),
-                        format!("nodes per camera ray: {short}, {}", row.label),
-                        c.size.0,
-                        c.size.1,
-                        c.nodes,
-                    ));
-                }
-                rows.push(row);
-            }
-            // Time to image for this scene and ray kind.
-            let group: Vec<&Row> = rows[first_row..].iter().collect();
-            let t = time_to_image(&group);
-            let lines: Vec<String> = t
-                .iter()
-                .map(|v| {
-                    let from = match v["beats_faster_builders_from_spp"].as_f64() {
-                        Some(s) if s <= 0.0 => "always".to_string(),
-                        Some(s) => format!("from {s:.1} spp"),
-                        None => "never".to_string(),
-                    };
-                    let totals: Vec<String> = v["total_ms"]
-                        .as_array()
-                        .map(|a| a.iter().map(|p| format!("{:.0}", p[1].as_f64().unwrap_or(0.0))).collect())
-                        .unwrap_or_default();
-                    format!(
-                        "    {:>16}  total ms at 1/4/16/64/256 spp: {:<40} beats faster builders {from}",
-                        v["label"].as_str().unwrap_or(""),
-                        totals.join(" / ")
-                    )
-                })
-                .collect();
-            pb.suspend(|| println!("  time to image, {short}, {} rays:\n{}", kind_of_rays.name(), lines.join("\n")));
-            tti.push(serde_json::json!({ "scene": name, "rays": kind_of_rays.name(), "structures": t }));
-        }
-    }
+    let opts = bench::Options {
+        scenes,
+        variants,
+        rays: kinds,
+        intersect: args.intersect.clone(),
+        size: (w, h),
+        repeat,
+        out: args.out.clone(),
+        json: args.json.clone(),
+    };
+    bench::run(&ctx, &opts, &BarProgress(pb.clone()))?;
     pb.finish_and_clear();
-    let json = serde_json::to_vec_pretty(&serde_json::json!({ "rows": rows, "time_to_image": tti }))?;
-    if let Some(p) = &args.json {
-        output::write_atomic(p, &json)?;
-    }
-    if let Some(d) = &args.out {
-        output::write_atomic(&d.join("bench.json"), &json)?;
-        output::write_atomic(&d.join("bench.csv"), to_csv(&rows)?.as_bytes())?;
-        eprintln!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display());
-        let plots = bench_plots(&d.join("plots"), &rows, &heatmaps, args.intersect[0].name())?;
-        eprintln!("wrote {} plots in {}", plots.len(), d.join("plots").display());
-    }
     Ok(())
 }
 
-/// A file-name-safe version of `s`.
-fn file_part(s: &str) -> String {
-    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' }).collect()
+/// The progress bar as the benchmark's reporter.
+struct BarProgress(ProgressBar);
+
+impl bench::Progress for BarProgress {
+    fn set_length(&self, n: u64) {
+        self.0.set_length(n);
+    }
+    fn message(&self, m: String) {
+        self.0.set_message(m);
+    }
+    fn inc(&self, n: u64) {
+        self.0.inc(n);
+    }
+    fn line(&self, l: &str) {
+        self.0.suspend(|| println!("{l}"));
+    }
+    fn note(&self, l: &str) {
+        self.0.suspend(|| eprintln!("{l}"));
+    }
 }
-
-/// Draws the benchmark plots into `dir`; returns the files written.
-fn bench_plots(
-    dir: &Path,
-    rows: &[Row],
-    heatmaps: &[(String, String, u32, u32, Vec<u32>)],
-    first_mode: &str,
-) -> Result<Vec<PathBuf>> {
-    use render::plots;
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
-    let mut files = Vec::new();
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.error.is_none() && r.intersect == first_mode).collect();
-    // Per scene and ray kind: Mrays/s bars and time-to-image curves.
-    let mut groups: Vec<(&str, &str)> = ok.iter().map(|r| (r.scene.as_str(), r.rays.as_str())).collect();
-    groups.dedup();
-    for (scene, rays) in groups {
-        let g: Vec<&&Row> = ok.iter().filter(|r| r.scene == scene && r.rays == rays).collect();
-        let short = scene.strip_prefix("builtin:").unwrap_or(scene);
-        let bars: Vec<(String, f64)> = g.iter().map(|r| (r.label.clone(), r.mrays_per_s)).collect();
-        let stem = dir.join(format!("mrays_{}_{rays}", file_part(short)));
-        files.extend(plots::mrays_bars(&stem, &format!("Mrays/s, {short}, {rays} rays"), &bars)?);
-        let spp: Vec<f64> = (0..=10).map(|k| f64::from(1u32 << k)).collect();
-        let series: Vec<(String, Vec<(f64, f64)>)> = g
-            .iter()
-            .filter(|r| r.accel != "none")
-            .map(|r| (r.label.clone(), spp.iter().map(|&s| (s, r.build_ms + s * r.trace_ms)).collect()))
-            .collect();
-        let stem = dir.join(format!("time_to_image_{}_{rays}", file_part(short)));
-        let title = format!("time to image, {short}, {rays} rays");
-        files.extend(plots::loglog(&stem, &title, "samples per pixel", "build + trace ms", &series)?);
-    }
-    // Build time against triangle count over the blobs, per structure.
-    let blobs: Vec<&&Row> = ok.iter().filter(|r| r.scene.starts_with("builtin:blob:") && r.accel != "none").collect();
-    let mut labels: Vec<&str> = blobs.iter().map(|r| r.accel.as_str()).collect();
-    labels.sort_unstable();
-    labels.dedup();
-    let series: Vec<(String, Vec<(f64, f64)>)> = labels
-        .iter()
-        .map(|l| {
-            let mut pts: Vec<(f64, f64)> =
-                blobs.iter().filter(|r| r.accel == *l).map(|r| (r.triangles as f64, r.build_ms)).collect();
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            pts.dedup_by(|a, b| a.0 == b.0);
-            (l.to_string(), pts)
-        })
-        .collect();
-    if series.iter().any(|s| s.1.len() > 1) {
-        let stem = dir.join("build_vs_triangles");
-        files.extend(plots::loglog(&stem, "build time", "triangles", "build ms", &series)?);
-    }
-    for (stem, title, w, h, nodes) in heatmaps {
-        files.push(plots::heatmap(&dir.join(format!("{stem}.png")), title, *w, *h, nodes)?);
-    }
-    Ok(files)
-}
-
-/// Camera rays per scene checked against the watertight CPU reference.
-const REFERENCE_PIXELS: u64 = 16_384;
-
-/// Rays aimed at vertices and edges from inside `builtin:inside:N` per bench row.
-const AIMED_RAYS: usize = 300_000;
-
-const BENCH_HEADER: &str = "           scene triangles            accel    pixels   build_ms   trace_ms    spread     Mrays/s   speedup nodes/ray   p99 prims/ray   p99 bytes/tri     SAH depth    miss/M  aimed/M  differ/M";
