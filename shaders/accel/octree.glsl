@@ -4,7 +4,8 @@
 //     x: bit 31 leaf (bits 0..31 count) or inner (bits 0..8 child mask)
 //     y: first index (leaf) or first existing child (inner); octant k is at
 //        y + bitCount(mask & ((1 << k) - 1)); bit 0/1/2 of k = upper half in x/y/z
-// From t (the ray's entry), descend from the root to the cell the ray is in just
+// From t (the ray's entry), descend from the root (or from the last cell's parent
+// when the ray leaves that cell strictly before the parent) to the cell the ray is in just
 // after t, comparing t with the mid-planes' t (zero direction components decide by
 // the origin); test the leaf; move t to the cell's exit, a face that is bit for bit
 // an ancestor's centre, so the next descent crosses it. Stops when the best hit lies
@@ -40,13 +41,22 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
     float t = t_enter;
     bool found = false;
     uint steps = 0u;
+    // Where each descent starts: the root, or the last cell's parent (Octree::traverse).
+    uint start = 0u;
+    vec3 start_mn = rmin;
+    vec3 start_mx = rmax;
     while (steps < TREE_STEPS) {
-        vec3 mn = rmin;
-        vec3 mx = rmax;
-        uvec2 nd = oct_nodes[0];
+        vec3 mn = start_mn;
+        vec3 mx = start_mx;
+        uint node = start;
+        uvec2 nd = oct_nodes[node];
+        uint parent = node;
+        vec3 parent_mn = mn;
+        vec3 parent_mx = mx;
         steps += 1u;
         g_nodes += 1u;
         while ((nd.x & OCT_LEAF) == 0u && steps < TREE_STEPS) {
+            parent = node; parent_mn = mn; parent_mx = mx;
             precise vec3 c = mn * 0.5 + mx * 0.5;
             precise vec3 tm = (c - r.origin) * inv;
             bvec3 crossed = lessThanEqual(tm, vec3(t));
@@ -60,7 +70,8 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
             mx = mix(c, mx, upper);
             uint mask = nd.x & 0xffu;
             if ((mask & (1u << k)) == 0u) break; // absent octant: empty space
-            nd = oct_nodes[nd.y + uint(bitCount(mask & ((1u << k) - 1u)))];
+            node = nd.y + uint(bitCount(mask & ((1u << k) - 1u)));
+            nd = oct_nodes[node];
             steps += 1u;
             g_nodes += 1u;
         }
@@ -78,6 +89,11 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
         if (steps >= TREE_STEPS) break;
         float t_exit = oct_exit(mn, mx, r.origin, inv, flat_axis, up);
         if (before(h.t, t_exit) || t_exit >= root_exit) return found;
+        if (t_exit < oct_exit(parent_mn, parent_mx, r.origin, inv, flat_axis, up)) {
+            start = parent; start_mn = parent_mn; start_mx = parent_mx;
+        } else {
+            start = 0u; start_mn = rmin; start_mx = rmax;
+        }
         t = t_exit;
     }
     g_overflow = true;

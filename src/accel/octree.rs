@@ -363,7 +363,8 @@ impl Octree {
     /// next descent crosses it and reaches the next cell: traversal always advances.
     /// It stops when the best hit lies before the cell's exit or the exit is the root's.
     ///
-    /// Each cell costs a descent from the root (depth node reads) but no stack: on
+    /// A cell inside the previous cell's parent is found from that parent; otherwise
+    /// the descent starts at the root. That costs node reads but needs no stack: on
     /// llvmpipe, stack arrays live in scratch memory and cost more than the reads.
     fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         if self.prims == 0 {
@@ -389,14 +390,19 @@ impl Octree {
         let root_exit = exit_of(&self.bounds);
         let mut t = t_enter;
         let mut found = false;
+        // Where the next descent starts: the root, or the last cell's parent when the
+        // next cell lies inside it (see below).
+        let (mut start, mut start_box) = (0usize, self.bounds);
         for _ in 0..1 << 24 {
-            let mut b = self.bounds;
-            let mut node = 0usize;
+            let mut b = start_box;
+            let mut node = start;
+            let (mut parent, mut parent_box) = (start, start_box);
             let leaf = loop {
                 let [w0, w1] = self.nodes[node];
                 if w0 & LEAF != 0 {
                     break Some((w1 as usize, (w0 & !LEAF) as usize));
                 }
+                (parent, parent_box) = (node, b);
                 let c = centre(&b);
                 let mut k = 0;
                 for a in 0..3 {
@@ -426,6 +432,16 @@ impl Octree {
             let t_exit = exit_of(&b);
             if before(best.t, t_exit) || t_exit >= root_exit {
                 return found;
+            }
+            // The next cell is inside the last one's parent when the ray leaves the cell
+            // strictly before the parent: then no comparison above the parent changes
+            // (the parent's box lies on one side of each of those planes), and the next
+            // descent may start there. A cell leaving through one of its parent's faces
+            // gives the same float for both exits, so it starts again from the root.
+            if t_exit < exit_of(&parent_box) {
+                (start, start_box) = (parent, parent_box);
+            } else {
+                (start, start_box) = (0, self.bounds);
             }
             t = t_exit;
         }
