@@ -3,13 +3,13 @@
 
 mod common;
 
-use common::scenes::{self, edge_cases, scene_from, tris};
+use common::scenes::{self, edge_cases, gpu_cases, gpu_matches_reference, gpu_views, scene_from, tris};
 
 use arbor::accel::kdtree::{KdParams, KdTree, MAX_KD_DEPTH};
 use arbor::accel::{Accel, AccelKind};
 use arbor::math::Ray;
-use arbor::render::{cpu, gpu, RenderSettings};
-use arbor::scene::{procedural, Camera, Scene};
+use arbor::render::{cpu, RenderSettings};
+use arbor::scene::{procedural, Scene};
 use glam::Vec3;
 
 fn presets() -> Vec<(&'static str, KdParams)> {
@@ -108,43 +108,16 @@ fn cpu_traversal_equals_brute_force() {
 #[test]
 fn gpu_equals_cpu_for_kd_trees() {
     let Some(ctx) = common::gpu() else { return };
-    let v = Vec3::new;
-    let cases = vec![
-        scene_from("mesh", Some(procedural::blob(5000, 0.25, 11)), &[]),
-        scene_from("spheres", None, &[(v(0., 0., 0.), 0.5), (v(1.1, 0.2, 0.), 0.4), (v(-1., -0.3, 0.3), 0.45)]),
-        scene_from("both", Some(procedural::blob(3000, 0.2, 12)), &[(v(1.2, 0., 0.3), 0.4), (v(-1.3, 0.2, 0.), 0.5)]),
-        Scene::load("builtin:cornell").expect("cornell"),
-    ];
-    for mut scene in cases {
-        for (k, eye) in [v(0.3, 0.4, 4.0), v(-3.0, 1.0, -2.0)].into_iter().enumerate() {
-            if scene.name != "builtin:cornell" {
-                scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
-            }
-            let reference = cpu::reference_aovs(&scene, 48, 40);
-            for kind in [AccelKind::Kdtree, AccelKind::BspCourse] {
-                let mut s = RenderSettings::for_size(48, 40);
-                s.accel = kind;
-                let (g, st) = gpu::render(&ctx, &scene, &s, |_, _| {}).expect("render");
-                ctx.check_validation().expect("no validation errors");
-                assert_eq!(st.kernel.split('_').nth(1), Some("kdtree"));
-                for i in 0..g.prim.len() {
-                    assert_eq!(g.prim[i], reference.prim[i], "{} cam {k} {kind}: pixel {i}", scene.name);
-                    let (a, b) = (g.depth[i], reference.depth[i]);
-                    assert!(
-                        a == b || (a - b).abs() <= 1e-5 * b.abs(),
-                        "{} cam {k} {kind}: pixel {i} depth {a} vs {b}",
-                        scene.name
-                    );
-                }
-                // Trees visit far fewer primitives than brute force.
-                if scene.prim_count() > 1000 {
-                    assert!(
-                        st.mean_prims_tested < scene.prim_count() as f64 / 10.0,
-                        "{}: {}",
-                        scene.name,
-                        st.mean_prims_tested
-                    );
-                }
+    for scene in gpu_cases().iter().flat_map(gpu_views) {
+        let reference = cpu::reference_aovs(&scene, 48, 40);
+        for kind in [AccelKind::Kdtree, AccelKind::BspCourse] {
+            let mut s = RenderSettings::for_size(48, 40);
+            s.accel = kind;
+            let what = format!("{} {kind}", scene.name);
+            let (_, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, "kdtree", &what);
+            // Trees visit far fewer primitives than brute force.
+            if scene.prim_count() > 1000 {
+                assert!(st.mean_prims_tested < scene.prim_count() as f64 / 10.0, "{what}: {}", st.mean_prims_tested);
             }
         }
     }

@@ -2,8 +2,10 @@
 
 use arbor::accel::none::BruteForce;
 use arbor::accel::Accel;
+use arbor::gpu::Context;
 use arbor::math::{Aabb, Ray};
-use arbor::scene::{procedural, Light, MeshData, Scene, SceneBuilder, Sphere};
+use arbor::render::{gpu, Frame, RenderSettings, RenderStats};
+use arbor::scene::{procedural, Camera, Light, MeshData, Scene, SceneBuilder, Sphere};
 use glam::Vec3;
 
 /// A tiny deterministic generator (xorshift) so tests need no extra crates.
@@ -170,4 +172,53 @@ pub fn compare_with_brute_force(scene: &Scene, tree: &Accel, n: usize, seed: u64
         assert_eq!(tree.occluded(scene, ray), brute.occluded(scene, ray), "{}: occluded ray {k} {ray:?}", scene.name);
     }
     assert!(hits > 0, "{}: no ray hit anything", scene.name);
+}
+
+/// The scenes the structures' GPU tests render: a mesh, spheres only, both, and the
+/// Cornell box.
+pub fn gpu_cases() -> Vec<Scene> {
+    let v = Vec3::new;
+    vec![
+        scene_from("mesh", Some(procedural::blob(5000, 0.25, 11)), &[]),
+        scene_from("spheres", None, &[(v(0., 0., 0.), 0.5), (v(1.1, 0.2, 0.), 0.4), (v(-1., -0.3, 0.3), 0.45)]),
+        scene_from("both", Some(procedural::blob(3000, 0.2, 12)), &[(v(1.2, 0., 0.3), 0.4), (v(-1.3, 0.2, 0.), 0.5)]),
+        Scene::load("builtin:cornell").expect("cornell"),
+    ]
+}
+
+/// `scene` from two cameras (the origin from the front and from behind), or from its
+/// own camera for a built-in scene.
+pub fn gpu_views(scene: &Scene) -> Vec<Scene> {
+    if scene.name.starts_with("builtin:") {
+        return vec![scene.clone()];
+    }
+    [Vec3::new(0.3, 0.4, 4.0), Vec3::new(-3.0, 1.0, -2.0)]
+        .into_iter()
+        .map(|eye| {
+            let mut s = scene.clone();
+            s.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
+            s
+        })
+        .collect()
+}
+
+/// Renders `scene` on the GPU with `settings` and checks every pixel's primitive and
+/// depth against the CPU `reference`, no validation error, and the kernel `family`.
+pub fn gpu_matches_reference(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    reference: &Frame,
+    family: &str,
+    what: &str,
+) -> (Frame, RenderStats) {
+    let (g, st) = gpu::render(ctx, scene, settings, |_, _| {}).expect("render");
+    ctx.check_validation().expect("no validation errors");
+    assert_eq!(st.kernel.split('_').nth(1), Some(family), "{what}");
+    for i in 0..g.prim.len() {
+        assert_eq!(g.prim[i], reference.prim[i], "{what}: pixel {i}");
+        let (a, b) = (g.depth[i], reference.depth[i]);
+        assert!(a == b || (a - b).abs() <= 1e-5 * b.abs(), "{what}: pixel {i} depth {a} vs {b}");
+    }
+    (g, st)
 }
