@@ -46,6 +46,40 @@ struct DeviceArgs {
     validation: bool,
 }
 
+/// Builder parameters of the structures, shared by render, info and bench.
+#[derive(clap::Args, Clone)]
+struct StructureArgs {
+    /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
+    /// kt, ki (SAH traversal / intersection cost), bonus (empty-space factor),
+    /// leaf (most primitives a node keeps without trying to split), perfect
+    /// (true/false), depth (number or auto).
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    kd: String,
+    /// Grid parameters as KEY=VALUE pairs: lambda (cells per primitive, default 2),
+    /// cells (most cells in all, default 16777216).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    grid: String,
+    /// Octree parameters as KEY=VALUE pairs: leaf (most primitives a node keeps
+    /// without splitting, default 8), depth (deepest level, default 20, at most 24).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    octree: String,
+    /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds; fast:
+    /// 5-leaf treelets, faster build, slightly higher SAH) or leaves=3..7,rounds=N.
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    trbvh: String,
+}
+
+impl StructureArgs {
+    fn params(&self) -> Result<arbor::accel::AccelParams> {
+        Ok(arbor::accel::AccelParams {
+            kd: arbor::accel::kdtree::KdParams::parse(&self.kd).map_err(anyhow::Error::msg)?,
+            grid: arbor::accel::grid::GridParams::parse(&self.grid).map_err(anyhow::Error::msg)?,
+            octree: arbor::accel::octree::OctreeParams::parse(&self.octree).map_err(anyhow::Error::msg)?,
+            treelet: arbor::accel::bvh::treelet::TreeletParams::parse(&self.trbvh).map_err(anyhow::Error::msg)?,
+        })
+    }
+}
+
 #[derive(clap::Args)]
 struct BenchArgs {
     /// Triangle counts of the procedural meshes (builtin:blob:N); default 1000,10000,100000
@@ -65,18 +99,8 @@ struct BenchArgs {
     /// Write all figures as JSON here.
     #[arg(long, value_name = "PATH")]
     json: Option<PathBuf>,
-    /// kd-tree builder parameters (see `render --kd`).
-    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-    kd: String,
-    /// Grid parameters (see `render --grid`).
-    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-    grid: String,
-    /// Octree parameters (see `render --octree`).
-    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-    octree: String,
-    /// trbvh restructuring parameters (see `render --trbvh`).
-    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-    trbvh: String,
+    #[command(flatten)]
+    structure: StructureArgs,
     /// Grid densities to sweep: one grid row per value (cells = lambda x primitives);
     /// default: the one from --grid.
     #[arg(long, value_delimiter = ',', value_name = "LAMBDA,...")]
@@ -135,24 +159,8 @@ enum Command {
         /// image size and sample count fastest (`arbor info --accel auto` says why).
         #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
         accel: String,
-        /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
-        /// kt, ki (SAH traversal / intersection cost), bonus (empty-space factor),
-        /// leaf (most primitives a node keeps without trying to split), perfect
-        /// (true/false), depth (number or auto).
-        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-        kd: String,
-        /// Grid parameters as KEY=VALUE pairs: lambda (cells per primitive, default 2),
-        /// cells (most cells in all, default 16777216).
-        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-        grid: String,
-        /// Octree parameters as KEY=VALUE pairs: leaf (most primitives a node keeps
-        /// without splitting, default 8), depth (deepest level, default 20, at most 24).
-        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-        octree: String,
-        /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds; fast:
-        /// 5-leaf treelets, faster build, slightly higher SAH) or leaves=3..7,rounds=N.
-        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-        trbvh: String,
+        #[command(flatten)]
+        structure: StructureArgs,
         /// Ray/triangle test: watertight (Woop, Benthin & Wald 2013: no ray slips
         /// between triangles sharing an edge) or fast (Moller-Trumbore: fewer operations,
         /// rays can escape through shared edges and vertices).
@@ -189,18 +197,8 @@ enum Command {
         /// chosen for the scene's own film size and 1 sample per pixel).
         #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
         accel: String,
-        /// kd-tree builder parameters (see `render --kd`).
-        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-        kd: String,
-        /// Grid parameters (see `render --grid`).
-        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-        grid: String,
-        /// Octree parameters (see `render --octree`).
-        #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
-        octree: String,
-        /// trbvh restructuring parameters (see `render --trbvh`).
-        #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
-        trbvh: String,
+        #[command(flatten)]
+        structure: StructureArgs,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -253,15 +251,6 @@ fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Result<(Accel
     }
     let k: AccelKind = s.parse().map_err(|e: String| anyhow::anyhow!("--accel {s}: {e}, or auto"))?;
     Ok((k, None))
-}
-
-fn accel_params(kd: &str, grid: &str, octree: &str, trbvh: &str) -> Result<arbor::accel::AccelParams> {
-    Ok(arbor::accel::AccelParams {
-        treelet: arbor::accel::bvh::treelet::TreeletParams::parse(trbvh).map_err(anyhow::Error::msg)?,
-        kd: arbor::accel::kdtree::KdParams::parse(kd).map_err(anyhow::Error::msg)?,
-        grid: arbor::accel::grid::GridParams::parse(grid).map_err(anyhow::Error::msg)?,
-        octree: arbor::accel::octree::OctreeParams::parse(octree).map_err(anyhow::Error::msg)?,
-    })
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -335,14 +324,11 @@ fn run(cli: Cli) -> Result<()> {
             kernel,
             dispatch_budget,
             quiet,
-            kd,
-            grid,
-            octree,
-            trbvh,
+            structure,
             intersect,
         } => {
             let aovs = parse_aovs(&aov)?;
-            let params = accel_params(&kd, &grid, &octree, &trbvh)?;
+            let params = structure.params()?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
             for (_, p) in &aovs {
@@ -429,8 +415,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Info { scene, accel, json, kd, grid, octree, trbvh } => {
-            let params = accel_params(&kd, &grid, &octree, &trbvh)?;
+        Command::Info { scene, accel, json, structure } => {
+            let params = structure.params()?;
             let scene = Scene::load(&scene)?;
             let (accel, why) = resolve_accel(&accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
             let built = arbor::accel::Accel::build_with(accel, &scene, &params);
@@ -558,7 +544,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         std::fs::create_dir_all(d).with_context(|| format!("--out {}: cannot create the directory", d.display()))?;
     }
     let (w, h) = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
-    let params = accel_params(&args.kd, &args.grid, &args.octree, &args.trbvh)?;
+    let params = args.structure.params()?;
     if let Some(bad) = args.lambda.iter().find(|l| !(l.is_finite() && **l > 0.0 && **l <= 1e4)) {
         bail!("--lambda {bad}: each value must be in (0, 10000]");
     }
