@@ -7,6 +7,7 @@
 // before the current cell's exit. Every trace takes at most TREE_STEPS steps (search
 // steps, cells and primitive tests), beyond which the pixel is flagged.
 
+// The head of this block is GpuGridHeader in src/accel/gpu_layout.rs.
 layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer GridCells {
     uvec4 grid_res;
     vec4 grid_cell;

@@ -12,6 +12,7 @@
 // before the cell's exit or the exit is the root's. At most TREE_STEPS steps (nodes
 // and primitive tests) per trace, beyond which the pixel is flagged.
 
+// The head of this block is GpuOctreeHeader in src/accel/gpu_layout.rs.
 layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer OctNodes {
     vec4 oct_min;
     vec4 oct_max;

@@ -113,6 +113,30 @@ pub struct GpuDispatch {
     pub chunk: [u32; 4],
 }
 
+/// Head of the grid's node buffer, before the cell starts. GLSL twin: the `GridCells`
+/// block in shaders/accel/grid.glsl (`uvec4 grid_res; vec4 grid_cell;`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuGridHeader {
+    /// bytes 0..12 cells per axis, 12..16 number of cells
+    pub res: [u32; 4],
+    /// bytes 16..28 cell size per axis, 28..32 unused
+    pub cell: [f32; 4],
+}
+
+/// Head of the octree's node buffer, before the nodes. GLSL twin: the `OctNodes`
+/// block in shaders/accel/octree.glsl (`vec4 oct_min; vec4 oct_max;`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuOctreeHeader {
+    /// bytes 0..12 root cube minimum, 12..16 unused
+    pub min: [f32; 4],
+    /// bytes 16..28 root cube maximum, 28..32 unused
+    pub max: [f32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<GpuGridHeader>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuOctreeHeader>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuVertex>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);

@@ -52,8 +52,8 @@ use crate::scene::Scene;
 
 /// Most cells along one axis.
 pub const MAX_RES: u32 = 4096;
-/// Words before the cell starts in the GPU layout.
-pub const HEADER_WORDS: usize = 8;
+/// Words before the cell starts in the GPU layout (a `GpuGridHeader`).
+pub const HEADER_WORDS: usize = std::mem::size_of::<super::gpu_layout::GpuGridHeader>() / 4;
 
 /// Parameters of the grid builder.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -116,6 +116,9 @@ pub struct Grid {
     pub indices: Vec<u32>,
     pub prims: usize,
     pub params: GridParams,
+    /// Per axis, in cells: how far outside a primitive's box a cell may still take it
+    /// (see `candidates`).
+    margin: [f64; 3],
     build_ms: f64,
     phases: Vec<super::Phase>,
 }
@@ -168,9 +171,18 @@ impl Grid {
             indices: Vec::new(),
             prims: n,
             params: *params,
+            margin: [0.0; 3],
             build_ms: 0.0,
             phases: Vec::new(),
         };
+        // Candidate cells reach the grown boxes' pad (1e-5 of a cell plus 1e-6 of the
+        // coordinates) and a hundredth of a cell for rounding.
+        let mag = f64::from(bounds.min.abs().max(bounds.max.abs()).max_element());
+        for a in 0..3 {
+            if cell[a] > 0.0 {
+                g.margin[a] = 0.01 + 1e-5 + mag * 1e-6 / f64::from(cell[a]);
+            }
+        }
         // (cell, primitive) pairs, in primitive order, from chunks in parallel.
         let pairs: Vec<Vec<(u32, u32)>> = (0..n as u32)
             .collect::<Vec<_>>()
@@ -253,10 +265,7 @@ impl Grid {
         let mut hi = [0u32; 3];
         for a in 0..3 {
             if self.cell[a] > 0.0 {
-                // Candidates: cells within the grown boxes' pad (1e-5 of a cell plus
-                // 1e-6 of the coordinates) and a hundredth of a cell for rounding.
-                let mag = self.bounds.min.abs().max(self.bounds.max.abs()).max_element();
-                let m = 0.01 + 1e-5 + f64::from(mag) * 1e-6 / f64::from(self.cell[a]);
+                let m = self.margin[a];
                 let f = |x: f32| f64::from(x - self.bounds.min[a]) / f64::from(self.cell[a]);
                 let last = f64::from(self.res[a] - 1);
                 lo[a] = (f(b.min[a]) - m).floor().clamp(0.0, last) as u32;
@@ -444,9 +453,12 @@ impl Grid {
 
     /// The words the kernel reads (see the module doc) and the index array.
     pub fn to_gpu(&self) -> (Vec<u32>, &[u32]) {
+        let head = super::gpu_layout::GpuGridHeader {
+            res: [self.res[0], self.res[1], self.res[2], self.cell_count() as u32],
+            cell: [self.cell.x, self.cell.y, self.cell.z, 0.0],
+        };
         let mut words = Vec::with_capacity(HEADER_WORDS + self.start.len());
-        words.extend_from_slice(&[self.res[0], self.res[1], self.res[2], self.cell_count() as u32]);
-        words.extend_from_slice(&[self.cell.x.to_bits(), self.cell.y.to_bits(), self.cell.z.to_bits(), 0]);
+        words.extend_from_slice(bytemuck::cast_slice(bytemuck::bytes_of(&head)));
         words.extend_from_slice(&self.start);
         (words, &self.indices)
     }

@@ -44,8 +44,8 @@ use crate::scene::Scene;
 pub const MAX_OCTREE_DEPTH: u32 = 24;
 /// Leaf flag in word 0.
 pub const LEAF: u32 = 0x8000_0000;
-/// Words of the header before the nodes in the GPU layout.
-pub const HEADER_WORDS: usize = 8;
+/// Words of the header before the nodes in the GPU layout (a `GpuOctreeHeader`).
+pub const HEADER_WORDS: usize = std::mem::size_of::<super::gpu_layout::GpuOctreeHeader>() / 4;
 
 /// Parameters of the octree builder.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -452,9 +452,9 @@ impl Octree {
     /// Header words (root min, root max) followed by the nodes, and the index array.
     pub fn to_gpu(&self) -> (Vec<u32>, &[u32]) {
         let (mn, mx) = (self.bounds.min, self.bounds.max);
+        let head = super::gpu_layout::GpuOctreeHeader { min: [mn.x, mn.y, mn.z, 0.0], max: [mx.x, mx.y, mx.z, 0.0] };
         let mut words = Vec::with_capacity(HEADER_WORDS + 2 * self.nodes.len());
-        words.extend_from_slice(&[mn.x.to_bits(), mn.y.to_bits(), mn.z.to_bits(), 0]);
-        words.extend_from_slice(&[mx.x.to_bits(), mx.y.to_bits(), mx.z.to_bits(), 0]);
+        words.extend_from_slice(bytemuck::cast_slice(bytemuck::bytes_of(&head)));
         words.extend(self.nodes.iter().flatten());
         (words, &self.indices)
     }
