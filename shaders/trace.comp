@@ -104,7 +104,7 @@ vec3 cosine_direction(vec3 n, float u1, float u2) {
 // for spawning rays, geometric normal, shading normal, material index.
 void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, out uint mat) {
     gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u;
-    p = r.origin + r.dir * h.t; err = vec3(0.0);
+    p = vec3(0.0); err = vec3(0.0);
 #if HAS_TRIANGLES
     if (h.prim < params.dims.z) {
         uvec4 tri = triangles[h.prim];
