@@ -2,7 +2,8 @@
 //!
 //! `trace.comp` is compiled once per (structure, geometry) variant: a scene without
 //! spheres gets a kernel that declares no sphere buffer at all, one without triangles
-//! declares no mesh buffers. Every other `.comp` is compiled once. Binding numbers and
+//! declares no mesh buffers; `build_bounds.comp` gets the same geometry variants. Every
+//! other `.comp` is compiled once. Binding numbers and
 //! tunables come from `src/gpu/bindings.rs` as macros. On a shader error the build
 //! fails with `file:line: message` from the compiler.
 
@@ -65,6 +66,13 @@ fn main() {
                         ],
                     ));
                 }
+            }
+        } else if stem == "build_bounds" {
+            for (geo, tris, spheres) in GEOMETRY {
+                variants.push((
+                    format!("build_bounds_{geo}"),
+                    vec![("HAS_TRIANGLES".into(), tris.to_string()), ("HAS_SPHERES".into(), spheres.to_string())],
+                ));
             }
         } else {
             variants.push((stem.clone(), Vec::new()));

@@ -20,6 +20,47 @@ pub const BINDING_ACCEL_NODES: u32 = 6;
 /// Storage: acceleration-structure primitive indices.
 pub const BINDING_ACCEL_INDICES: u32 = 7;
 
+/// GPU BVH build (src/accel/bvh/gpu_build.rs, shaders/build_*.comp): a header of
+/// counters and the centroid box (`BUILD_HDR_*` words).
+pub const BINDING_BUILD_HEADER: u32 = 0;
+/// Build: per-primitive boxes, two vec4 (min, max) each.
+pub const BINDING_BUILD_PRIM_BOUNDS: u32 = 4;
+/// Build: (Morton code, primitive) pairs being sorted.
+pub const BINDING_BUILD_PAIRS: u32 = 5;
+/// Build: the other half of the radix sort's ping-pong.
+pub const BINDING_BUILD_PAIRS_OUT: u32 = 6;
+/// Build: radix-sort digit counts per block, then their exclusive prefix sums.
+pub const BINDING_BUILD_HIST: u32 = 7;
+/// Build: canonical binary nodes, two uvec4 each (min + left, max + right).
+pub const BINDING_BUILD_NODES: u32 = 8;
+/// Build: per-node uvec4 (parent, primitive count, cost or emit info, visit counter).
+pub const BINDING_BUILD_AUX: u32 = 9;
+/// Build: output nodes in the traversal layout (`GpuBvhNode`).
+pub const BINDING_BUILD_OUT_NODES: u32 = 10;
+/// Build: output primitive indices.
+pub const BINDING_BUILD_OUT_INDICES: u32 = 11;
+/// Header words: centroid box min xyz and max xyz as order-preserving uints.
+pub const BUILD_HDR_CMIN: u32 = 0;
+pub const BUILD_HDR_CMAX: u32 = 3;
+/// Header word: deepest output inner node (root = 1).
+pub const BUILD_HDR_DEPTH: u32 = 6;
+/// Header word: error bits (BUILD_ERR_*).
+pub const BUILD_HDR_ERRORS: u32 = 7;
+/// Header word: output inner nodes.
+pub const BUILD_HDR_NODES: u32 = 8;
+/// Header words in all.
+pub const BUILD_HDR_WORDS: u32 = 16;
+/// Error bit: a bottom-up or top-down walk exceeded BUILD_MAX_WALK steps.
+pub const BUILD_ERR_WALK: u32 = 1;
+/// Longest walk between a node and the root the build kernels take.
+pub const BUILD_MAX_WALK: u32 = 1024;
+/// Threads per workgroup of the build kernels other than treelet restructuring.
+pub const BUILD_GROUP: u32 = 256;
+/// Elements per thread of the radix sort (tile = BUILD_GROUP x this).
+pub const BUILD_SORT_ITEMS: u32 = 16;
+/// Threads per workgroup of treelet restructuring (leaves climbed per workgroup).
+pub const BUILD_TREELET_GROUP: u32 = 64;
+
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;
 /// Upper bound on path depth (camera ray + bounces) the kernel will ever follow.
@@ -70,4 +111,23 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_INTERSECT", SPEC_INTERSECT),
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
+    ("BINDING_BUILD_HEADER", BINDING_BUILD_HEADER),
+    ("BINDING_BUILD_PRIM_BOUNDS", BINDING_BUILD_PRIM_BOUNDS),
+    ("BINDING_BUILD_PAIRS", BINDING_BUILD_PAIRS),
+    ("BINDING_BUILD_PAIRS_OUT", BINDING_BUILD_PAIRS_OUT),
+    ("BINDING_BUILD_HIST", BINDING_BUILD_HIST),
+    ("BINDING_BUILD_NODES", BINDING_BUILD_NODES),
+    ("BINDING_BUILD_AUX", BINDING_BUILD_AUX),
+    ("BINDING_BUILD_OUT_NODES", BINDING_BUILD_OUT_NODES),
+    ("BINDING_BUILD_OUT_INDICES", BINDING_BUILD_OUT_INDICES),
+    ("BUILD_HDR_CMIN", BUILD_HDR_CMIN),
+    ("BUILD_HDR_CMAX", BUILD_HDR_CMAX),
+    ("BUILD_HDR_DEPTH", BUILD_HDR_DEPTH),
+    ("BUILD_HDR_ERRORS", BUILD_HDR_ERRORS),
+    ("BUILD_HDR_NODES", BUILD_HDR_NODES),
+    ("BUILD_ERR_WALK", BUILD_ERR_WALK),
+    ("BUILD_MAX_WALK", BUILD_MAX_WALK),
+    ("BUILD_GROUP", BUILD_GROUP),
+    ("BUILD_SORT_ITEMS", BUILD_SORT_ITEMS),
+    ("BUILD_TREELET_GROUP", BUILD_TREELET_GROUP),
 ];

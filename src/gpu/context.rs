@@ -100,7 +100,7 @@ pub struct Context {
     pub(crate) query_pool: vk::QueryPool,
     pub(crate) timestamps: bool,
     pub(crate) max_storage_range: u64,
-    pub(crate) max_workgroups_x: u32,
+    pub(crate) max_workgroups: [u32; 3],
     info: DeviceInfo,
 }
 
@@ -375,7 +375,7 @@ impl Context {
             query_pool,
             timestamps,
             max_storage_range,
-            max_workgroups_x: props.limits.max_compute_work_group_count[0],
+            max_workgroups: props.limits.max_compute_work_group_count,
             info,
         })
     }

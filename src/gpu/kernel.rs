@@ -232,9 +232,9 @@ impl Context {
         Ok(())
     }
 
-    /// Runs `kernel` over `groups` workgroups with `push` constants in one submission
-    /// bracketed by timestamps; returns the GPU milliseconds (None without timestamps).
-    pub fn dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3], label: &str) -> Result<Option<f64>> {
+    /// Checks that `kernel` can be dispatched: every binding bound, push constants of
+    /// the declared size, workgroup counts within the device limits.
+    fn check_dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3]) -> Result<()> {
         if let Some(i) = kernel.bound.iter().position(Option::is_none) {
             return Err(Error::Vulkan {
                 what: format!("dispatch '{}'", kernel.name),
@@ -247,40 +247,177 @@ impl Context {
                 result: format!("push constants are {} bytes, expected {}", push.len(), kernel.push_size),
             });
         }
-        if groups[0] > self.max_workgroups_x {
+        if groups[0] > self.max_workgroups[0]
+            || groups[1] > self.max_workgroups[1]
+            || groups[2] > self.max_workgroups[2]
+        {
             return Err(Error::Vulkan {
                 what: format!("dispatch '{}'", kernel.name),
-                result: format!("{} workgroups exceed the device limit {}", groups[0], self.max_workgroups_x),
+                result: format!("{groups:?} workgroups exceed the device limit {:?}", self.max_workgroups),
             });
         }
+        Ok(())
+    }
+
+    /// Runs `kernel` over `groups` workgroups with `push` constants in one submission
+    /// bracketed by timestamps; returns the GPU milliseconds (None without timestamps).
+    pub fn dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3], label: &str) -> Result<Option<f64>> {
+        self.check_dispatch(kernel, push, groups)?;
         self.submit(label, |dev, cb| {
-            let barrier = [vk::MemoryBarrier::default()
-                .src_access_mask(
-                    vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE,
-                )
-                .dst_access_mask(
-                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::UNIFORM_READ,
-                )];
-            // SAFETY: recording scope; all handles belong to this device and are live.
-            unsafe {
-                dev.cmd_pipeline_barrier(
-                    cb,
-                    vk::PipelineStageFlags::TRANSFER
-                        | vk::PipelineStageFlags::COMPUTE_SHADER
-                        | vk::PipelineStageFlags::HOST,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &barrier,
-                    &[],
-                    &[],
-                );
-                dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-                dev.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, kernel.layout, 0, &[kernel.set], &[]);
-                if !push.is_empty() {
-                    dev.cmd_push_constants(cb, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-                }
-                dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]);
-            }
+            barrier_all(dev, cb);
+            record_dispatch(dev, cb, kernel, push, groups);
         })
+    }
+
+    /// Workgroup counts covering `groups` workgroups in a 2D grid within the device
+    /// limits (x first); kernels recover the linear index as
+    /// `gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x` and skip past the end.
+    pub fn grid_for(&self, groups: u64) -> Result<[u32; 3]> {
+        let x = u64::from(self.max_workgroups[0].min(65_535));
+        let y = groups.div_ceil(x).max(1);
+        if y > u64::from(self.max_workgroups[1]) {
+            return Err(Error::Usage(format!(
+                "{groups} workgroups exceed the device limits {:?}",
+                self.max_workgroups
+            )));
+        }
+        Ok([groups.clamp(1, x) as u32, y as u32, 1])
+    }
+
+    /// Records `steps` into one command buffer with a full memory barrier between
+    /// consecutive steps, submits it and waits. Returns the GPU milliseconds of each
+    /// [`Step::Mark`] (time since the previous mark or the start), in order; empty
+    /// without timestamps.
+    pub fn run_steps(&self, label: &str, steps: &[Step<'_>]) -> Result<Vec<(String, f64)>> {
+        for s in steps {
+            if let Step::Dispatch { kernel, push, groups } = s {
+                self.check_dispatch(kernel, push, *groups)?;
+            }
+            if let Step::Fill(b, _) = s {
+                if b.kind() != BufferKind::Storage {
+                    return Err(Error::Vulkan {
+                        what: format!("fill '{}'", b.name()),
+                        result: "not a storage buffer".into(),
+                    });
+                }
+            }
+        }
+        let marks: Vec<&str> =
+            steps.iter().filter_map(|s| if let Step::Mark(m) = s { Some(*m) } else { None }).collect();
+        let dev = &self.shared.device;
+        let queries = marks.len() as u32 + 1;
+        let pool = if self.timestamps {
+            // SAFETY: valid create info on a live device; destroyed below.
+            let p = unsafe {
+                dev.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(queries),
+                    None,
+                )
+            }
+            .map_err(vk_err("vkCreateQueryPool"))?;
+            self.shared.set_name(p, label);
+            Some(p)
+        } else {
+            None
+        };
+        let result = self.submit(label, |dev, cb| {
+            let mut q = 0;
+            // SAFETY: recording scope; the pool is live and has `queries` entries.
+            unsafe {
+                if let Some(p) = pool {
+                    dev.cmd_reset_query_pool(cb, p, 0, queries);
+                    dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::TOP_OF_PIPE, p, 0);
+                }
+            }
+            for s in steps {
+                barrier_all(dev, cb);
+                match s {
+                    Step::Fill(b, v) => {
+                        // SAFETY: live storage buffer (TRANSFER_DST), whole range.
+                        unsafe { dev.cmd_fill_buffer(cb, b.raw, 0, vk::WHOLE_SIZE, *v) };
+                    }
+                    Step::Dispatch { kernel, push, groups } => record_dispatch(dev, cb, kernel, push, *groups),
+                    Step::Mark(_) => {
+                        q += 1;
+                        if let Some(p) = pool {
+                            // SAFETY: query `q` < `queries` was reset above.
+                            unsafe { dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::BOTTOM_OF_PIPE, p, q) };
+                        }
+                    }
+                }
+            }
+            barrier_all(dev, cb);
+        });
+        let out = (|| -> Result<Vec<(String, f64)>> {
+            result?;
+            let Some(p) = pool else { return Ok(Vec::new()) };
+            let mut ts = vec![0u64; queries as usize];
+            // SAFETY: every query was written by the completed submission.
+            unsafe {
+                dev.get_query_pool_results(p, 0, &mut ts, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+            }
+            .map_err(vk_err("vkGetQueryPoolResults"))?;
+            let period = f64::from(self.info().timestamp_period_ns) * 1e-6;
+            Ok(marks
+                .iter()
+                .enumerate()
+                .map(|(i, m)| (m.to_string(), ts[i + 1].wrapping_sub(ts[i]) as f64 * period))
+                .collect())
+        })();
+        if let Some(p) = pool {
+            // SAFETY: the submission completed; nothing uses the pool.
+            unsafe { dev.destroy_query_pool(p, None) };
+        }
+        out
+    }
+}
+
+/// One step of [`Context::run_steps`].
+#[derive(Debug)]
+pub enum Step<'a> {
+    /// Sets every 32-bit word of a storage buffer to the value.
+    Fill(&'a Buffer, u32),
+    /// Runs a kernel: push-constant bytes and workgroup counts.
+    Dispatch { kernel: &'a Kernel, push: Vec<u8>, groups: [u32; 3] },
+    /// Ends a timed phase of this name.
+    Mark(&'a str),
+}
+
+/// A global barrier: every earlier transfer, shader or host write is visible to every
+/// later transfer or shader access.
+fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
+    let barrier = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE)
+        .dst_access_mask(
+            vk::AccessFlags::SHADER_READ
+                | vk::AccessFlags::SHADER_WRITE
+                | vk::AccessFlags::UNIFORM_READ
+                | vk::AccessFlags::TRANSFER_READ
+                | vk::AccessFlags::TRANSFER_WRITE,
+        )];
+    // SAFETY: recording scope of a live command buffer of `dev`.
+    unsafe {
+        dev.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::HOST,
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &barrier,
+            &[],
+            &[],
+        );
+    }
+}
+
+/// Binds `kernel` and records one dispatch.
+fn record_dispatch(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8], groups: [u32; 3]) {
+    // SAFETY: recording scope; all handles belong to this device and are live.
+    unsafe {
+        dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
+        dev.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, kernel.layout, 0, &[kernel.set], &[]);
+        if !push.is_empty() {
+            dev.cmd_push_constants(cb, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+        }
+        dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]);
     }
 }

@@ -16,7 +16,7 @@ mod kernel;
 
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};
-pub use kernel::{BindingDesc, BindingKind, Kernel};
+pub use kernel::{BindingDesc, BindingKind, Kernel, Step};
 
 /// Embedded SPIR-V of every kernel, by name (`trace_none_all`, `layout_probe`, ...).
 pub mod spirv {

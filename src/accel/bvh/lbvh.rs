@@ -33,17 +33,45 @@ fn expand_bits(v: u32) -> u32 {
     x
 }
 
-/// 30-bit Morton code of `p` quantised in `b` (x in the highest bit of each triple).
+/// Quantisation of centroids to 10 bits per axis in a box, bit for bit as the GPU
+/// build's (shaders/build_morton.comp): per axis the scale 1024 / extent, correctly
+/// rounded (IEEE division here; the GPU corrects Vulkan's less exact quotient), then
+/// (p - min) * scale truncated to 0..=1023. An axis of zero extent quantises to 0.
+#[derive(Debug, Clone, Copy)]
+pub struct MortonGrid {
+    min: glam::Vec3,
+    scale: [f32; 3],
+}
+
+impl MortonGrid {
+    pub fn new(b: &Aabb) -> MortonGrid {
+        let e = b.extent();
+        let s = |k: usize| if e[k] > 0.0 { 1024.0 / e[k] } else { 0.0 };
+        MortonGrid { min: b.min, scale: [s(0), s(1), s(2)] }
+    }
+
+    /// 30-bit code of `p` (x in the highest bit of each triple).
+    pub fn code(&self, p: glam::Vec3) -> u32 {
+        let q = |k: usize| -> u32 {
+            if self.scale[k] == 0.0 {
+                return 0;
+            }
+            let x = (p[k] - self.min[k]) * self.scale[k];
+            if x.is_nan() || x <= 0.0 {
+                0
+            } else if x >= 1023.0 {
+                1023
+            } else {
+                x as u32
+            }
+        };
+        (expand_bits(q(0)) << 2) | (expand_bits(q(1)) << 1) | expand_bits(q(2))
+    }
+}
+
+/// 30-bit Morton code of `p` quantised in `b` ([`MortonGrid`]).
 pub fn morton30(p: glam::Vec3, b: &Aabb) -> u32 {
-    let e = b.extent();
-    let q = |axis: usize| -> u32 {
-        if e[axis] > 0.0 {
-            (((p[axis] - b.min[axis]) / e[axis] * 1024.0) as i64).clamp(0, 1023) as u32
-        } else {
-            0
-        }
-    };
-    (expand_bits(q(0)) << 2) | (expand_bits(q(1)) << 1) | expand_bits(q(2))
+    MortonGrid::new(b).code(p)
 }
 
 /// Sorted keys: (code << 32 | primitive index).
@@ -56,8 +84,9 @@ pub fn sorted_keys(refs: &PrimRefs) -> Vec<u64> {
         },
     );
     let cb = cb.reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
+    let grid = MortonGrid::new(&cb);
     let keys: Vec<u64> =
-        refs.centroids.par_iter().enumerate().map(|(i, c)| (u64::from(morton30(*c, &cb)) << 32) | i as u64).collect();
+        refs.centroids.par_iter().enumerate().map(|(i, c)| (u64::from(grid.code(*c)) << 32) | i as u64).collect();
     radix_sort(keys)
 }
 

@@ -35,6 +35,7 @@ use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
 pub mod binned;
+pub mod gpu_build;
 pub mod lbvh;
 pub mod treelet;
 

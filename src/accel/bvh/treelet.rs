@@ -31,6 +31,9 @@ use crate::math::Aabb;
 
 /// Most leaves per treelet (the paper's choice, and the default).
 pub const TREELET_LEAVES: usize = 7;
+/// A treelet is rewritten only when its optimised cost is below this fraction of its
+/// cost (so rounding noise never rewrites a tree); the GPU build gets the same bits.
+pub const KEEP_FACTOR: f32 = 1.0 - 1e-6;
 /// Rounds of restructuring by default.
 pub const ROUNDS: u32 = 3;
 
@@ -287,7 +290,7 @@ impl Restructure {
             copt[s] = self.node_cost(&boxes[s], counts[s], best);
             popt[s] = best_p as u8;
         }
-        if copt[full] >= self.cost[root as usize] * (1.0 - 1e-6) || copt[full].is_nan() {
+        if copt[full] >= self.cost[root as usize] * KEEP_FACTOR || copt[full].is_nan() {
             return None;
         }
         // Rebuild with the treelet's inner nodes, root first.

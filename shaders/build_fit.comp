@@ -1,0 +1,80 @@
+#version 460
+// Bottom-up passes with atomic visit counters (Karras 2012, section 4): one thread per
+// leaf climbs; at each parent the first thread to arrive stops and the second, which
+// finds both children done, handles the parent and climbs on (resetting the counter
+// for the next pass). Push: n, a = flags, ct, ci. A climb longer than BUILD_MAX_WALK
+// sets BUILD_ERR_WALK.
+//   FIT (1):      box = union of the children's, count, cost with collapse
+//                 (treelet::Restructure::new).
+//   FINALIZE (2): aux.z = COLLAPSED where one leaf is cheaper and COLLAPSE (4) is set
+//                 (treelet::Restructure::collapse_flags), else the subtree's number
+//                 of output inner nodes.
+#define USE_HEADER 1
+#define USE_NODES 1
+#include "build/common.glsl"
+
+layout(local_size_x = BUILD_GROUP) in;
+
+const uint FIT = 1u;
+const uint FINALIZE = 2u;
+const uint COLLAPSE = 4u;
+
+uint inner_nodes(uint i) {
+    return (aux[i].z & COLLAPSED) != 0u ? 0u : aux[i].z;
+}
+
+shared uint s_climbing;
+
+void main() {
+    uint j = group_index() * BUILD_GROUP + gl_LocalInvocationID.x;
+    bool climbing = j < pc.n;
+    uint cur = pc.n - 1u + j;
+    if (climbing && (pc.a & FINALIZE) != 0u) aux[cur].z = 0u;
+    // Every lane runs the atomic at every step, idle lanes on the spare entry 2n-1:
+    // llvmpipe returned wrong old values from an atomic that only some lanes ran.
+    uint spare = 2u * pc.n - 1u;
+    bool done = false;
+    for (uint g = 0u; g < BUILD_MAX_WALK; ++g) {
+        uint p = climbing ? aux[cur].x : NONE;
+        climbing = p != NONE;
+        memoryBarrierBuffer();
+        uint seen = atomicAdd(aux[climbing ? p : spare].w, 1u);
+        climbing = climbing && seen != 0u;
+        if (climbing) {
+            memoryBarrierBuffer();
+            aux[p].w = 0u;
+            uint l = node_left(p);
+            uint r = node_right(p);
+            if ((pc.a & FIT) != 0u) {
+                vec3 lo = min(node_min(l), node_min(r));
+                vec3 hi = max(node_max(l), node_max(r));
+                uint count = aux[l].y + aux[r].y;
+                precise float children = uintBitsToFloat(aux[l].z) + uintBitsToFloat(aux[r].z);
+                float cost = node_cost(lo, hi, count, children);
+                nodes[2u * p].xyz = floatBitsToUint(lo);
+                nodes[2u * p + 1u].xyz = floatBitsToUint(hi);
+                aux[p].y = count;
+                if ((pc.a & FINALIZE) == 0u) aux[p].z = floatBitsToUint(cost);
+            }
+            if ((pc.a & FINALIZE) != 0u) {
+                uint count = aux[p].y;
+                bool collapse = false;
+                if ((pc.a & COLLAPSE) != 0u && count <= MAX_LEAF) {
+                    precise float leaf = (pc.ci * box_area(node_min(p), node_max(p))) * float(count);
+                    collapse = leaf <= uintBitsToFloat(aux[p].z);
+                }
+                aux[p].z = collapse ? COLLAPSED : 1u + inner_nodes(l) + inner_nodes(r);
+            }
+            memoryBarrierBuffer();
+            cur = p;
+        }
+        if (gl_LocalInvocationID.x == 0u) s_climbing = 0u;
+        barrier();
+        if (climbing) atomicAdd(s_climbing, 1u);
+        barrier();
+        done = s_climbing == 0u;
+        barrier();
+        if (done) break;
+    }
+    if (!done && gl_LocalInvocationID.x == 0u) atomicOr(hdr[BUILD_HDR_ERRORS], BUILD_ERR_WALK);
+}

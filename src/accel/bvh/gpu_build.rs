@@ -1,0 +1,385 @@
+//! The LBVH and trbvh builders on the GPU (`--build gpu`): Karras, "Maximizing
+//! parallelism in the construction of BVHs, octrees, and k-d trees" (HPG 2012), and
+//! Karras & Aila, "Fast parallel construction of high-quality bounding volume
+//! hierarchies" (HPG 2013), as Vulkan compute kernels (shaders/build_*.comp) recorded
+//! into one command buffer with a barrier between dispatches and a timestamp after
+//! every phase. No CPU round trip happens between phases.
+//!
+//! | phase | kernel | work |
+//! |---|---|---|
+//! | bounds | `build_bounds_<geometry>` | primitive boxes; centroid box by workgroup reduction and atomics |
+//! | morton | `build_morton` | 30-bit codes, `(code, primitive)` pairs |
+//! | sort | `build_sort_{hist,scan,scatter}` x 4 | stable LSD radix sort, 8-bit digits |
+//! | hierarchy | `build_hierarchy` | the radix tree, leaf boxes and costs |
+//! | fit | `build_fit` | boxes, counts, costs bottom-up with atomic visit counters |
+//! | restructure round r | `build_treelet` | treelets of up to 7 leaves, bottom-up (trbvh) |
+//! | collapse | `build_fit` | collapse decisions and output-node counts |
+//! | emit | `build_emit` | nodes and indices in the traversal layout |
+//!
+//! Every result equals the CPU builder's for the same scene, word for word: the Morton
+//! codes round alike (see [`super::lbvh::MortonGrid`]), the sort is stable over
+//! primitive order (equal codes order by index as the CPU's 64-bit keys do), the
+//! hierarchy is the same function of the keys, costs are computed with the same
+//! operations in the same order (`precise`), a treelet is optimised only after every
+//! treelet below it, as on the CPU, and the emit pass writes the flattener's preorder.
+//! The tests check this equality, which implies the same SAH cost.
+//!
+//! Buffers (at most 5 per kernel): header, primitive boxes, two pair arrays, the sort's
+//! histogram, canonical nodes (32 bytes), per-node aux words (16 bytes), output nodes
+//! (64 bytes) and indices. `2n - 1` canonical nodes must fit the device's storage-buffer
+//! range: about 4M primitives at 128 MiB.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use super::treelet::TreeletParams;
+use super::{Bvh, BvhBuilder, GpuBvhNode, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
+use crate::accel::gpu_layout::{GpuSphere, GpuTriangle, GpuVertex};
+use crate::accel::sah::SahCosts;
+use crate::accel::Phase;
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context, Kernel, Step};
+use crate::scene::Scene;
+
+/// Flags of `build_fit.comp`.
+const FIT: u32 = 1;
+const FINALIZE: u32 = 2;
+const COLLAPSE: u32 = 4;
+/// Sort tile: pairs per workgroup.
+const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
+/// A treelet is rewritten only when its cost drops below this fraction of the old
+/// (the CPU's `treelet` threshold, passed to the kernel so both use the same bits).
+pub use super::treelet::KEEP_FACTOR;
+
+/// Push constants of every build kernel (shaders/build/common.glsl `BuildPush`).
+#[repr(C)]
+#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    n: u32,
+    a: u32,
+    b: u32,
+    c: u32,
+    ct: f32,
+    ci: f32,
+    keep: f32,
+    d: u32,
+}
+
+fn storage(binding: u32, name: &'static str) -> BindingDesc {
+    BindingDesc { binding, kind: BindingKind::Storage, name }
+}
+
+/// The build pipelines, created once and reused for every build on one context.
+pub struct GpuBuilder {
+    bounds: HashMap<&'static str, Kernel>,
+    morton: Kernel,
+    hist: [Kernel; 2],
+    scan: Kernel,
+    scatter: [Kernel; 2],
+    hierarchy: Kernel,
+    fit: Kernel,
+    treelet: Kernel,
+    emit: Kernel,
+    /// Milliseconds spent creating the pipelines (once per process, not per build).
+    pub setup_ms: f64,
+}
+
+impl std::fmt::Debug for GpuBuilder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuBuilder").field("setup_ms", &self.setup_ms).finish()
+    }
+}
+
+fn kernel(ctx: &Context, name: &str, bindings: &[BindingDesc]) -> Result<Kernel> {
+    let code = spirv::get(name)
+        .ok_or_else(|| Error::Vulkan { what: format!("kernel '{name}'"), result: "not compiled".into() })?;
+    ctx.create_kernel(name, code, bindings, &[], std::mem::size_of::<Push>() as u32)
+}
+
+/// Geometry suffix of the bounds kernel: only the buffers the scene has.
+fn geometry(scene: &Scene) -> &'static str {
+    match (scene.triangles.is_empty(), scene.spheres.is_empty()) {
+        (false, true) => "tris",
+        (true, false) => "spheres",
+        _ => "all",
+    }
+}
+
+/// Buffers of one build.
+struct Buffers {
+    header: Buffer,
+    prim_bounds: Buffer,
+    pairs: Buffer,
+    pairs_out: Buffer,
+    hist: Buffer,
+    nodes: Buffer,
+    aux: Buffer,
+    out_nodes: Buffer,
+    out_indices: Buffer,
+    geometry: Vec<(u32, Buffer)>,
+}
+
+impl GpuBuilder {
+    /// Creates every build pipeline on `ctx`.
+    pub fn new(ctx: &Context) -> Result<GpuBuilder> {
+        let t = Instant::now();
+        let hdr = storage(BINDING_BUILD_HEADER, "build_header");
+        let pb = storage(BINDING_BUILD_PRIM_BOUNDS, "prim_bounds");
+        let pairs = storage(BINDING_BUILD_PAIRS, "pairs");
+        let pairs_out = storage(BINDING_BUILD_PAIRS_OUT, "pairs_out");
+        let hist = storage(BINDING_BUILD_HIST, "sort_hist");
+        let nodes = storage(BINDING_BUILD_NODES, "build_nodes");
+        let aux = storage(BINDING_BUILD_AUX, "build_aux");
+        let out_nodes = storage(BINDING_BUILD_OUT_NODES, "accel_nodes");
+        let out_idx = storage(BINDING_BUILD_OUT_INDICES, "accel_indices");
+        let mut bounds = HashMap::new();
+        for (geo, tris, spheres) in [("tris", true, false), ("spheres", false, true), ("all", true, true)] {
+            let mut b = vec![hdr.clone(), pb.clone()];
+            if tris {
+                b.push(storage(BINDING_VERTICES, "vertices"));
+                b.push(storage(BINDING_TRIANGLES, "triangles"));
+            }
+            if spheres {
+                b.push(storage(BINDING_SPHERES, "spheres"));
+            }
+            bounds.insert(geo, kernel(ctx, &format!("build_bounds_{geo}"), &b)?);
+        }
+        let g = GpuBuilder {
+            bounds,
+            morton: kernel(ctx, "build_morton", &[hdr.clone(), pb.clone(), pairs.clone()])?,
+            hist: [
+                kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
+                kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
+            ],
+            scan: kernel(ctx, "build_sort_scan", &[hist.clone()])?,
+            scatter: [
+                kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
+                kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
+            ],
+            hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
+            fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone()])?,
+            treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone()])?,
+            emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, out_nodes, out_idx])?,
+            setup_ms: 0.0,
+        };
+        Ok(GpuBuilder { setup_ms: t.elapsed().as_secs_f64() * 1e3, ..g })
+    }
+
+    fn buffers(&self, ctx: &Context, scene: &Scene) -> Result<Buffers> {
+        let n = scene.prim_count() as u64;
+        let blocks = n.div_ceil(TILE);
+        let mut header = vec![0u32; BUILD_HDR_WORDS as usize];
+        for k in 0..3 {
+            header[(BUILD_HDR_CMIN + k) as usize] = u32::MAX;
+        }
+        let mut geometry = Vec::new();
+        if !scene.triangles.is_empty() {
+            let v: Vec<GpuVertex> = scene
+                .positions
+                .iter()
+                .map(|p| GpuVertex { position: [p.x, p.y, p.z, 0.0], normal: [0.0; 4] })
+                .collect();
+            let t: Vec<GpuTriangle> =
+                scene.triangles.iter().map(|t| GpuTriangle { v: [t[0], t[1], t[2], 0] }).collect();
+            geometry.push((BINDING_VERTICES, ctx.upload_storage("vertices", bytemuck::cast_slice(&v))?));
+            geometry.push((BINDING_TRIANGLES, ctx.upload_storage("triangles", bytemuck::cast_slice(&t))?));
+        }
+        if !scene.spheres.is_empty() {
+            let s: Vec<GpuSphere> = scene
+                .spheres
+                .iter()
+                .map(|s| GpuSphere { center_radius: [s.center.x, s.center.y, s.center.z, s.radius], material: [0; 4] })
+                .collect();
+            geometry.push((BINDING_SPHERES, ctx.upload_storage("spheres", bytemuck::cast_slice(&s))?));
+        }
+        let storage = |name: &str, bytes: u64| ctx.create_buffer(name, bytes, crate::gpu::BufferKind::Storage);
+        Ok(Buffers {
+            header: ctx.upload_storage("build_header", bytemuck::cast_slice(&header))?,
+            prim_bounds: storage("prim_bounds", n * 32)?,
+            pairs: storage("pairs", n * 8)?,
+            pairs_out: storage("pairs_out", n * 8)?,
+            hist: storage("sort_hist", 256 * blocks * 4)?,
+            nodes: storage("build_nodes", (2 * n - 1) * 32)?,
+            aux: storage("build_aux", 2 * n * 16)?,
+            out_nodes: storage("accel_nodes", n.saturating_sub(1).max(1) * 64)?,
+            out_indices: storage("accel_indices", n * 4)?,
+            geometry,
+        })
+    }
+
+    /// Builds `builder` (lbvh or trbvh; `tp` for trbvh's restructuring) for `scene`
+    /// on the GPU and reads the tree back. Phases: host upload, each GPU phase (from
+    /// timestamps, named `gpu ...`), host readback; `build_ms` is the wall clock of all.
+    pub fn build(&mut self, ctx: &Context, scene: &Scene, builder: BvhBuilder, tp: &TreeletParams) -> Result<Bvh> {
+        if builder == BvhBuilder::Sah {
+            return Err(Error::Usage("--build gpu builds lbvh and trbvh; bvh-sah is built on the CPU".into()));
+        }
+        let n = scene.prim_count();
+        if n == 0 {
+            // Nothing to build: the one-empty-leaf tree every builder makes.
+            return Ok(Bvh::build_with(scene, builder, tp));
+        }
+        if n > MAX_BVH_PRIMS || 2 * n as u64 - 1 > u64::from(u32::MAX / 2) {
+            return Err(Error::Usage(format!("{n} primitives: the GPU build handles at most {MAX_BVH_PRIMS}")));
+        }
+        let start = Instant::now();
+        let mut phases = Vec::new();
+        let mut t = Instant::now();
+        let mut b = self.buffers(ctx, scene)?;
+        super::lap(&mut phases, "upload", &mut t);
+        self.bind(ctx, scene, &b)?;
+        let n32 = n as u32;
+        let costs = SahCosts::default();
+        let push = |a: u32, bb: u32| Push {
+            n: n32,
+            a,
+            b: bb,
+            c: 0,
+            ct: costs.traversal,
+            ci: costs.intersect,
+            keep: KEEP_FACTOR,
+            d: 0,
+        };
+        let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
+        let groups = |threads: u64, size: u32| ctx.grid_for(threads.div_ceil(u64::from(size)));
+        let blocks = (n as u64).div_ceil(TILE);
+        let geo = geometry(scene);
+        let bounds_k = &self.bounds[geo];
+        let mut steps = vec![
+            Step::Dispatch {
+                kernel: bounds_k,
+                push: bytes(push(scene.triangles.len() as u32, 0)),
+                groups: groups(n as u64, BUILD_GROUP)?,
+            },
+            Step::Mark("gpu bounds"),
+            Step::Dispatch { kernel: &self.morton, push: bytes(push(0, 0)), groups: groups(n as u64, BUILD_GROUP)? },
+            Step::Mark("gpu morton"),
+        ];
+        let tiles = ctx.grid_for(blocks)?;
+        for pass in 0..4u32 {
+            let p = bytes(push(8 * pass, blocks as u32));
+            steps.push(Step::Dispatch { kernel: &self.hist[pass as usize % 2], push: p.clone(), groups: tiles });
+            let mut scan = push(0, 0);
+            scan.n = (256 * blocks) as u32;
+            steps.push(Step::Dispatch { kernel: &self.scan, push: bytes(scan), groups: [1, 1, 1] });
+            steps.push(Step::Dispatch { kernel: &self.scatter[pass as usize % 2], push: p, groups: tiles });
+        }
+        steps.push(Step::Mark("gpu sort"));
+        let nodes = 2 * n as u64 - 1;
+        steps.push(Step::Dispatch {
+            kernel: &self.hierarchy,
+            push: bytes(push(0, 0)),
+            groups: groups(nodes, BUILD_GROUP)?,
+        });
+        steps.push(Step::Mark("gpu hierarchy"));
+        let leaves = groups(n as u64, BUILD_GROUP)?;
+        let round_names: Vec<String> = (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect();
+        match builder {
+            BvhBuilder::Lbvh => {
+                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT | FINALIZE, 0)), groups: leaves });
+                steps.push(Step::Mark("gpu fit"));
+            }
+            _ => {
+                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT, 0)), groups: leaves });
+                steps.push(Step::Mark("gpu fit"));
+                let tgroups = groups(n as u64, BUILD_TREELET_GROUP)?;
+                for (round, name) in round_names.iter().enumerate() {
+                    let p = push(tp.gamma(round as u32), tp.leaves as u32);
+                    steps.push(Step::Dispatch { kernel: &self.treelet, push: bytes(p), groups: tgroups });
+                    steps.push(Step::Mark(name));
+                }
+                steps.push(Step::Dispatch {
+                    kernel: &self.fit,
+                    push: bytes(push(FINALIZE | COLLAPSE, 0)),
+                    groups: leaves,
+                });
+                steps.push(Step::Mark("gpu collapse"));
+            }
+        }
+        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(0, 0)), groups: groups(nodes, BUILD_GROUP)? });
+        steps.push(Step::Mark("gpu emit"));
+        let gpu = ctx.run_steps(&format!("build {}", builder.name()), &steps)?;
+        drop(steps);
+        let gpu_wall = t.elapsed().as_secs_f64() * 1e3;
+        if gpu.is_empty() {
+            phases.push(Phase { name: "gpu build (no timestamps)".into(), ms: gpu_wall });
+        }
+        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms }));
+        t = Instant::now();
+        let header: Vec<u32> =
+            bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.header, 0, u64::from(BUILD_HDR_WORDS) * 4)?);
+        if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
+            return Err(Error::Usage(format!(
+                "GPU build: a walk between a node and the root took over {BUILD_MAX_WALK} steps (use --build cpu)"
+            )));
+        }
+        let depth = header[BUILD_HDR_DEPTH as usize];
+        let count = header[BUILD_HDR_NODES as usize] as u64;
+        if depth > MAX_BVH_DEPTH {
+            return Err(Error::Usage(format!(
+                "GPU build: the tree is {depth} deep, deeper than the traversal kernel's limit {MAX_BVH_DEPTH}"
+            )));
+        }
+        if count == 0 || count > n.max(2) as u64 - 1 {
+            return Err(Error::Vulkan {
+                what: "GPU build".into(),
+                result: format!("{count} output nodes for {n} primitives"),
+            });
+        }
+        let nodes: Vec<GpuBvhNode> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_nodes, 0, count * 64)?);
+        let indices: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_indices, 0, n as u64 * 4)?);
+        b.geometry.clear();
+        super::lap(&mut phases, "readback", &mut t);
+        Ok(Bvh {
+            bounds: scene.bounds(),
+            nodes,
+            indices,
+            depth,
+            prims: n,
+            builder,
+            build_ms: start.elapsed().as_secs_f64() * 1e3,
+            phases,
+        })
+    }
+
+    fn bind(&mut self, ctx: &Context, scene: &Scene, b: &Buffers) -> Result<()> {
+        let geo = geometry(scene);
+        let bounds_k = self.bounds.get_mut(geo).ok_or_else(|| Error::Usage("no bounds kernel".into()))?;
+        ctx.bind(bounds_k, BINDING_BUILD_HEADER, &b.header)?;
+        ctx.bind(bounds_k, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
+        for (binding, buf) in &b.geometry {
+            ctx.bind(bounds_k, *binding, buf)?;
+        }
+        ctx.bind(&mut self.morton, BINDING_BUILD_HEADER, &b.header)?;
+        ctx.bind(&mut self.morton, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
+        ctx.bind(&mut self.morton, BINDING_BUILD_PAIRS, &b.pairs)?;
+        let [h0, h1] = &mut self.hist;
+        ctx.bind(h0, BINDING_BUILD_PAIRS, &b.pairs)?;
+        ctx.bind(h0, BINDING_BUILD_HIST, &b.hist)?;
+        ctx.bind(h1, BINDING_BUILD_PAIRS, &b.pairs_out)?;
+        ctx.bind(h1, BINDING_BUILD_HIST, &b.hist)?;
+        ctx.bind(&mut self.scan, BINDING_BUILD_HIST, &b.hist)?;
+        // Even passes read `pairs` and write `pairs_out`, odd passes the reverse, so the
+        // four passes leave the sorted pairs in `pairs`.
+        let [s0, s1] = &mut self.scatter;
+        ctx.bind(s0, BINDING_BUILD_PAIRS, &b.pairs)?;
+        ctx.bind(s0, BINDING_BUILD_PAIRS_OUT, &b.pairs_out)?;
+        ctx.bind(s0, BINDING_BUILD_HIST, &b.hist)?;
+        ctx.bind(s1, BINDING_BUILD_PAIRS, &b.pairs_out)?;
+        ctx.bind(s1, BINDING_BUILD_PAIRS_OUT, &b.pairs)?;
+        ctx.bind(s1, BINDING_BUILD_HIST, &b.hist)?;
+        ctx.bind(&mut self.hierarchy, BINDING_BUILD_PAIRS, &b.pairs)?;
+        ctx.bind(&mut self.hierarchy, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
+        for k in [&mut self.hierarchy, &mut self.fit, &mut self.treelet, &mut self.emit] {
+            ctx.bind(k, BINDING_BUILD_NODES, &b.nodes)?;
+            ctx.bind(k, BINDING_BUILD_AUX, &b.aux)?;
+        }
+        for k in [&mut self.fit, &mut self.treelet, &mut self.emit] {
+            ctx.bind(k, BINDING_BUILD_HEADER, &b.header)?;
+        }
+        ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
+        ctx.bind(&mut self.emit, BINDING_BUILD_OUT_INDICES, &b.out_indices)?;
+        Ok(())
+    }
+}
