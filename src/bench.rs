@@ -82,6 +82,7 @@ pub fn spread(v: &[f64]) -> f64 {
 
 /// One measured case of the benchmark.
 struct Case {
+    phases: Vec<Vec<crate::accel::Phase>>,
     build_ms: Vec<f64>,
     trace_ms: Vec<f64>,
     rates: Vec<f64>,
@@ -96,6 +97,19 @@ struct Case {
     nodes: Vec<u32>,
     /// Primitive hit per pixel (last repeat), for the comparison with the reference.
     prims: Vec<u32>,
+}
+
+/// The median of each phase over repeats (phases matched by name, in first-seen order).
+fn median_phases(runs: &[Vec<crate::accel::Phase>]) -> Vec<crate::accel::Phase> {
+    let Some(first) = runs.first() else { return Vec::new() };
+    first
+        .iter()
+        .map(|p| {
+            let mut v: Vec<f64> =
+                runs.iter().filter_map(|r| r.iter().find(|q| q.name == p.name)).map(|q| q.ms).collect();
+            crate::accel::Phase { name: p.name.clone(), ms: median(&mut v) }
+        })
+        .collect()
 }
 
 /// The `q` quantile (0..=1) of `v` by the nearest-rank method.
@@ -123,6 +137,7 @@ fn bench_case(
     settings.diffuse_probe = rays == RayKind::Diffuse;
     settings.accel = kind;
     let mut case = Case {
+        phases: Vec::new(),
         build_ms: Vec::new(),
         trace_ms: Vec::new(),
         rates: Vec::new(),
@@ -135,7 +150,7 @@ fn bench_case(
         prims: Vec::new(),
     };
     for r in 0..=repeat {
-        let accel = crate::accel::Accel::build_with(kind, scene, params);
+        let accel = crate::accel::Accel::build_on(ctx, kind, scene, params)?;
         let (frame, st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
         case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
         case.nodes_p99 = quantile(&frame.nodes, 0.99);
@@ -146,6 +161,7 @@ fn bench_case(
         if r > 0 {
             let ms = st.trace_ms.unwrap_or(st.wall_ms);
             case.build_ms.push(st.build.build_ms);
+            case.phases.push(st.build.phases.clone());
             case.trace_ms.push(ms);
             case.rates.push(st.rays as f64 / (ms * 1e3));
         }
@@ -184,6 +200,8 @@ struct Row {
     aimed_escapes_per_million: Option<f64>,
     disagree_per_million: Option<f64>,
     error: Option<String>,
+    /// Median ms of each build phase (JSON only).
+    build_phases: Vec<crate::accel::Phase>,
 }
 
 /// Columns of bench.csv, in order (the fields of `Row`).
@@ -346,6 +364,8 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
     progress.set_length((scenes.len() * kinds.len() * opts.intersect.len() * variants.len() * (repeat + 1)) as u64);
     let mut rows: Vec<Row> = Vec::new();
     let mut tti = Vec::new();
+    // Per-phase build figures when a GPU build is compared with the CPU's.
+    let show_phases = variants.iter().any(|v| v.1.build == crate::accel::BuildOn::Gpu);
     // (file stem, title, width, height, nodes per pixel) of the cost heatmaps to draw.
     let mut heatmaps: Vec<(String, String, u32, u32, Vec<u32>)> = Vec::new();
     for name in scenes {
@@ -413,6 +433,7 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                     aimed_escapes_per_million: None,
                     disagree_per_million: None,
                     error: None,
+                    build_phases: Vec::new(),
                 };
                 let c = match bench_case(ctx, &scene, (kind, p), size, kind_of_rays, repeat, progress) {
                     Ok(c) => c,
@@ -487,6 +508,21 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                     row.disagree_per_million.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into())
                 );
                 progress.line(&line);
+                row.build_phases = median_phases(&c.phases);
+                if show_phases && matches!(kind, AccelKind::Lbvh | AccelKind::Trbvh) {
+                    let list: Vec<String> = row
+                        .build_phases
+                        .iter()
+                        .map(|p| format!("{} {:.2} ({:.0})", p.name, p.ms, nt as f64 / (p.ms * 1e3).max(1e-9)))
+                        .collect();
+                    let gpu: f64 = row.build_phases.iter().filter(|p| p.name.starts_with("gpu ")).map(|p| p.ms).sum();
+                    let gpu = if gpu > 0.0 {
+                        format!("; GPU total {gpu:.2} ms ({:.1} Mtris/s)", nt as f64 / (gpu * 1e3))
+                    } else {
+                        String::new()
+                    };
+                    progress.line(&format!("    build phases, ms (Mtris/s): {}{gpu}", list.join(", ")));
+                }
                 if opts.out.is_some() && kind != AccelKind::None && kind_of_rays == RayKind::Primary && mi == 0 {
                     heatmaps.push((
                         format!("cost_{}_{}", file_part(&short), file_part(&row.label)),

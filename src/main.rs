@@ -67,11 +67,25 @@ struct StructureArgs {
     /// 5-leaf treelets, faster build, slightly higher SAH) or leaves=3..7,rounds=N.
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     trbvh: String,
+    /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute
+    /// kernels; the same tree as the CPU builder's, word for word). `bench` takes a
+    /// list (cpu,gpu): one row per structure and build device.
+    #[arg(long, value_delimiter = ',', default_value = "cpu", value_name = "cpu|gpu")]
+    build: Vec<arbor::accel::BuildOn>,
 }
 
 impl StructureArgs {
+    /// The parameters of a command that builds once (render, info).
+    fn single(&self) -> Result<arbor::accel::AccelParams> {
+        if self.build.len() > 1 {
+            bail!("--build takes one of cpu, gpu here (a list only in bench)");
+        }
+        self.params()
+    }
+
     fn params(&self) -> Result<arbor::accel::AccelParams> {
         Ok(arbor::accel::AccelParams {
+            build: self.build.first().copied().unwrap_or_default(),
             kd: arbor::accel::kdtree::KdParams::parse(&self.kd).map_err(anyhow::Error::msg)?,
             grid: arbor::accel::grid::GridParams::parse(&self.grid).map_err(anyhow::Error::msg)?,
             octree: arbor::accel::octree::OctreeParams::parse(&self.octree).map_err(anyhow::Error::msg)?,
@@ -202,6 +216,9 @@ enum Command {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+        /// Device for --build gpu (unused otherwise).
+        #[command(flatten)]
+        device: DeviceArgs,
     },
     /// List the Vulkan devices arbor can use.
     Devices,
@@ -328,7 +345,7 @@ fn run(cli: Cli) -> Result<()> {
             intersect,
         } => {
             let aovs = parse_aovs(&aov)?;
-            let params = structure.params()?;
+            let params = structure.single()?;
             output::format_of(&output, "image")?;
             check_writable(&output)?;
             for (_, p) in &aovs {
@@ -415,11 +432,16 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Info { scene, accel, json, structure } => {
-            let params = structure.params()?;
+        Command::Info { scene, accel, json, structure, device } => {
+            let params = structure.single()?;
             let scene = Scene::load(&scene)?;
             let (accel, why) = resolve_accel(&accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
-            let built = arbor::accel::Accel::build_with(accel, &scene, &params);
+            let built = match params.build {
+                arbor::accel::BuildOn::Cpu => arbor::accel::Accel::build_with(accel, &scene, &params),
+                arbor::accel::BuildOn::Gpu => {
+                    arbor::accel::Accel::build_on(&context(&device)?, accel, &scene, &params)?
+                }
+            };
             let valid = built.validate(&scene);
             let st = built.stats(&scene);
             let bounds = scene.bounds();
@@ -439,6 +461,7 @@ fn run(cli: Cli) -> Result<()> {
                 "bounds_min": bounds.min.to_array(),
                 "bounds_max": bounds.max.to_array(),
                 "accel": accel.name(),
+                "built_on": params.build.name(),
                 "accel_auto_reason": why,
                 "build": st,
                 "valid": valid.is_ok(),
@@ -461,7 +484,7 @@ fn run(cli: Cli) -> Result<()> {
                 println!("lights          {}", scene.lights.len());
                 println!("film            {}x{}", scene.width, scene.height);
                 println!("bounds          {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
-                println!("accel           {}", accel.name());
+                println!("accel           {} (built on the {})", accel.name(), params.build.name().to_uppercase());
                 if let Some(why) = &why {
                     println!("  auto          {why}");
                 }
@@ -529,8 +552,21 @@ fn bench_variants(
                 p.grid.lambda = lambda;
                 out.push((kind, p, format!("grid:{lambda}")));
             }
+        } else if matches!(kind, AccelKind::Lbvh | AccelKind::Trbvh) {
+            for &on in &args.structure.build {
+                let p = arbor::accel::AccelParams { build: on, ..*base };
+                let label = match on {
+                    arbor::accel::BuildOn::Cpu => kind.name().to_string(),
+                    arbor::accel::BuildOn::Gpu => format!("{}@gpu", kind.name()),
+                };
+                out.push((kind, p, label));
+            }
         } else {
-            out.push((kind, *base, kind.name().to_string()));
+            out.push((
+                kind,
+                arbor::accel::AccelParams { build: arbor::accel::BuildOn::Cpu, ..*base },
+                kind.name().to_string(),
+            ));
         }
     }
     out

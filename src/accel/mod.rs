@@ -175,9 +175,41 @@ pub trait Traverse {
     }
 }
 
+/// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh and
+/// trbvh, [`bvh::gpu_build`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BuildOn {
+    #[default]
+    Cpu,
+    Gpu,
+}
+
+impl BuildOn {
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildOn::Cpu => "cpu",
+            BuildOn::Gpu => "gpu",
+        }
+    }
+}
+
+impl FromStr for BuildOn {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "cpu" => Ok(BuildOn::Cpu),
+            "gpu" => Ok(BuildOn::Gpu),
+            _ => Err(format!("unknown build device '{s}'; expected cpu or gpu")),
+        }
+    }
+}
+
 /// Builder parameters of every structure that has any.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct AccelParams {
+    /// Where to build (the GPU builds lbvh and trbvh only).
+    pub build: BuildOn,
     pub kd: kdtree::KdParams,
     pub grid: grid::GridParams,
     pub octree: octree::OctreeParams,
@@ -212,6 +244,32 @@ impl Accel {
             AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build_with(scene, bvh::BvhBuilder::Trbvh, &params.treelet)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
+        }
+    }
+
+    /// Builds `kind` where `params.build` says: on the CPU as [`Accel::build_with`], or
+    /// with the GPU builder on `ctx` (lbvh and trbvh; anything else is a usage error).
+    pub fn build_on(
+        ctx: &crate::gpu::Context,
+        kind: AccelKind,
+        scene: &crate::scene::Scene,
+        params: &AccelParams,
+    ) -> crate::error::Result<Accel> {
+        match params.build {
+            BuildOn::Cpu => Ok(Self::build_with(kind, scene, params)),
+            BuildOn::Gpu => {
+                let builder = match kind {
+                    AccelKind::Lbvh => bvh::BvhBuilder::Lbvh,
+                    AccelKind::Trbvh => bvh::BvhBuilder::Trbvh,
+                    other => {
+                        return Err(crate::error::Error::Usage(format!(
+                            "--build gpu builds lbvh and trbvh; {other} is built on the CPU (use --build cpu)"
+                        )))
+                    }
+                };
+                let mut g = bvh::gpu_build::GpuBuilder::new(ctx)?;
+                Ok(Accel::Bvh(g.build(ctx, scene, builder, &params.treelet)?))
+            }
         }
     }
 

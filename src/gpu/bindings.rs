@@ -59,7 +59,7 @@ pub const BUILD_GROUP: u32 = 256;
 /// Elements per thread of the radix sort (tile = BUILD_GROUP x this).
 pub const BUILD_SORT_ITEMS: u32 = 16;
 /// Threads per workgroup of treelet restructuring (leaves climbed per workgroup).
-pub const BUILD_TREELET_GROUP: u32 = 64;
+pub const BUILD_TREELET_GROUP: u32 = 256;
 
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;

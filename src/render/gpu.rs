@@ -183,7 +183,7 @@ pub fn render(
 ) -> Result<(Frame, RenderStats)> {
     // validate() is for tests and `arbor info`: on a 1M-triangle tree it costs more
     // than the build, and render_with checks what the kernel depends on (depth).
-    let accel = Accel::build_with(settings.accel, scene, &settings.params);
+    let accel = Accel::build_on(ctx, settings.accel, scene, &settings.params)?;
     render_with(ctx, scene, settings, &accel, progress)
 }
 
