@@ -484,7 +484,8 @@ fn run(cli: Cli) -> Result<()> {
                 println!("lights          {}", scene.lights.len());
                 println!("film            {}x{}", scene.width, scene.height);
                 println!("bounds          {:?} .. {:?}", bounds.min.to_array(), bounds.max.to_array());
-                println!("accel           {} (built on the {})", accel.name(), params.build.name().to_uppercase());
+                println!("accel           {}", accel.name());
+                println!("  built on      {}", params.build.name().to_uppercase());
                 if let Some(why) = &why {
                     println!("  auto          {why}");
                 }

@@ -121,3 +121,49 @@ fn auto_picks_brute_force_for_ten_triangles_and_a_tree_for_100k() {
     assert!(kind != "none", "{big}");
     assert!(v["accel_auto_reason"].as_str().is_some_and(|w| w.contains(kind)), "{big}");
 }
+
+#[test]
+fn bench_compares_cpu_and_gpu_builds() {
+    let Some(_ctx) = common::gpu() else { return };
+    let json = std::env::temp_dir().join(format!("arbor-bench-build-{}.json", std::process::id()));
+    let j = json.to_string_lossy().to_string();
+    let out = run(&[
+        "bench",
+        "--quick",
+        "--tris",
+        "2000",
+        "--accel",
+        "lbvh,trbvh",
+        "--build",
+        "cpu,gpu",
+        "--rays",
+        "primary",
+        "--json",
+        &j,
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("trbvh@gpu") && text.contains("lbvh@gpu"), "{text}");
+    assert!(text.contains("gpu restructure round 3"), "per-phase GPU figures missing:\n{text}");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("valid");
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 4);
+    // Same tree on both devices: same SAH cost and depth per structure.
+    for kind in ["lbvh", "trbvh"] {
+        let pair: Vec<&serde_json::Value> = rows.iter().filter(|r| r["accel"] == kind).collect();
+        assert_eq!(pair.len(), 2);
+        assert_eq!(pair[0]["sah_cost"], pair[1]["sah_cost"], "{kind}");
+        assert_eq!(pair[0]["depth"], pair[1]["depth"], "{kind}");
+        assert!(pair.iter().any(|r| r["build_phases"].as_array().is_some_and(|p| !p.is_empty())));
+    }
+    let _ = std::fs::remove_file(&json);
+    // Render and info refuse a GPU build of a structure the GPU cannot build.
+    let bad = Command::new(env!("CARGO_BIN_EXE_arbor"))
+        .args(["info", "builtin:blob:500", "--accel", "kdtree", "--build", "gpu"])
+        .output()
+        .expect("run");
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--build gpu builds lbvh and trbvh"));
+    let ok = run(&["info", "builtin:blob:500", "--accel", "trbvh", "--build", "gpu"]);
+    let text = String::from_utf8_lossy(&ok.stdout);
+    assert!(text.contains("built on      GPU") && text.contains("validate      ok"), "{text}");
+}
