@@ -140,7 +140,7 @@ fn gpu_build_of_other_structures_is_a_clear_error() {
     let scene = scene_from("blob", Some(procedural::blob(500, 0.3, 5)), &[]);
     let params = AccelParams { build: BuildOn::Gpu, ..Default::default() };
     for kind in [AccelKind::Kdtree, AccelKind::BvhSah, AccelKind::Grid] {
-        let e = Accel::build_on(&ctx, kind, &scene, &params).err().expect("refused");
+        let e = Accel::build_on(&ctx, kind, &scene, &params).expect_err("refused");
         assert!(e.to_string().contains("--build gpu builds lbvh and trbvh"), "{e}");
     }
 }

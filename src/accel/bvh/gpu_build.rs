@@ -152,7 +152,7 @@ impl GpuBuilder {
                 kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
                 kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
             ],
-            scan: kernel(ctx, "build_sort_scan", &[hist.clone()])?,
+            scan: kernel(ctx, "build_sort_scan", std::slice::from_ref(&hist))?,
             scatter: [
                 kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
                 kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
