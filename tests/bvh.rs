@@ -8,37 +8,17 @@ use arbor::accel::bvh::{lbvh, treelet, Binary, Bvh, BvhBuilder, PrimRefs, EMPTY_
 use arbor::accel::sah::SahCosts;
 use arbor::accel::{Accel, AccelKind, Traverse};
 use arbor::render::{cpu, RenderSettings};
-use arbor::scene::{procedural, Scene};
+use arbor::scene::procedural;
 use common::scenes::{
-    compare_with_brute_force, edge_cases, gpu_cases, gpu_matches_reference, gpu_views, scene_from, tris,
+    bvh_cases, compare_with_brute_force, edge_cases, gpu_cases, gpu_matches_reference, gpu_views, scene_from,
 };
 use glam::Vec3;
 
 const BUILDERS: [BvhBuilder; 3] = [BvhBuilder::Sah, BvhBuilder::Lbvh, BvhBuilder::Trbvh];
 
-/// The edge cases of the kd-tree tests plus two primitives and a cloud of identical
-/// centroids larger than a leaf.
-fn cases() -> Vec<Scene> {
-    let v = Vec3::new;
-    let mut out = edge_cases();
-    out.push(scene_from(
-        "two",
-        Some(tris(&[[v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)], [v(0., 0., 2.), v(1., 0., 2.), v(0., 1., 2.)]])),
-        &[],
-    ));
-    // 40 triangles with one centroid (every Morton code equal) but different shapes.
-    let mut same_centroid = Vec::new();
-    for k in 0..40 {
-        let s = 0.1 + k as f32 * 0.05;
-        same_centroid.push([v(-s, -s, 0.), v(2. * s, -s, 0.), v(-s, 2. * s, 0.)]);
-    }
-    out.push(scene_from("one centroid", Some(tris(&same_centroid)), &[(Vec3::ZERO, 0.3), (Vec3::ZERO, 0.2)]));
-    out
-}
-
 #[test]
 fn validate_every_builder_on_every_edge_case() {
-    for scene in cases() {
+    for scene in bvh_cases() {
         for b in BUILDERS {
             let t = Bvh::build(&scene, b);
             t.validate(&scene).unwrap_or_else(|e| panic!("{} / {}: {e}", scene.name, b.name()));
@@ -67,7 +47,7 @@ fn empty_scene_builds_a_root_with_no_children() {
 #[test]
 fn restructuring_never_raises_sah_and_keeps_every_primitive() {
     let costs = SahCosts::default();
-    let mut scenes = cases();
+    let mut scenes = bvh_cases();
     scenes.push(scene_from("blob", Some(procedural::blob(20_000, 0.2, 5)), &[(Vec3::ZERO, 0.6)]));
     for (scene, leaves) in scenes.into_iter().flat_map(|s| [3usize, 5, 7].map(|l| (s.clone(), l))) {
         let refs = PrimRefs::new(&scene);
@@ -120,7 +100,7 @@ fn trbvh_is_close_to_bvh_sah_and_better_than_lbvh() {
 
 #[test]
 fn cpu_traversal_equals_brute_force() {
-    for scene in cases() {
+    for scene in bvh_cases() {
         for b in BUILDERS {
             let t = Bvh::build(&scene, b);
             compare_with_brute_force(&scene, &Accel::Bvh(t), 1500, 42, &[]);

@@ -9,17 +9,13 @@ use arbor::accel::bvh::treelet::TreeletParams;
 use arbor::accel::bvh::{Bvh, BvhBuilder};
 use arbor::accel::Accel;
 use arbor::scene::{procedural, Scene};
-use common::scenes::{compare_with_brute_force, edge_cases, scene_from, tris};
+use common::scenes::{bvh_cases, compare_with_brute_force, scene_from, tris};
 use glam::Vec3;
 
+/// The BVH tests' edge cases, three primitives, and a 20k-triangle blob.
 fn cases() -> Vec<Scene> {
     let v = Vec3::new;
-    let mut out = edge_cases();
-    out.push(scene_from(
-        "two",
-        Some(tris(&[[v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)], [v(0., 0., 2.), v(1., 0., 2.), v(0., 1., 2.)]])),
-        &[],
-    ));
+    let mut out = bvh_cases();
     out.push(scene_from(
         "three",
         Some(tris(&[
@@ -29,12 +25,6 @@ fn cases() -> Vec<Scene> {
         ])),
         &[],
     ));
-    let mut same_centroid = Vec::new();
-    for k in 0..40 {
-        let s = 0.1 + k as f32 * 0.05;
-        same_centroid.push([v(-s, -s, 0.), v(2. * s, -s, 0.), v(-s, 2. * s, 0.)]);
-    }
-    out.push(scene_from("one centroid", Some(tris(&same_centroid)), &[(Vec3::ZERO, 0.3), (Vec3::ZERO, 0.2)]));
     out.push(scene_from("blob 20k", Some(procedural::blob(20_000, 0.3, 7)), &[]));
     out
 }

@@ -112,6 +112,26 @@ pub fn edge_cases() -> Vec<Scene> {
     out
 }
 
+/// The edge cases of the kd-tree tests plus two primitives and a cloud of identical
+/// centroids larger than a leaf.
+pub fn bvh_cases() -> Vec<Scene> {
+    let v = Vec3::new;
+    let mut out = edge_cases();
+    out.push(scene_from(
+        "two",
+        Some(tris(&[[v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)], [v(0., 0., 2.), v(1., 0., 2.), v(0., 1., 2.)]])),
+        &[],
+    ));
+    // 40 triangles with one centroid (every Morton code equal) but different shapes.
+    let mut same_centroid = Vec::new();
+    for k in 0..40 {
+        let s = 0.1 + k as f32 * 0.05;
+        same_centroid.push([v(-s, -s, 0.), v(2. * s, -s, 0.), v(-s, 2. * s, 0.)]);
+    }
+    out.push(scene_from("one centroid", Some(tris(&same_centroid)), &[(Vec3::ZERO, 0.3), (Vec3::ZERO, 0.2)]));
+    out
+}
+
 /// Random rays from outside and inside plus adversarial ones must find the same
 /// primitive as brute force, with t within 1e-6 relative.
 pub fn compare_with_brute_force(scene: &Scene, tree: &Accel, n: usize, seed: u64, extra: &[Ray]) {
