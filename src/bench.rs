@@ -149,8 +149,9 @@ fn bench_case(
         nodes: Vec::new(),
         prims: Vec::new(),
     };
+    let mut pipelines = None;
     for r in 0..=repeat {
-        let accel = crate::accel::Accel::build_on(ctx, kind, scene, params)?;
+        let accel = crate::accel::Accel::build_on_reusing(ctx, kind, scene, params, &mut pipelines)?;
         let (frame, st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
         case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
         case.nodes_p99 = quantile(&frame.nodes, 0.99);

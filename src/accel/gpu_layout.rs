@@ -142,6 +142,27 @@ const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 32);
+/// Push constants of every GPU BVH build kernel (`BuildPush` in
+/// shaders/build/common.glsl; the canonical-node layout is documented there).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBuildPush {
+    /// bytes 0..4 primitives
+    pub n: u32,
+    /// bytes 4..16 kernel-specific words a, b, c (see each build_*.comp)
+    pub a: u32,
+    pub b: u32,
+    pub c: u32,
+    /// bytes 16..20 SAH traversal cost, 20..24 intersection cost
+    pub ct: f32,
+    pub ci: f32,
+    /// bytes 24..28 restructure only below cost x keep (treelet::KEEP_FACTOR)
+    pub keep: f32,
+    /// bytes 28..32 unused
+    pub d: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuPixel>() == 48);
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 32);

@@ -255,6 +255,18 @@ impl Accel {
         scene: &crate::scene::Scene,
         params: &AccelParams,
     ) -> crate::error::Result<Accel> {
+        Self::build_on_reusing(ctx, kind, scene, params, &mut None)
+    }
+
+    /// [`Accel::build_on`], creating the GPU build pipelines in `pipelines` on first
+    /// use and reusing them after (for repeated builds, as `bench` runs them).
+    pub fn build_on_reusing(
+        ctx: &crate::gpu::Context,
+        kind: AccelKind,
+        scene: &crate::scene::Scene,
+        params: &AccelParams,
+        pipelines: &mut Option<bvh::gpu_build::GpuBuilder>,
+    ) -> crate::error::Result<Accel> {
         match params.build {
             BuildOn::Cpu => Ok(Self::build_with(kind, scene, params)),
             BuildOn::Gpu => {
@@ -267,7 +279,10 @@ impl Accel {
                         )))
                     }
                 };
-                let mut g = bvh::gpu_build::GpuBuilder::new(ctx)?;
+                let g = match pipelines {
+                    Some(g) => g,
+                    None => pipelines.insert(bvh::gpu_build::GpuBuilder::new(ctx)?),
+                };
                 Ok(Accel::Bvh(g.build(ctx, scene, builder, &params.treelet)?))
             }
         }

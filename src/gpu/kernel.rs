@@ -284,22 +284,14 @@ impl Context {
         Ok([groups.clamp(1, x) as u32, y as u32, 1])
     }
 
-    /// Records `steps` into one command buffer with a full memory barrier between
-    /// consecutive steps, submits it and waits. Returns the GPU milliseconds of each
-    /// [`Step::Mark`] (time since the previous mark or the start), in order; empty
-    /// without timestamps.
+    /// Records `steps` (dispatches and timing marks) into one command buffer with a
+    /// full memory barrier between consecutive steps, submits it and waits. Returns the
+    /// GPU milliseconds of each [`Step::Mark`] (time since the previous mark or the
+    /// start), in order; empty without timestamps.
     pub fn run_steps(&self, label: &str, steps: &[Step<'_>]) -> Result<Vec<(String, f64)>> {
         for s in steps {
             if let Step::Dispatch { kernel, push, groups } = s {
                 self.check_dispatch(kernel, push, *groups)?;
-            }
-            if let Step::Fill(b, _) = s {
-                if b.kind() != BufferKind::Storage {
-                    return Err(Error::Vulkan {
-                        what: format!("fill '{}'", b.name()),
-                        result: "not a storage buffer".into(),
-                    });
-                }
             }
         }
         let marks: Vec<&str> =
@@ -332,10 +324,6 @@ impl Context {
             for s in steps {
                 barrier_all(dev, cb);
                 match s {
-                    Step::Fill(b, v) => {
-                        // SAFETY: live storage buffer (TRANSFER_DST), whole range.
-                        unsafe { dev.cmd_fill_buffer(cb, b.raw, 0, vk::WHOLE_SIZE, *v) };
-                    }
                     Step::Dispatch { kernel, push, groups } => record_dispatch(dev, cb, kernel, push, *groups),
                     Step::Mark(_) => {
                         q += 1;
@@ -375,8 +363,6 @@ impl Context {
 /// One step of [`Context::run_steps`].
 #[derive(Debug)]
 pub enum Step<'a> {
-    /// Sets every 32-bit word of a storage buffer to the value.
-    Fill(&'a Buffer, u32),
     /// Runs a kernel: push-constant bytes and workgroup counts.
     Dispatch { kernel: &'a Kernel, push: Vec<u8>, groups: [u32; 3] },
     /// Ends a timed phase of this name.

@@ -32,9 +32,9 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::treelet::TreeletParams;
+use super::treelet::{TreeletParams, KEEP_FACTOR};
 use super::{Bvh, BvhBuilder, GpuBvhNode, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
-use crate::accel::gpu_layout::{GpuSphere, GpuTriangle, GpuVertex};
+use crate::accel::gpu_layout::{GpuBuildPush as Push, GpuSphere, GpuTriangle, GpuVertex};
 use crate::accel::sah::SahCosts;
 use crate::accel::Phase;
 use crate::error::{Error, Result};
@@ -48,24 +48,6 @@ const FINALIZE: u32 = 2;
 const COLLAPSE: u32 = 4;
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
-/// A treelet is rewritten only when its cost drops below this fraction of the old
-/// (the CPU's `treelet` threshold, passed to the kernel so both use the same bits).
-pub use super::treelet::KEEP_FACTOR;
-
-/// Push constants of every build kernel (shaders/build/common.glsl `BuildPush`).
-#[repr(C)]
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct Push {
-    n: u32,
-    a: u32,
-    b: u32,
-    c: u32,
-    ct: f32,
-    ci: f32,
-    keep: f32,
-    d: u32,
-}
-
 fn storage(binding: u32, name: &'static str) -> BindingDesc {
     BindingDesc { binding, kind: BindingKind::Storage, name }
 }
@@ -226,7 +208,7 @@ impl GpuBuilder {
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
-        let mut b = self.buffers(ctx, scene)?;
+        let b = self.buffers(ctx, scene)?;
         super::lap(&mut phases, "upload", &mut t);
         self.bind(ctx, scene, &b)?;
         let n32 = n as u32;
@@ -329,7 +311,6 @@ impl GpuBuilder {
         }
         let nodes: Vec<GpuBvhNode> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_nodes, 0, count * 64)?);
         let indices: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_indices, 0, n as u64 * 4)?);
-        b.geometry.clear();
         super::lap(&mut phases, "readback", &mut t);
         Ok(Bvh {
             bounds: scene.bounds(),
