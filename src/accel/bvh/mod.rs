@@ -347,10 +347,11 @@ impl Bvh {
                 let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
                 let mut work = treelet::Restructure::with_leaves(&bin, &costs, tp.leaves);
                 for round in 0..tp.rounds {
-                    work.round(&mut bin, tp.gamma(round));
+                    work.round(tp.gamma(round));
                     lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);
                 }
-                let flags = work.collapse_flags(&bin);
+                work.write_back(&mut bin);
+                let flags = work.collapse_flags();
                 lap(&mut phases, "collapse", &mut t);
                 (bin, Some(flags))
             }

@@ -12,20 +12,25 @@
 //!
 //! Nodes are processed bottom-up, so a treelet is optimised after every treelet below
 //! it, and only at nodes whose subtree holds at least γ primitives. As in the paper,
-//! several rounds run with γ doubling each round ([`gamma`]). Treelets at nodes of
-//! equal height are disjoint and are optimised in parallel; each round visits heights
-//! in ascending order of the height they had at the round's start (restructuring
-//! permutes nodes only within a treelet, so every node's subtree keeps its set of
-//! nodes and the order stays bottom-up). The result does not depend on thread count:
-//! each treelet's solution reads only its own subtree.
+//! several rounds run with γ doubling each round ([`gamma`]). A round is a post-order
+//! walk that prunes subtrees below γ primitives; the two subtrees of a large node are
+//! walked by parallel tasks, since their treelets are disjoint. The result does not
+//! depend on thread count or order: each treelet's solution reads only its own subtree
+//! (restructuring permutes nodes only within a treelet, so every node's subtree keeps
+//! its set of nodes), and the GPU kernel, which goes bottom-up by levels, gets the
+//! same tree. A treelet that was optimised without change, and under which nothing
+//! has changed since, is skipped in later rounds: its optimum would be the same.
 //!
 //! A restructuring is applied only when it lowers the treelet root's cost, so the SAH
 //! cost (with collapse) never increases. Afterwards [`Restructure::collapse_flags`]
 //! marks the subtrees that are cheaper as one leaf.
 
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
+
+use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{Binary, MAX_LEAF};
+use super::{BNode, Binary, LEAF_FLAG, MAX_LEAF};
 use crate::accel::sah::{area, SahCosts};
 use crate::math::Aabb;
 
@@ -99,21 +104,114 @@ impl TreeletParams {
 
 const SUBSETS: usize = 1 << TREELET_LEAVES;
 
-/// Per-node state kept across rounds: primitive count and cost.
+/// Subtrees with at least this many primitives are visited by parallel tasks; smaller
+/// ones by one task, serially.
+const PAR_GRAIN: u32 = 2048;
+/// Deepest level visited by parallel recursion; deeper subtrees (only in degenerate
+/// trees) are visited serially with an explicit stack.
+const PAR_DEPTH: u32 = 48;
+
+/// One node of the tree being restructured, shared by the threads of a round.
+///
+/// Treelets in disjoint subtrees are optimised by parallel tasks (`rayon::join`), and
+/// a treelet writes only nodes of its own subtree, which the parent's treelet reads
+/// only after the join. So relaxed atomics (plain loads and stores on x86) carry every
+/// field, and no `unsafe` is needed.
+#[derive(Debug)]
+struct Slot {
+    /// min xyz, max xyz (f32 bits).
+    bounds: [AtomicU32; 6],
+    left: AtomicU32,
+    right: AtomicU32,
+    /// Primitives below.
+    count: AtomicU32,
+    /// Unnormalised SAH cost of the subtree, with collapse (f32 bits).
+    cost: AtomicU32,
+    /// The treelet rooted here was optimised without change and no node below has
+    /// changed since: optimising it again would change nothing.
+    settled: AtomicBool,
+}
+
+impl Slot {
+    fn new(n: &BNode) -> Slot {
+        let b = [n.bounds.min.x, n.bounds.min.y, n.bounds.min.z, n.bounds.max.x, n.bounds.max.y, n.bounds.max.z];
+        Slot {
+            bounds: b.map(|v| AtomicU32::new(v.to_bits())),
+            left: AtomicU32::new(n.left),
+            right: AtomicU32::new(n.right),
+            count: AtomicU32::new(0),
+            cost: AtomicU32::new(0),
+            settled: AtomicBool::new(false),
+        }
+    }
+    fn bounds(&self) -> Aabb {
+        let f = |i: usize| f32::from_bits(self.bounds[i].load(Relaxed));
+        Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) }
+    }
+    fn node(&self) -> BNode {
+        BNode { bounds: self.bounds(), left: self.left.load(Relaxed), right: self.right.load(Relaxed) }
+    }
+    fn is_leaf(&self) -> bool {
+        self.left.load(Relaxed) & LEAF_FLAG != 0
+    }
+    fn count(&self) -> u32 {
+        self.count.load(Relaxed)
+    }
+    fn cost(&self) -> f32 {
+        f32::from_bits(self.cost.load(Relaxed))
+    }
+    fn set_cost(&self, count: u32, cost: f32) {
+        self.count.store(count, Relaxed);
+        self.cost.store(cost.to_bits(), Relaxed);
+    }
+    fn set_inner(&self, left: u32, right: u32, b: &Aabb) {
+        let v = [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z];
+        for (a, v) in self.bounds.iter().zip(v) {
+            a.store(v.to_bits(), Relaxed);
+        }
+        self.left.store(left, Relaxed);
+        self.right.store(right, Relaxed);
+    }
+}
+
+/// The tree being restructured: its nodes with primitive counts and costs, kept
+/// across rounds. Read the result back with [`Restructure::write_back`].
 #[derive(Debug)]
 pub struct Restructure {
     costs: SahCosts,
     /// Leaves per treelet (3..=TREELET_LEAVES).
     leaves: usize,
-    count: Vec<u32>,
-    /// Unnormalised SAH cost of each subtree, with collapse.
-    cost: Vec<f32>,
+    slots: Vec<Slot>,
+    root: u32,
 }
 
-/// A new topology for one treelet: (node, left, right, box, cost) per inner node.
+/// A new topology for one treelet: (node, left, right, box, cost, count) per inner node.
 struct Update {
     len: usize,
     entries: [(u32, u32, u32, Aabb, f32, u32); TREELET_LEAVES - 1],
+}
+
+/// Treelet restructuring work in one round.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct RoundStats {
+    /// Treelets whose topology was optimised.
+    pub optimised: u32,
+    /// Of those, treelets rewritten because the optimum was cheaper.
+    pub rewritten: u32,
+    /// Treelets skipped because nothing in them changed since they were last optimised
+    /// without change (the optimum would be the same).
+    pub skipped: u32,
+}
+
+impl std::ops::Add for RoundStats {
+    type Output = RoundStats;
+    fn add(self, o: RoundStats) -> RoundStats {
+        RoundStats {
+            optimised: self.optimised + o.optimised,
+            rewritten: self.rewritten + o.rewritten,
+            skipped: self.skipped + o.skipped,
+        }
+    }
 }
 
 impl Restructure {
@@ -124,27 +222,21 @@ impl Restructure {
 
     /// As `new`, with treelets of `leaves` leaves (clamped to 3..=TREELET_LEAVES).
     pub fn with_leaves(bin: &Binary, costs: &SahCosts, leaves: usize) -> Restructure {
-        let n = bin.nodes.len();
         let leaves = leaves.clamp(3, TREELET_LEAVES);
-        let mut r = Restructure { costs: *costs, leaves, count: vec![0; n], cost: vec![0.0; n] };
-        // Post-order: children before parents.
-        let mut stack: Vec<(u32, bool)> = vec![(bin.root, false)];
-        while let Some((i, done)) = stack.pop() {
-            let node = bin.nodes[i as usize];
-            if node.is_leaf() {
-                r.count[i as usize] = node.right;
-                r.cost[i as usize] = costs.intersect * area(&node.bounds) * node.right as f32;
-            } else if done {
-                let count = r.count[node.left as usize] + r.count[node.right as usize];
-                r.count[i as usize] = count;
-                r.cost[i as usize] =
-                    r.node_cost(&node.bounds, count, r.cost[node.left as usize] + r.cost[node.right as usize]);
-            } else {
-                stack.push((i, true));
-                stack.push((node.right, false));
-                stack.push((node.left, false));
-            }
-        }
+        let slots: Vec<Slot> = bin.nodes.par_iter().map(Slot::new).collect();
+        slots.par_iter().filter(|s| s.is_leaf()).for_each(|s| {
+            let count = s.right.load(Relaxed);
+            s.set_cost(count, costs.intersect * area(&s.bounds()) * count as f32);
+        });
+        let r = Restructure { costs: *costs, leaves, slots, root: bin.root };
+        // Inner nodes bottom-up (children before parents).
+        r.post_order(r.root, 0, &|_| true, &|i, _| {
+            let s = &r.slots[i as usize];
+            let (l, rt) = (&r.slots[s.left.load(Relaxed) as usize], &r.slots[s.right.load(Relaxed) as usize]);
+            let count = l.count() + rt.count();
+            s.set_cost(count, r.node_cost(&s.bounds(), count, l.cost() + rt.cost()));
+            (false, RoundStats::default())
+        });
         r
     }
 
@@ -159,93 +251,142 @@ impl Restructure {
     }
 
     /// Cost of the whole tree relative to the root's area (with collapse).
-    pub fn root_cost(&self, bin: &Binary) -> f64 {
-        let a = f64::from(area(&bin.nodes[bin.root as usize].bounds));
+    pub fn root_cost(&self) -> f64 {
+        let root = &self.slots[self.root as usize];
+        let a = f64::from(area(&root.bounds()));
         if a > 0.0 {
-            f64::from(self.cost[bin.root as usize]) / a
+            f64::from(root.cost()) / a
         } else {
             0.0
         }
     }
 
+    /// Copies the current topology and boxes into `bin` (the tree this was made from).
+    pub fn write_back(&self, bin: &mut Binary) {
+        bin.nodes.par_iter_mut().zip(&self.slots).for_each(|(n, s)| *n = s.node());
+    }
+
+    /// Post-order visit of the inner nodes below `x` that `enter` accepts (a node not
+    /// accepted is skipped with its subtree): `visit(node, changed below)` returns
+    /// whether its subtree changed, and statistics. Subtrees of at least [`PAR_GRAIN`]
+    /// primitives are split between parallel tasks.
+    fn post_order<E, V>(&self, x: u32, depth: u32, enter: &E, visit: &V) -> (bool, RoundStats)
+    where
+        E: Fn(u32) -> bool + Sync,
+        V: Fn(u32, bool) -> (bool, RoundStats) + Sync,
+    {
+        let s = &self.slots[x as usize];
+        if s.is_leaf() || !enter(x) {
+            return (false, RoundStats::default());
+        }
+        if s.count() < PAR_GRAIN || depth >= PAR_DEPTH {
+            return self.post_order_serial(x, enter, visit);
+        }
+        let (l, r) = (s.left.load(Relaxed), s.right.load(Relaxed));
+        let ((a, sa), (b, sb)) =
+            rayon::join(|| self.post_order(l, depth + 1, enter, visit), || self.post_order(r, depth + 1, enter, visit));
+        let (c, sc) = visit(x, a || b);
+        (c, sa + sb + sc)
+    }
+
+    fn post_order_serial<E, V>(&self, top: u32, enter: &E, visit: &V) -> (bool, RoundStats)
+    where
+        E: Fn(u32) -> bool,
+        V: Fn(u32, bool) -> (bool, RoundStats),
+    {
+        let mut stats = RoundStats::default();
+        let mut stack: Vec<(u32, bool)> = vec![(top, false)];
+        let mut changed: Vec<bool> = Vec::new();
+        while let Some((x, post)) = stack.pop() {
+            let s = &self.slots[x as usize];
+            if post {
+                let b = changed.pop().unwrap_or(false);
+                let a = changed.pop().unwrap_or(false);
+                let (c, sc) = visit(x, a || b);
+                stats = stats + sc;
+                changed.push(c);
+            } else if s.is_leaf() || !enter(x) {
+                changed.push(false);
+            } else {
+                stack.push((x, true));
+                stack.push((s.right.load(Relaxed), false));
+                stack.push((s.left.load(Relaxed), false));
+            }
+        }
+        (changed.pop().unwrap_or(false), stats)
+    }
+
     /// One round: optimises the treelet of every inner node with at least `gamma`
     /// primitives below it, bottom-up.
-    pub fn round(&mut self, bin: &mut Binary, gamma: u32) {
-        // Heights at the start of the round, bucketed.
-        let n = bin.nodes.len();
-        let mut height = vec![0u32; n];
-        let mut stack: Vec<(u32, bool)> = vec![(bin.root, false)];
-        let mut max_h = 0;
-        while let Some((i, done)) = stack.pop() {
-            let node = bin.nodes[i as usize];
-            if node.is_leaf() {
-                continue;
-            }
-            if done {
-                let h = 1 + height[node.left as usize].max(height[node.right as usize]);
-                height[i as usize] = h;
-                max_h = max_h.max(h);
-            } else {
-                stack.push((i, true));
-                stack.push((node.right, false));
-                stack.push((node.left, false));
-            }
+    pub fn round(&mut self, gamma: u32) -> RoundStats {
+        let this = &*self;
+        let enter = |x: u32| this.slots[x as usize].count() >= gamma;
+        let (_, stats) = this.post_order(this.root, 0, &enter, &|x, below| this.settle(x, below));
+        stats
+    }
+
+    /// Optimises the treelet at `x` unless it is settled; returns whether the subtree
+    /// of `x` changed (`below`: whether it changed under the treelet's root already).
+    fn settle(&self, x: u32, below: bool) -> (bool, RoundStats) {
+        let s = &self.slots[x as usize];
+        if !below && s.settled.load(Relaxed) {
+            return (false, RoundStats { skipped: 1, ..Default::default() });
         }
-        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); max_h as usize + 1];
-        for i in 0..n {
-            if !bin.nodes[i].is_leaf() && self.count[i] >= gamma && height[i] > 0 {
-                buckets[height[i] as usize].push(i as u32);
-            }
-        }
-        for bucket in &buckets {
-            let updates: Vec<Update> = if bucket.len() > 64 {
-                bucket.par_iter().filter_map(|&root| self.optimise(bin, root)).collect()
-            } else {
-                bucket.iter().filter_map(|&root| self.optimise(bin, root)).collect()
-            };
-            for u in &updates {
+        match self.optimise(x) {
+            Some(u) => {
                 for &(node, l, r, b, c, count) in &u.entries[..u.len] {
-                    let nd = &mut bin.nodes[node as usize];
-                    nd.left = l;
-                    nd.right = r;
-                    nd.bounds = b;
-                    self.cost[node as usize] = c;
-                    self.count[node as usize] = count;
+                    let slot = &self.slots[node as usize];
+                    slot.set_inner(l, r, &b);
+                    slot.set_cost(count, c);
+                    slot.settled.store(false, Relaxed);
                 }
+                (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
+            }
+            None => {
+                s.settled.store(true, Relaxed);
+                (below, RoundStats { optimised: 1, ..Default::default() })
             }
         }
     }
 
     /// The optimal topology of the treelet rooted at `root`, if it is cheaper.
-    fn optimise(&self, bin: &Binary, root: u32) -> Option<Update> {
-        let nodes = &bin.nodes;
-        // Form the treelet.
-        let r = nodes[root as usize];
+    fn optimise(&self, root: u32) -> Option<Update> {
+        let slots = &self.slots;
+        // Form the treelet: expand the inner leaf of largest area until full.
+        let r = &slots[root as usize];
         let mut leaves = [0u32; TREELET_LEAVES];
-        let mut k = 2;
-        leaves[0] = r.left;
-        leaves[1] = r.right;
+        let mut inner = [false; TREELET_LEAVES];
+        let mut areas = [0f32; TREELET_LEAVES];
+        let mut boxes = [Aabb::EMPTY; SUBSETS];
         let mut internals = [0u32; TREELET_LEAVES - 1];
         internals[0] = root;
         let mut ni = 1;
+        let look = |id: u32| {
+            let s = &slots[id as usize];
+            let b = s.bounds();
+            (b, !s.is_leaf(), area(&b))
+        };
+        for (slot, id) in [(0, r.left.load(Relaxed)), (1, r.right.load(Relaxed))] {
+            leaves[slot] = id;
+            (boxes[1 << slot], inner[slot], areas[slot]) = look(id);
+        }
+        let mut k = 2;
         while k < self.leaves {
-            let mut pick: Option<(usize, f32)> = None;
-            for (slot, &l) in leaves[..k].iter().enumerate() {
-                let node = &nodes[l as usize];
-                if node.is_leaf() {
-                    continue;
-                }
-                let a = area(&node.bounds);
-                if pick.is_none_or(|(_, best)| a > best) {
-                    pick = Some((slot, a));
+            let mut pick: Option<usize> = None;
+            for i in 0..k {
+                if inner[i] && pick.is_none_or(|p| areas[i] > areas[p]) {
+                    pick = Some(i);
                 }
             }
-            let Some((slot, _)) = pick else { break };
-            let expanded = leaves[slot];
-            internals[ni] = expanded;
+            let Some(slot) = pick else { break };
+            let e = &slots[leaves[slot] as usize];
+            internals[ni] = leaves[slot];
             ni += 1;
-            leaves[slot] = nodes[expanded as usize].left;
-            leaves[k] = nodes[expanded as usize].right;
+            let (l, rt) = (e.left.load(Relaxed), e.right.load(Relaxed));
+            for (slot, id) in [(slot, l), (k, rt)] {
+                leaves[slot] = id;
+                (boxes[1 << slot], inner[slot], areas[slot]) = look(id);
+            }
             k += 1;
         }
         if k < 3 {
@@ -253,14 +394,13 @@ impl Restructure {
         }
         // Dynamic programming over the subsets of the k leaves.
         let full = (1usize << k) - 1;
-        let mut boxes = [Aabb::EMPTY; SUBSETS];
         let mut counts = [0u32; SUBSETS];
         let mut copt = [0f32; SUBSETS];
         let mut popt = [0u8; SUBSETS];
         for (i, &l) in leaves[..k].iter().enumerate() {
-            boxes[1 << i] = nodes[l as usize].bounds;
-            counts[1 << i] = self.count[l as usize];
-            copt[1 << i] = self.cost[l as usize];
+            let s = &slots[l as usize];
+            counts[1 << i] = s.count();
+            copt[1 << i] = s.cost();
         }
         for s in 1..=full {
             let low = s & s.wrapping_neg();
@@ -269,35 +409,19 @@ impl Restructure {
             }
             boxes[s] = boxes[s ^ low].union(&boxes[low]);
             counts[s] = counts[s ^ low] + counts[low];
-            // Partitions (P, S \ P) with the lowest leaf in P: P = low | q for every
-            // proper subset q of the rest.
-            let rest = s ^ low;
-            let mut best = f32::INFINITY;
-            let mut best_p = low;
-            let mut q = (rest - 1) & rest;
-            loop {
-                let p = low | q;
-                let c = copt[p] + copt[s ^ p];
-                if c < best {
-                    best = c;
-                    best_p = p;
-                }
-                if q == 0 {
-                    break;
-                }
-                q = (q - 1) & rest;
-            }
+            let (best, best_p) = best_partition(&copt, s, low);
             copt[s] = self.node_cost(&boxes[s], counts[s], best);
             popt[s] = best_p as u8;
         }
-        if copt[full] >= self.cost[root as usize] * KEEP_FACTOR || copt[full].is_nan() {
+        if copt[full] >= r.cost() * KEEP_FACTOR || copt[full].is_nan() {
             return None;
         }
         // Rebuild with the treelet's inner nodes, root first.
         let mut update = Update { len: 0, entries: [(0, 0, 0, Aabb::EMPTY, 0.0, 0); TREELET_LEAVES - 1] };
-        let mut next = 0;
-        let mut work: Vec<(usize, u32)> = vec![(full, internals[0])];
-        next += 1;
+        let mut next = 1;
+        let mut work = [(0usize, 0u32); TREELET_LEAVES];
+        let mut top = 1;
+        work[0] = (full, internals[0]);
         let node_of = |sub: usize, next: &mut usize| -> u32 {
             if sub.count_ones() == 1 {
                 leaves[sub.trailing_zeros() as usize]
@@ -307,7 +431,9 @@ impl Restructure {
                 id
             }
         };
-        while let Some((s, id)) = work.pop() {
+        while top > 0 {
+            top -= 1;
+            let (s, id) = work[top];
             let p = popt[s] as usize;
             let (a, b) = (p, s ^ p);
             let la = node_of(a, &mut next);
@@ -315,10 +441,12 @@ impl Restructure {
             update.entries[update.len] = (id, la, lb, boxes[s], copt[s], counts[s]);
             update.len += 1;
             if a.count_ones() > 1 {
-                work.push((a, la));
+                work[top] = (a, la);
+                top += 1;
             }
             if b.count_ones() > 1 {
-                work.push((b, lb));
+                work[top] = (b, lb);
+                top += 1;
             }
         }
         debug_assert_eq!(next, ni);
@@ -327,16 +455,46 @@ impl Restructure {
 
     /// Marks every inner node whose subtree is cheaper as one leaf (at most
     /// [`MAX_LEAF`] primitives).
-    pub fn collapse_flags(&self, bin: &Binary) -> Vec<bool> {
-        let mut flags = vec![false; bin.nodes.len()];
-        for (i, node) in bin.nodes.iter().enumerate() {
-            if node.is_leaf() || self.count[i] as usize > MAX_LEAF {
-                continue;
-            }
-            let leaf = self.costs.intersect * area(&node.bounds) * self.count[i] as f32;
-            flags[i] = leaf <= self.cost[i];
+    pub fn collapse_flags(&self) -> Vec<bool> {
+        self.slots
+            .par_iter()
+            .map(|s| {
+                if s.is_leaf() || s.count() as usize > MAX_LEAF {
+                    return false;
+                }
+                let leaf = self.costs.intersect * area(&s.bounds()) * s.count() as f32;
+                leaf <= s.cost()
+            })
+            .collect()
+    }
+}
+
+/// The cheapest partition of subset `s` (lowest member `low`) into two non-empty
+/// subsets: (copt[P] + copt[S∖P], P). P runs over `low` plus every proper subset of
+/// the rest, largest first, and the first strictly cheapest wins (the GPU kernel's
+/// order). Branch-free: cost bits and the partition form one integer key, which
+/// orders like the cost because costs are never negative; NaN sums never win.
+#[inline]
+fn best_partition(copt: &[f32; SUBSETS], s: usize, low: usize) -> (f32, usize) {
+    let rest = s ^ low;
+    // The tie-break field is 255 - P (never 0): on equal costs the larger P wins.
+    let none = u64::from(f32::INFINITY.to_bits()) << 8;
+    let mut best = none;
+    let mut q = (rest - 1) & rest;
+    loop {
+        let p = low | q;
+        let c = copt[p] + copt[s ^ p];
+        let key = (u64::from(c.to_bits()) << 8) | (255 - p) as u64;
+        best = best.min(key);
+        if q == 0 {
+            break;
         }
-        flags
+        q = (q - 1) & rest;
+    }
+    if best == none {
+        (f32::INFINITY, low)
+    } else {
+        (f32::from_bits((best >> 8) as u32), 255 - (best & 255) as usize)
     }
 }
 
