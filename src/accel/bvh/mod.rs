@@ -175,6 +175,18 @@ impl Binary {
         (split, count)
     }
 
+    /// As [`Binary::gather`] without allocating, for a small subtree (recursive: its
+    /// depth is below its primitive count, at most [`MAX_LEAF`] when collapsing).
+    fn gather_small(&self, n: u32, out: &mut Vec<u32>) {
+        let node = &self.nodes[n as usize];
+        if node.is_leaf() {
+            out.extend_from_slice(&self.prims[node.range()]);
+        } else {
+            self.gather_small(node.left, out);
+            self.gather_small(node.right, out);
+        }
+    }
+
     /// Every primitive in the subtree of `n`, in depth-first order.
     pub fn gather(&self, n: u32, out: &mut Vec<u32>) {
         let mut stack = vec![n];
@@ -235,7 +247,7 @@ impl Flattener<'_> {
         if self.collapse.is_some_and(|c| c[n as usize]) {
             let start = self.gathered.len();
             let mut list = std::mem::take(&mut self.gathered);
-            self.bin.gather(n, &mut list);
+            self.bin.gather_small(n, &mut list);
             self.gathered = list;
             return Child::Range(start, self.gathered.len() - start, node.bounds, true);
         }
