@@ -27,7 +27,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use super::{BNode, Binary, LEAF_FLAG, MAX_LEAF};
@@ -241,7 +241,12 @@ impl Restructure {
     }
 
     fn node_cost(&self, b: &Aabb, count: u32, children: f32) -> f32 {
-        let a = area(b);
+        self.cost_of_area(area(b), count, children)
+    }
+
+    /// [`Restructure::node_cost`] of a node of area `a`.
+    #[inline]
+    fn cost_of_area(&self, a: f32, count: u32, children: f32) -> f32 {
         let split = self.costs.traversal * a + children;
         if count as usize <= MAX_LEAF {
             split.min(self.costs.intersect * a * count as f32)
@@ -357,14 +362,14 @@ impl Restructure {
         let mut leaves = [0u32; TREELET_LEAVES];
         let mut inner = [false; TREELET_LEAVES];
         let mut areas = [0f32; TREELET_LEAVES];
-        let mut boxes = [Aabb::EMPTY; SUBSETS];
+        let mut boxes = [Box4::EMPTY; SUBSETS];
         let mut internals = [0u32; TREELET_LEAVES - 1];
         internals[0] = root;
         let mut ni = 1;
         let look = |id: u32| {
             let s = &slots[id as usize];
             let b = s.bounds();
-            (b, !s.is_leaf(), area(&b))
+            (Box4::from(&b), !s.is_leaf(), area(&b))
         };
         for (slot, id) in [(0, r.left.load(Relaxed)), (1, r.right.load(Relaxed))] {
             leaves[slot] = id;
@@ -408,9 +413,10 @@ impl Restructure {
                 continue;
             }
             boxes[s] = boxes[s ^ low].union(&boxes[low]);
+            let a = boxes[s].area();
             counts[s] = counts[s ^ low] + counts[low];
             let (best, best_p) = best_partition(&copt, s, low);
-            copt[s] = self.node_cost(&boxes[s], counts[s], best);
+            copt[s] = self.cost_of_area(a, counts[s], best);
             popt[s] = best_p as u8;
         }
         if copt[full] >= r.cost() * KEEP_FACTOR || copt[full].is_nan() {
@@ -438,7 +444,7 @@ impl Restructure {
             let (a, b) = (p, s ^ p);
             let la = node_of(a, &mut next);
             let lb = node_of(b, &mut next);
-            update.entries[update.len] = (id, la, lb, boxes[s], copt[s], counts[s]);
+            update.entries[update.len] = (id, la, lb, boxes[s].aabb(), copt[s], counts[s]);
             update.len += 1;
             if a.count_ones() > 1 {
                 work[top] = (a, la);
@@ -466,6 +472,38 @@ impl Restructure {
                 leaf <= s.cost()
             })
             .collect()
+    }
+}
+
+/// A box in SIMD lanes for the dynamic programming: the same bits as [`Aabb`]'s union
+/// and [`area`] (lane-wise min, max and subtraction are exact, and the area sums in the
+/// same order).
+#[derive(Debug, Clone, Copy)]
+struct Box4 {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Box4 {
+    const EMPTY: Box4 = Box4 { min: Vec3A::splat(f32::INFINITY), max: Vec3A::splat(f32::NEG_INFINITY) };
+
+    fn from(b: &Aabb) -> Box4 {
+        Box4 { min: b.min.into(), max: b.max.into() }
+    }
+    fn aabb(&self) -> Aabb {
+        Aabb { min: self.min.into(), max: self.max.into() }
+    }
+    #[inline]
+    fn union(&self, o: &Box4) -> Box4 {
+        Box4 { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+    #[inline]
+    fn area(&self) -> f32 {
+        if self.min.cmpgt(self.max).any() {
+            return 0.0;
+        }
+        let e = self.max - self.min;
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 }
 
