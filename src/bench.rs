@@ -107,7 +107,7 @@ fn median_phases(runs: &[Vec<crate::accel::Phase>]) -> Vec<crate::accel::Phase> 
         .map(|p| {
             let mut v: Vec<f64> =
                 runs.iter().filter_map(|r| r.iter().find(|q| q.name == p.name)).map(|q| q.ms).collect();
-            crate::accel::Phase { name: p.name.clone(), ms: median(&mut v) }
+            crate::accel::Phase { name: p.name.clone(), ms: median(&mut v), detail: p.detail.clone() }
         })
         .collect()
 }

@@ -505,7 +505,10 @@ fn run(cli: Cli) -> Result<()> {
                 println!("  bytes         {} ({:.2} per primitive)", st.bytes, st.bytes as f64 / n);
                 println!("  SAH cost      {:.3}", st.sah_cost);
                 for ph in &st.phases {
-                    println!("  phase         {:<22} {:.2} ms", ph.name, ph.ms);
+                    match &ph.detail {
+                        Some(d) => println!("  phase         {:<22} {:.2} ms  ({d})", ph.name, ph.ms),
+                        None => println!("  phase         {:<22} {:.2} ms", ph.name, ph.ms),
+                    }
                 }
                 println!(
                     "  validate      {}",

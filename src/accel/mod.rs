@@ -145,6 +145,9 @@ pub struct BuildStats {
 pub struct Phase {
     pub name: String,
     pub ms: f64,
+    /// What the phase did, where it says more than its time (e.g. treelets optimised).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
 }
 
 /// CPU traversal, the test oracle of every structure: each implements `traverse` (in

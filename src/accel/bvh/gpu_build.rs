@@ -285,9 +285,9 @@ impl GpuBuilder {
         drop(steps);
         let gpu_wall = t.elapsed().as_secs_f64() * 1e3;
         if gpu.is_empty() {
-            phases.push(Phase { name: "gpu build (no timestamps)".into(), ms: gpu_wall });
+            phases.push(Phase { name: "gpu build (no timestamps)".into(), ms: gpu_wall, detail: None });
         }
-        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms }));
+        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
         t = Instant::now();
         let header: Vec<u32> =
             bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.header, 0, u64::from(BUILD_HDR_WORDS) * 4)?);

@@ -359,8 +359,14 @@ impl Bvh {
                 let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
                 let mut work = treelet::Restructure::with_leaves(&bin, &costs, tp.leaves);
                 for round in 0..tp.rounds {
-                    work.round(tp.gamma(round));
+                    let rs = work.round(tp.gamma(round));
                     lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);
+                    if let Some(p) = phases.last_mut() {
+                        p.detail = Some(format!(
+                            "{} treelets optimised, {} rewritten, {} skipped as settled",
+                            rs.optimised, rs.rewritten, rs.skipped
+                        ));
+                    }
                 }
                 work.write_back(&mut bin);
                 let flags = work.collapse_flags();
@@ -603,7 +609,7 @@ fn contains(outer: &Aabb, inner: &Aabb) -> bool {
 
 /// Records the time since `t` as phase `name` and restarts `t`.
 pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut Instant) {
-    phases.push(Phase { name: name.to_string(), ms: t.elapsed().as_secs_f64() * 1e3 });
+    phases.push(Phase { name: name.to_string(), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
     *t = Instant::now();
 }
 
