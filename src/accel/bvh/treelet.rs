@@ -133,10 +133,13 @@ struct Slot {
 }
 
 impl Slot {
+    /// A box as the six values of `bounds`.
+    fn lanes(b: &Aabb) -> [f32; 6] {
+        [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
+    }
     fn new(n: &BNode) -> Slot {
-        let b = [n.bounds.min.x, n.bounds.min.y, n.bounds.min.z, n.bounds.max.x, n.bounds.max.y, n.bounds.max.z];
         Slot {
-            bounds: b.map(|v| AtomicU32::new(v.to_bits())),
+            bounds: Self::lanes(&n.bounds).map(|v| AtomicU32::new(v.to_bits())),
             left: AtomicU32::new(n.left),
             right: AtomicU32::new(n.right),
             count: AtomicU32::new(0),
@@ -165,8 +168,7 @@ impl Slot {
         self.cost.store(cost.to_bits(), Relaxed);
     }
     fn set_inner(&self, left: u32, right: u32, b: &Aabb) {
-        let v = [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z];
-        for (a, v) in self.bounds.iter().zip(v) {
+        for (a, v) in self.bounds.iter().zip(Self::lanes(b)) {
             a.store(v.to_bits(), Relaxed);
         }
         self.left.store(left, Relaxed);
