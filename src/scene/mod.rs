@@ -278,17 +278,28 @@ impl Scene {
 
     /// The bounding box of every primitive.
     pub fn bounds(&self) -> Aabb {
-        let mut b = Aabb::EMPTY;
-        for t in &self.triangles {
-            for &i in t {
-                b.grow(self.positions[i as usize]);
-            }
-        }
+        use rayon::prelude::*;
+        let tris = self
+            .triangles
+            .par_iter()
+            .fold(
+                || Aabb::EMPTY,
+                |mut b, t| {
+                    for &i in t {
+                        b.grow(self.positions[i as usize]);
+                    }
+                    b
+                },
+            )
+            .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
+        let mut b = tris;
         for s in &self.spheres {
             b.grow(s.center - Vec3::splat(s.radius));
             b.grow(s.center + Vec3::splat(s.radius));
         }
-        b
+        // The parallel reduction may meet -0 and +0 in either order: one sign of zero,
+        // so the box is the same bits whatever the thread count.
+        Aabb { min: b.min + Vec3::ZERO, max: b.max + Vec3::ZERO }
     }
 
     /// Number of primitives (triangles, then spheres).

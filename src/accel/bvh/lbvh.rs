@@ -180,14 +180,22 @@ pub fn build(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binar
     }
     let keys = sorted_keys(refs);
     lap(phases, "morton + sort", t);
-    let prims: Vec<u32> = keys.iter().map(|k| *k as u32).collect();
+    let prims: Vec<u32> = keys.par_iter().map(|k| *k as u32).collect();
     if n == 1 {
         return Binary { nodes: vec![BNode::leaf(refs.bounds[0], 0, 1)], root: 0, prims };
     }
-    let inner: Vec<(u32, u32)> = (0..n - 1).into_par_iter().map(|i| inner_children(&keys, i)).collect();
-    let mut nodes: Vec<BNode> = Vec::with_capacity(2 * n - 1);
-    nodes.extend(inner.iter().map(|&(l, r)| BNode { bounds: Aabb::EMPTY, left: l, right: r }));
-    nodes.extend(prims.iter().enumerate().map(|(j, &p)| BNode::leaf(refs.bounds[p as usize], j as u32, 1)));
+    let nodes: Vec<BNode> = (0..2 * n - 1)
+        .into_par_iter()
+        .map(|i| {
+            if i < n - 1 {
+                let (left, right) = inner_children(&keys, i);
+                BNode { bounds: Aabb::EMPTY, left, right }
+            } else {
+                let j = i - (n - 1);
+                BNode::leaf(refs.bounds[prims[j] as usize], j as u32, 1)
+            }
+        })
+        .collect();
     lap(phases, "hierarchy", t);
     Binary { nodes, root: 0, prims }
 }

@@ -35,6 +35,7 @@ use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
 pub mod binned;
+mod flatten;
 pub mod gpu_build;
 pub mod lbvh;
 pub mod treelet;
@@ -87,8 +88,14 @@ impl PrimRefs {
     pub fn new(scene: &Scene) -> PrimRefs {
         use rayon::prelude::*;
         let n = scene.prim_count() as u32;
-        let bounds: Vec<Aabb> = (0..n).into_par_iter().map(|i| prim::bounds(&prim::geom(scene, i))).collect();
-        let centroids = bounds.par_iter().map(|b| (b.min + b.max) * 0.5).collect();
+        let (mut bounds, mut centroids) = (Vec::new(), Vec::new());
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let b = prim::bounds(&prim::geom(scene, i));
+                (b, (b.min + b.max) * 0.5)
+            })
+            .unzip_into_vecs(&mut bounds, &mut centroids);
         PrimRefs { bounds, centroids }
     }
 
@@ -217,113 +224,6 @@ pub struct Bvh {
     pub phases: Vec<Phase>,
 }
 
-/// A child on its way into the GPU layout.
-enum Child {
-    Node(u32),
-    /// A leaf of the canonical tree or a collapsed subtree: a range of `Binary::prims`
-    /// (collapsed subtrees are gathered into `Flattener::gathered` first) and its box.
-    Range(usize, usize, Aabb, bool),
-    /// An oversized leaf being split.
-    Owned(Vec<u32>),
-}
-
-struct Flattener<'a> {
-    bin: &'a Binary,
-    refs: &'a PrimRefs,
-    collapse: Option<&'a [bool]>,
-    nodes: Vec<GpuBvhNode>,
-    indices: Vec<u32>,
-    gathered: Vec<u32>,
-    depth: u32,
-}
-
-impl Flattener<'_> {
-    fn child(&mut self, n: u32) -> Child {
-        let node = &self.bin.nodes[n as usize];
-        if node.is_leaf() {
-            let r = node.range();
-            return Child::Range(r.start, r.len(), node.bounds, false);
-        }
-        if self.collapse.is_some_and(|c| c[n as usize]) {
-            let start = self.gathered.len();
-            let mut list = std::mem::take(&mut self.gathered);
-            self.bin.gather_small(n, &mut list);
-            self.gathered = list;
-            return Child::Range(start, self.gathered.len() - start, node.bounds, true);
-        }
-        Child::Node(n)
-    }
-
-    /// Writes a leaf of `list` (at most MAX_LEAF primitives); returns its reference.
-    fn leaf(&mut self, list: &[u32]) -> u32 {
-        let first = self.indices.len() as u32;
-        self.indices.extend_from_slice(list);
-        LEAF_REF | (first << 3) | (list.len() as u32 - 1)
-    }
-
-    /// Emits `c` below an inner node at `depth`: its reference and box.
-    fn emit(&mut self, c: Child, depth: u32) -> (u32, Aabb) {
-        match c {
-            Child::Range(_, 0, _, _) => (EMPTY_REF, Aabb::EMPTY),
-            Child::Range(start, len, b, gathered) if len <= MAX_LEAF => {
-                let first = self.indices.len() as u32;
-                let src = if gathered { &self.gathered } else { &self.bin.prims };
-                self.indices.extend_from_slice(&src[start..start + len]);
-                (LEAF_REF | (first << 3) | (len as u32 - 1), b)
-            }
-            Child::Range(start, len, _, gathered) => {
-                let src = if gathered { &self.gathered } else { &self.bin.prims };
-                self.emit(Child::Owned(src[start..start + len].to_vec()), depth)
-            }
-            Child::Owned(list) if list.is_empty() => (EMPTY_REF, Aabb::EMPTY),
-            Child::Owned(list) if list.len() <= MAX_LEAF => (self.leaf(&list), self.refs.union(&list)),
-            Child::Owned(mut list) => {
-                // Too many for one leaf (identical centroids, or the builder's depth
-                // limit): split at the median centroid of the widest axis.
-                let cb = list.iter().fold(Aabb::EMPTY, |mut b, &p| {
-                    b.grow(self.refs.centroids[p as usize]);
-                    b
-                });
-                let axis = cb.extent().max_position();
-                list.sort_by(|&a, &b| {
-                    let (ca, cb) = (self.refs.centroids[a as usize][axis], self.refs.centroids[b as usize][axis]);
-                    ca.total_cmp(&cb).then(a.cmp(&b))
-                });
-                let right = list.split_off(list.len() / 2);
-                self.emit_inner(Child::Owned(list), Child::Owned(right), depth + 1)
-            }
-            Child::Node(n) => {
-                let node = self.bin.nodes[n as usize];
-                let l = self.child(node.left);
-                let r = self.child(node.right);
-                self.emit_inner(l, r, depth + 1)
-            }
-        }
-    }
-
-    /// Emits an inner node at `depth` (1 = root) with children `l`, `r`.
-    fn emit_inner(&mut self, l: Child, r: Child, depth: u32) -> (u32, Aabb) {
-        self.depth = self.depth.max(depth);
-        let me = self.nodes.len();
-        self.nodes.push([[0; 4]; 4]);
-        let (lref, lbox) = self.emit(l, depth);
-        let (rref, rbox) = self.emit(r, depth);
-        let bits = |v: Vec3, w: u32| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), w];
-        let (lbox_g, rbox_g) = (gpu_box(&lbox), gpu_box(&rbox));
-        self.nodes[me] = [bits(lbox_g.min, lref), bits(lbox_g.max, rref), bits(rbox_g.min, 0), bits(rbox_g.max, 0)];
-        (me as u32, lbox.union(&rbox))
-    }
-}
-
-/// Empty boxes are stored as zeros (the kernel checks the reference first).
-fn gpu_box(b: &Aabb) -> Aabb {
-    if b.is_empty() {
-        Aabb { min: Vec3::ZERO, max: Vec3::ZERO }
-    } else {
-        *b
-    }
-}
-
 fn unpack_box(min: [u32; 4], max: [u32; 4]) -> Aabb {
     let v = |a: [u32; 4]| Vec3::new(f32::from_bits(a[0]), f32::from_bits(a[1]), f32::from_bits(a[2]));
     Aabb { min: v(min), max: v(max) }
@@ -382,39 +282,11 @@ impl Bvh {
     }
 
     /// Turns a canonical tree into the GPU layout. `collapse[n]` makes inner node `n`
-    /// a leaf of its subtree's primitives.
+    /// a leaf of its subtree's primitives. Depth-first order, left child first (see
+    /// [`flatten`] for how the work is split between threads).
     pub fn flatten(bin: &Binary, refs: &PrimRefs, collapse: Option<&[bool]>, bounds: Aabb, builder: BvhBuilder) -> Bvh {
-        let mut f = Flattener {
-            bin,
-            refs,
-            collapse,
-            nodes: Vec::with_capacity(refs.len()),
-            indices: Vec::with_capacity(refs.len()),
-            gathered: Vec::new(),
-            depth: 0,
-        };
-        // The root is always an inner node; a one-leaf tree gets an empty sibling.
-        match f.child(bin.root) {
-            Child::Node(n) => {
-                let node = bin.nodes[n as usize];
-                let l = f.child(node.left);
-                let r = f.child(node.right);
-                f.emit_inner(l, r, 1);
-            }
-            leaf => {
-                f.emit_inner(leaf, Child::Owned(Vec::new()), 1);
-            }
-        }
-        Bvh {
-            bounds,
-            nodes: f.nodes,
-            indices: f.indices,
-            depth: f.depth,
-            prims: refs.len(),
-            builder,
-            build_ms: 0.0,
-            phases: Vec::new(),
-        }
+        let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse);
+        Bvh { bounds, nodes, indices, depth, prims: refs.len(), builder, build_ms: 0.0, phases: Vec::new() }
     }
 
     /// Bytes as uploaded.
