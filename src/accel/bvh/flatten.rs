@@ -45,7 +45,8 @@ fn flatten_from(
             part_roots(bin, collapse, c, 1, 1, &mut roots);
         }
     }
-    let share = refs.len() / roots.len().max(1) * 2;
+    // An even share; a larger part grows its vectors (large ones move by remapping).
+    let share = refs.len() / roots.len().max(1) + 1;
     let parts: Vec<Part> = roots
         .par_iter()
         .map(|&(n, depth)| {
