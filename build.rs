@@ -1,4 +1,5 @@
-//! Compiles every `shaders/*.comp` to SPIR-V with shaderc and embeds it.
+//! Compiles every `shaders/*.comp` to SPIR-V with shaderc and embeds it, and generates
+//! the straight-line treelet programme for the CPU (`src/accel/bvh/dp_gen.rs`).
 //!
 //! `trace.comp` is compiled once per (structure, geometry) variant: a scene without
 //! spheres gets a kernel that declares no sphere buffer at all, one without triangles
@@ -18,6 +19,9 @@ mod bindings {
     include!("src/gpu/bindings.rs");
 }
 
+#[path = "src/accel/bvh/dp_gen.rs"]
+mod dp_gen;
+
 /// Geometry variants of the trace kernel: (suffix, HAS_TRIANGLES, HAS_SPHERES).
 const GEOMETRY: &[(&str, u32, u32)] = &[("tris", 1, 0), ("spheres", 0, 1), ("all", 1, 1)];
 
@@ -27,6 +31,8 @@ fn main() {
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     println!("cargo:rerun-if-changed=src/gpu/bindings.rs");
     println!("cargo:rerun-if-changed=shaders");
+    println!("cargo:rerun-if-changed=src/accel/bvh/dp_gen.rs");
+    std::fs::write(out_dir.join("treelet_dp.rs"), dp_gen::rust()).expect("write treelet_dp.rs to OUT_DIR");
 
     let opened: Rc<RefCell<BTreeSet<PathBuf>>> = Rc::default();
     let compiler = shaderc::Compiler::new().expect("shaderc compiler");

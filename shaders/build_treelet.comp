@@ -25,6 +25,54 @@ shared uint s_active;
 
 float aux_cost(uint i) { return uintBitsToFloat(aux[i].z); }
 
+// The box and primitive count of leaf subset s: the union folded from its highest
+// leaf down, which is the CPU's order (box(S) = box(S without its lowest leaf) joined
+// with the lowest leaf's), so the bits match.
+// Per-thread tables of the treelet being solved: its leaves' boxes and counts, and the
+// optimal cost of every leaf subset (leaf i alone at 1 << i).
+vec3 llo[MAXK];
+vec3 lhi[MAXK];
+uint lcount[MAXK];
+float copt[SUBSETS];
+
+void subset_box(uint s, out vec3 lo, out vec3 hi, out uint count) {
+    int h = findMSB(s);
+    lo = llo[h];
+    hi = lhi[h];
+    count = lcount[h];
+    uint t = s ^ (1u << uint(h));
+    for (uint g = 0u; g < MAXK && t != 0u; ++g) {
+        h = findMSB(t);
+        lo = min(lo, llo[h]);
+        hi = max(hi, lhi[h]);
+        count += lcount[h];
+        t ^= 1u << uint(h);
+    }
+}
+
+// The cheapest split of subset s (two or more leaves) given the costs of its proper
+// subsets: (cost sum, first part as float bits). Partitions (P, S \ P) with the lowest
+// leaf in P: P = low | q, q a proper subset of the rest, descending, in the CPU's
+// order; the first strictly cheapest wins; +inf and the lowest leaf when none is finite.
+vec2 best_split(uint s) {
+    uint low = s & (~s + 1u);
+    uint rest = s ^ low;
+    float best = uintBitsToFloat(0x7f800000u); // +inf
+    uint best_p = low;
+    uint q = (rest - 1u) & rest;
+    for (uint g = 0u; g < SUBSETS; ++g) {
+        uint p = low | q;
+        precise float c = copt[p] + copt[s ^ p];
+        if (c < best) {
+            best = c;
+            best_p = p;
+        }
+        if (q == 0u) break;
+        q = (q - 1u) & rest;
+    }
+    return vec2(best, uintBitsToFloat(best_p));
+}
+
 void restructure(uint root) {
     uint leaf[MAXK];
     uint internal[MAXK - 1u];
@@ -55,45 +103,25 @@ void restructure(uint root) {
         k += 1u;
     }
     if (k < 3u) return;
-    // Dynamic programming over the subsets of the k leaves.
-    vec3 lo[SUBSETS];
-    vec3 hi[SUBSETS];
-    uint count[SUBSETS];
-    float copt[SUBSETS];
-    uint popt[SUBSETS];
+    // Dynamic programming over the subsets of the k leaves. Only the optimal costs are
+    // kept per subset: llvmpipe gives private arrays per-lane scratch memory, set up
+    // at every dispatch step, so a subset's box, count and best split are recomputed
+    // where needed instead of stored (about a sixth of the scratch of storing them).
     for (uint i = 0u; i < k; ++i) {
         uint l = leaf[i];
-        uint m = 1u << i;
-        lo[m] = node_min(l);
-        hi[m] = node_max(l);
-        count[m] = aux[l].y;
-        copt[m] = aux_cost(l);
+        llo[i] = node_min(l);
+        lhi[i] = node_max(l);
+        lcount[i] = aux[l].y;
+        copt[1u << i] = aux_cost(l);
     }
     uint full = (1u << k) - 1u;
     for (uint s = 3u; s <= full; ++s) {
-        uint low = s & (~s + 1u);
-        if (s == low) continue;
-        uint rest = s ^ low;
-        lo[s] = min(lo[rest], lo[low]);
-        hi[s] = max(hi[rest], hi[low]);
-        count[s] = count[rest] + count[low];
-        // Partitions (P, S \ P) with the lowest leaf in P: P = low | q, q a proper
-        // subset of the rest, in the CPU's order.
-        float best = uintBitsToFloat(0x7f800000u); // +inf
-        uint best_p = low;
-        uint q = (rest - 1u) & rest;
-        for (uint g = 0u; g < SUBSETS; ++g) {
-            uint p = low | q;
-            precise float c = copt[p] + copt[s ^ p];
-            if (c < best) {
-                best = c;
-                best_p = p;
-            }
-            if (q == 0u) break;
-            q = (q - 1u) & rest;
-        }
-        copt[s] = node_cost(lo[s], hi[s], count[s], best);
-        popt[s] = best_p;
+        if (bitCount(s) < 2) continue;
+        vec3 lo;
+        vec3 hi;
+        uint count;
+        subset_box(s, lo, hi, count);
+        copt[s] = node_cost(lo, hi, count, best_split(s).x);
     }
     precise float threshold = aux_cost(root) * pc.keep;
     if (!(copt[full] < threshold)) return;
@@ -108,7 +136,7 @@ void restructure(uint root) {
         sp -= 1u;
         uint s = stack_s[sp];
         uint id = stack_id[sp];
-        uint a = popt[s];
+        uint a = floatBitsToUint(best_split(s).y);
         uint b = s ^ a;
         uint la;
         if (bitCount(a) == 1u) {
@@ -124,9 +152,13 @@ void restructure(uint root) {
             lb = internal[next];
             next += 1u;
         }
-        nodes[2u * id] = uvec4(floatBitsToUint(lo[s]), la);
-        nodes[2u * id + 1u] = uvec4(floatBitsToUint(hi[s]), lb);
-        aux[id].y = count[s];
+        vec3 lo;
+        vec3 hi;
+        uint count;
+        subset_box(s, lo, hi, count);
+        nodes[2u * id] = uvec4(floatBitsToUint(lo), la);
+        nodes[2u * id + 1u] = uvec4(floatBitsToUint(hi), lb);
+        aux[id].y = count;
         aux[id].z = floatBitsToUint(copt[s]);
         aux[la].x = id;
         aux[lb].x = id;
