@@ -9,8 +9,11 @@
 //   FINALIZE (2): aux.z = COLLAPSED where one leaf is cheaper and COLLAPSE (4) is set
 //                 (treelet::Restructure::collapse_flags), else the subtree's number
 //                 of output inner nodes.
+//   HEIGHT (8):   node heights for the restructuring schedule (leaves 0), and the
+//                 schedule's per-height counters zeroed.
 #define USE_HEADER 1
 #define USE_NODES 1
+#define USE_LEVELS 1
 #include "build/common.glsl"
 
 layout(local_size_x = BUILD_GROUP) in;
@@ -18,6 +21,7 @@ layout(local_size_x = BUILD_GROUP) in;
 const uint FIT = 1u;
 const uint FINALIZE = 2u;
 const uint COLLAPSE = 4u;
+const uint HEIGHT = 8u;
 
 uint inner_nodes(uint i) {
     return (aux[i].z & COLLAPSED) != 0u ? 0u : aux[i].z;
@@ -30,6 +34,10 @@ void main() {
     bool climbing = j < pc.n;
     uint cur = pc.n - 1u + j;
     if (climbing && (pc.a & FINALIZE) != 0u) aux[cur].z = 0u;
+    if ((pc.a & HEIGHT) != 0u) {
+        if (climbing) levels[lv_height(cur)] = 0u;
+        for (uint w = j; w < LV_ARGS; w += pc.n) levels[w] = 0u;
+    }
     // Every lane runs the atomic at every step, idle lanes on the spare entry 2n-1:
     // llvmpipe returned wrong old values from an atomic that only some lanes ran.
     uint spare = 2u * pc.n - 1u;
@@ -64,6 +72,9 @@ void main() {
                     collapse = leaf <= uintBitsToFloat(aux[p].z);
                 }
                 aux[p].z = collapse ? COLLAPSED : 1u + inner_nodes(l) + inner_nodes(r);
+            }
+            if ((pc.a & HEIGHT) != 0u) {
+                levels[lv_height(p)] = 1u + max(levels[lv_height(l)], levels[lv_height(r)]);
             }
             memoryBarrierBuffer();
             cur = p;

@@ -1,19 +1,24 @@
 #version 460
-// One round of treelet restructuring (Karras & Aila 2013), bit for bit as
-// treelet::Restructure::round on the CPU. Each thread climbs from one leaf as in
-// build_fit.comp; a node reached by the second thread, with at least gamma primitives
-// below it, has both subtrees final and becomes a treelet root, which that thread
-// optimises: the roots of each step are packed into the first lanes, and each lane
-// optimises one on its own: it forms the treelet (expanding the largest-area treelet leaf
-// until there are k), runs the dynamic programme over the leaf subsets in ascending
-// order (every subset after its subsets), and writes the new topology if its cost is
-// below cost * keep. A treelet reads and writes only its own subtree, so the result
-// does not depend on scheduling. No subgroup operations: any subgroup size works.
-// (One thread per treelet rather than the paper's one warp: llvmpipe runs barriers as
-// coroutine switches, which made a workgroup-cooperative version 100x slower there.)
-// Push: n, a = gamma, b = k (3..7 treelet leaves), ct, ci, keep.
+// One height of one round of treelet restructuring (Karras & Aila 2013), bit for bit
+// as treelet::Restructure::round on the CPU. build_levels.comp lists the round's
+// treelet roots (inner nodes with at least gamma primitives below) by height; this
+// kernel is dispatched once per height, lowest first, with one thread per root, so
+// every treelet is optimised after the treelets below it. A thread forms the treelet
+// (expanding the largest-area treelet leaf until there are k), runs the dynamic
+// programme over the leaf subsets in ascending order (every subset after its
+// subsets), and writes the new topology if its cost is below cost * keep. It then
+// updates the heights in its subtree for the next round. A treelet reads and writes
+// only its own subtree, so the result does not depend on scheduling. No subgroup
+// operations: any subgroup size works. (One thread per treelet rather than the
+// paper's one warp: llvmpipe runs barriers as coroutine switches, which made a
+// workgroup-cooperative version 100x slower there. Dispatching by height rather than
+// climbing from the leaves as build_fit.comp does: llvmpipe runs an if's body under a
+// mask even when no lane is active, so a climbing kernel ran the treelet code at every
+// step of every SIMD group.)
+// Push: n, a = gamma, b = k (3..7 treelet leaves), c = height, ct, ci, keep.
 #define USE_HEADER 1
 #define USE_NODES 1
+#define USE_LEVELS 1
 #include "build/common.glsl"
 
 layout(local_size_x = BUILD_TREELET_GROUP) in;
@@ -21,7 +26,6 @@ layout(local_size_x = BUILD_TREELET_GROUP) in;
 const uint MAXK = 7u;
 const uint SUBSETS = 1u << MAXK;
 
-shared uint s_active;
 
 float aux_cost(uint i) { return uintBitsToFloat(aux[i].z); }
 
@@ -73,6 +77,11 @@ vec2 best_split(uint s) {
     return vec2(best, uintBitsToFloat(best_p));
 }
 
+// Height of inner node i from its children's (final by then).
+void set_height(uint i) {
+    levels[lv_height(i)] = 1u + max(levels[lv_height(node_left(i))], levels[lv_height(node_right(i))]);
+}
+
 void restructure(uint root) {
     uint leaf[MAXK];
     uint internal[MAXK - 1u];
@@ -102,7 +111,10 @@ void restructure(uint root) {
         leaf[k] = node_right(e);
         k += 1u;
     }
-    if (k < 3u) return;
+    if (k < 3u) {
+        set_height(root);
+        return;
+    }
     // Dynamic programming over the subsets of the k leaves. Only the optimal costs are
     // kept per subset: llvmpipe gives private arrays per-lane scratch memory, set up
     // at every dispatch step, so a subset's box, count and best split are recomputed
@@ -124,7 +136,10 @@ void restructure(uint root) {
         copt[s] = node_cost(lo, hi, count, best_split(s).x);
     }
     precise float threshold = aux_cost(root) * pc.keep;
-    if (!(copt[full] < threshold)) return;
+    if (!(copt[full] < threshold)) {
+        set_height(root);
+        return;
+    }
     // Rebuild with the treelet's inner nodes, root first, in the CPU's order.
     uint stack_s[MAXK];
     uint stack_id[MAXK];
@@ -132,10 +147,14 @@ void restructure(uint root) {
     stack_s[0] = full;
     stack_id[0] = root;
     uint next = 1u;
+    uint written[MAXK - 1u];
+    uint nw = 0u;
     for (uint g = 0u; g < MAXK && sp > 0u; ++g) {
         sp -= 1u;
         uint s = stack_s[sp];
         uint id = stack_id[sp];
+        written[nw] = id;
+        nw += 1u;
         uint a = floatBitsToUint(best_split(s).y);
         uint b = s ^ a;
         uint la;
@@ -173,59 +192,12 @@ void restructure(uint root) {
             sp += 1u;
         }
     }
+    // Heights bottom-up: a node is written before its children.
+    for (uint w = nw; w > 0u; --w) set_height(written[w - 1u]);
 }
 
-shared uint s_mask[BUILD_TREELET_GROUP / 32u];
-shared uint s_list[BUILD_TREELET_GROUP];
-
 void main() {
-    uint lid = gl_LocalInvocationID.x;
-    uint j = group_index() * BUILD_TREELET_GROUP + lid;
-    bool climbing = j < pc.n;
-    uint cur = pc.n - 1u + j;
-    // Every lane runs the atomic at every step, idle lanes on the spare entry 2n-1
-    // (see build_fit.comp).
-    uint spare = 2u * pc.n - 1u;
-    uint word = lid / 32u;
-    uint bit = 1u << (lid % 32u);
-    bool done = false;
-    for (uint step = 0u; step < BUILD_MAX_WALK; ++step) {
-        uint p = climbing ? aux[cur].x : NONE;
-        climbing = p != NONE;
-        memoryBarrierBuffer();
-        uint seen = atomicAdd(aux[climbing ? p : spare].w, 1u);
-        climbing = climbing && seen != 0u;
-        bool ready = false;
-        if (climbing) {
-            memoryBarrierBuffer();
-            aux[p].w = 0u;
-            cur = p;
-            ready = aux[p].y >= pc.a;
-        }
-        if (lid < BUILD_TREELET_GROUP / 32u) s_mask[lid] = 0u;
-        if (lid == 0u) s_active = 0u;
-        barrier();
-        if (ready) atomicOr(s_mask[word], bit);
-        if (climbing) atomicAdd(s_active, 1u);
-        barrier();
-        // Pack this step's treelet roots into the first lanes, so that SIMD lanes
-        // working together all have a treelet (the roots are disjoint subtrees).
-        uint total = 0u;
-        uint rank = 0u;
-        for (uint w = 0u; w < BUILD_TREELET_GROUP / 32u; ++w) {
-            uint c = bitCount(s_mask[w]);
-            if (w < word) rank += c;
-            total += c;
-        }
-        if (ready) s_list[rank + bitCount(s_mask[word] & (bit - 1u))] = cur;
-        done = s_active == 0u;
-        barrier();
-        if (lid < total) {
-            restructure(s_list[lid]);
-            memoryBarrierBuffer();
-        }
-        barrier();
-        if (done) break;
-    }
-    if (!done && lid == 0u) atomicOr(hdr[BUILD_HDR_ERRORS], BUILD_ERR_WALK);
+    uint t = group_index() * BUILD_TREELET_GROUP + gl_LocalInvocationID.x;
+    uint h = pc.c;
+    if (t < levels[LV_CURSOR + h]) restructure(levels[LV_LIST + levels[LV_OFFSET + h] + t]);
 }

@@ -92,4 +92,24 @@ uint node_right(uint i) { return nodes[2u * i + 1u].w; }
 bool is_leaf(uint i) { return (nodes[2u * i].w & LEAF_FLAG) != 0u; }
 #endif
 
+#ifdef USE_LEVELS
+// The restructuring schedule (gpu_build.rs allocates it for trbvh), in words:
+//   LV_COUNT + h   treelet roots of height h, counted (zeroed again by the scan)
+//   LV_OFFSET + h  first slot of height h in the root list
+//   LV_CURSOR + h  roots of height h placed; after the scatter, how many there are
+//   LV_ARGS + 3h   indirect dispatch arguments of height h (2D grid, 1)
+//   LV_LIST + i    treelet roots, grouped by height
+//   lv_height(i)   height of node i (a leaf 0, an inner node 1 + its higher child's),
+//                  for the 2n - 1 nodes and the spare entry 2n - 1
+// Index BUILD_MAX_LEVELS of each per-height array is a spare for idle lanes' atomics.
+layout(std430, set = 0, binding = BINDING_BUILD_LEVELS) coherent buffer Levels { uint levels[]; };
+const uint LV_SLOTS = BUILD_MAX_LEVELS + 1u;
+const uint LV_COUNT = 0u;
+const uint LV_OFFSET = LV_SLOTS;
+const uint LV_CURSOR = 2u * LV_SLOTS;
+const uint LV_ARGS = 3u * LV_SLOTS;
+const uint LV_LIST = 6u * LV_SLOTS;
+uint lv_height(uint i) { return LV_LIST + pc.n + i; }
+#endif
+
 #endif

@@ -39,6 +39,9 @@ pub const BINDING_BUILD_AUX: u32 = 9;
 pub const BINDING_BUILD_OUT_NODES: u32 = 10;
 /// Build: output primitive indices.
 pub const BINDING_BUILD_OUT_INDICES: u32 = 11;
+/// Build: the restructuring schedule (per-height counts, offsets and dispatch
+/// arguments, the treelet roots by height, node heights; see build/common.glsl).
+pub const BINDING_BUILD_LEVELS: u32 = 12;
 /// Header words: centroid box min xyz and max xyz as order-preserving uints.
 pub const BUILD_HDR_CMIN: u32 = 0;
 pub const BUILD_HDR_CMAX: u32 = 3;
@@ -52,14 +55,18 @@ pub const BUILD_HDR_NODES: u32 = 8;
 pub const BUILD_HDR_WORDS: u32 = 16;
 /// Error bit: a bottom-up or top-down walk exceeded BUILD_MAX_WALK steps.
 pub const BUILD_ERR_WALK: u32 = 1;
+/// Error bit: a treelet root is BUILD_MAX_LEVELS or more levels above its deepest leaf.
+pub const BUILD_ERR_LEVELS: u32 = 2;
+/// Most node heights a restructuring round schedules (one indirect dispatch each).
+pub const BUILD_MAX_LEVELS: u32 = 96;
 /// Longest walk between a node and the root the build kernels take.
 pub const BUILD_MAX_WALK: u32 = 1024;
 /// Threads per workgroup of the build kernels other than treelet restructuring.
 pub const BUILD_GROUP: u32 = 256;
 /// Elements per thread of the radix sort (tile = BUILD_GROUP x this).
 pub const BUILD_SORT_ITEMS: u32 = 16;
-/// Threads per workgroup of treelet restructuring (leaves climbed per workgroup).
-pub const BUILD_TREELET_GROUP: u32 = 256;
+/// Threads per workgroup of treelet restructuring (one treelet root each).
+pub const BUILD_TREELET_GROUP: u32 = 64;
 
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -120,12 +127,15 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_BUILD_AUX", BINDING_BUILD_AUX),
     ("BINDING_BUILD_OUT_NODES", BINDING_BUILD_OUT_NODES),
     ("BINDING_BUILD_OUT_INDICES", BINDING_BUILD_OUT_INDICES),
+    ("BINDING_BUILD_LEVELS", BINDING_BUILD_LEVELS),
     ("BUILD_HDR_CMIN", BUILD_HDR_CMIN),
     ("BUILD_HDR_CMAX", BUILD_HDR_CMAX),
     ("BUILD_HDR_DEPTH", BUILD_HDR_DEPTH),
     ("BUILD_HDR_ERRORS", BUILD_HDR_ERRORS),
     ("BUILD_HDR_NODES", BUILD_HDR_NODES),
     ("BUILD_ERR_WALK", BUILD_ERR_WALK),
+    ("BUILD_ERR_LEVELS", BUILD_ERR_LEVELS),
+    ("BUILD_MAX_LEVELS", BUILD_MAX_LEVELS),
     ("BUILD_MAX_WALK", BUILD_MAX_WALK),
     ("BUILD_GROUP", BUILD_GROUP),
     ("BUILD_SORT_ITEMS", BUILD_SORT_ITEMS),

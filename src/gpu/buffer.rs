@@ -13,7 +13,8 @@ use crate::error::{Error, Result};
 /// What a buffer is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BufferKind {
-    /// Device-local storage buffer, filled by upload or by kernels.
+    /// Device-local storage buffer, filled by upload or by kernels; also usable for
+    /// indirect dispatch arguments.
     Storage,
     /// Host-written uniform buffer.
     Uniform,
@@ -76,6 +77,7 @@ impl Context {
         let (usage, location) = match kind {
             BufferKind::Storage => (
                 vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::INDIRECT_BUFFER
                     | vk::BufferUsageFlags::TRANSFER_DST
                     | vk::BufferUsageFlags::TRANSFER_SRC,
                 MemoryLocation::GpuOnly,

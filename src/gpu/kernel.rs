@@ -290,8 +290,18 @@ impl Context {
     /// start), in order; empty without timestamps.
     pub fn run_steps(&self, label: &str, steps: &[Step<'_>]) -> Result<Vec<(String, f64)>> {
         for s in steps {
-            if let Step::Dispatch { kernel, push, groups } = s {
-                self.check_dispatch(kernel, push, *groups)?;
+            match s {
+                Step::Dispatch { kernel, push, groups } => self.check_dispatch(kernel, push, *groups)?,
+                Step::DispatchIndirect { kernel, push, args, offset } => {
+                    self.check_dispatch(kernel, push, [0; 3])?;
+                    if offset % 4 != 0 || offset + 12 > args.size() {
+                        return Err(Error::Vulkan {
+                            what: format!("indirect dispatch '{}'", kernel.name),
+                            result: format!("arguments at byte {offset} of a {}-byte buffer", args.size()),
+                        });
+                    }
+                }
+                Step::Mark(_) => {}
             }
         }
         let marks: Vec<&str> =
@@ -325,6 +335,9 @@ impl Context {
                 barrier_all(dev, cb);
                 match s {
                     Step::Dispatch { kernel, push, groups } => record_dispatch(dev, cb, kernel, push, *groups),
+                    Step::DispatchIndirect { kernel, push, args, offset } => {
+                        record_dispatch_indirect(dev, cb, kernel, push, args.raw, *offset)
+                    }
                     Step::Mark(_) => {
                         q += 1;
                         if let Some(p) = pool {
@@ -365,6 +378,9 @@ impl Context {
 pub enum Step<'a> {
     /// Runs a kernel: push-constant bytes and workgroup counts.
     Dispatch { kernel: &'a Kernel, push: Vec<u8>, groups: [u32; 3] },
+    /// Runs a kernel over the workgroup counts (three u32) that earlier steps wrote at
+    /// byte `offset` of `args` (a storage buffer, which is also an indirect buffer).
+    DispatchIndirect { kernel: &'a Kernel, push: Vec<u8>, args: &'a Buffer, offset: u64 },
     /// Ends a timed phase of this name.
     Mark(&'a str),
 }
@@ -379,14 +395,17 @@ fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
                 | vk::AccessFlags::SHADER_WRITE
                 | vk::AccessFlags::UNIFORM_READ
                 | vk::AccessFlags::TRANSFER_READ
-                | vk::AccessFlags::TRANSFER_WRITE,
+                | vk::AccessFlags::TRANSFER_WRITE
+                | vk::AccessFlags::INDIRECT_COMMAND_READ,
         )];
     // SAFETY: recording scope of a live command buffer of `dev`.
     unsafe {
         dev.cmd_pipeline_barrier(
             cb,
             vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::HOST,
-            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::COMPUTE_SHADER
+                | vk::PipelineStageFlags::TRANSFER
+                | vk::PipelineStageFlags::DRAW_INDIRECT,
             vk::DependencyFlags::empty(),
             &barrier,
             &[],
@@ -395,8 +414,8 @@ fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
     }
 }
 
-/// Binds `kernel` and records one dispatch.
-fn record_dispatch(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8], groups: [u32; 3]) {
+/// Binds `kernel` with its descriptor set and push constants.
+fn record_bind(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8]) {
     // SAFETY: recording scope; all handles belong to this device and are live.
     unsafe {
         dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
@@ -404,6 +423,27 @@ fn record_dispatch(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, pu
         if !push.is_empty() {
             dev.cmd_push_constants(cb, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
         }
-        dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]);
     }
+}
+
+/// Binds `kernel` and records one dispatch.
+fn record_dispatch(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8], groups: [u32; 3]) {
+    record_bind(dev, cb, kernel, push);
+    // SAFETY: recording scope of a live command buffer with a compute pipeline bound.
+    unsafe { dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]) };
+}
+
+/// Binds `kernel` and records one dispatch whose workgroup counts are read from
+/// `args` at byte `offset` (checked by `run_steps`: aligned, in range).
+fn record_dispatch_indirect(
+    dev: &ash::Device,
+    cb: vk::CommandBuffer,
+    kernel: &Kernel,
+    push: &[u8],
+    args: vk::Buffer,
+    offset: u64,
+) {
+    record_bind(dev, cb, kernel, push);
+    // SAFETY: recording scope; `args` is a live buffer with INDIRECT_BUFFER usage.
+    unsafe { dev.cmd_dispatch_indirect(cb, args, offset) };
 }

@@ -46,6 +46,17 @@ use crate::scene::Scene;
 const FIT: u32 = 1;
 const FINALIZE: u32 = 2;
 const COLLAPSE: u32 = 4;
+const HEIGHT: u32 = 8;
+/// Modes of `build_levels.comp`.
+const LEVELS_COUNT: u32 = 0;
+const LEVELS_SCAN: u32 = 1;
+const LEVELS_SCATTER: u32 = 2;
+/// Words per per-height array of the schedule (heights, plus a spare slot).
+const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
+/// Word offset of the indirect dispatch arguments in the schedule.
+const LV_ARGS: u64 = 3 * LV_SLOTS;
+/// Words of the schedule before the root list.
+const LV_LIST: u64 = 6 * LV_SLOTS;
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
 fn storage(binding: u32, name: &'static str) -> BindingDesc {
@@ -61,6 +72,7 @@ pub struct GpuBuilder {
     scatter: [Kernel; 2],
     hierarchy: Kernel,
     fit: Kernel,
+    levels: Kernel,
     treelet: Kernel,
     emit: Kernel,
     /// Milliseconds spent creating the pipelines (once per process, not per build).
@@ -97,6 +109,7 @@ struct Buffers {
     hist: Buffer,
     nodes: Buffer,
     aux: Buffer,
+    levels: Buffer,
     out_nodes: Buffer,
     out_indices: Buffer,
     geometry: Vec<(u32, Buffer)>,
@@ -113,6 +126,7 @@ impl GpuBuilder {
         let hist = storage(BINDING_BUILD_HIST, "sort_hist");
         let nodes = storage(BINDING_BUILD_NODES, "build_nodes");
         let aux = storage(BINDING_BUILD_AUX, "build_aux");
+        let levels = storage(BINDING_BUILD_LEVELS, "build_levels");
         let out_nodes = storage(BINDING_BUILD_OUT_NODES, "accel_nodes");
         let out_idx = storage(BINDING_BUILD_OUT_INDICES, "accel_indices");
         let mut bounds = HashMap::new();
@@ -140,15 +154,16 @@ impl GpuBuilder {
                 kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
             ],
             hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
-            fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone()])?,
-            treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone()])?,
+            fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
+            levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
+            treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels])?,
             emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, out_nodes, out_idx])?,
             setup_ms: 0.0,
         };
         Ok(GpuBuilder { setup_ms: t.elapsed().as_secs_f64() * 1e3, ..g })
     }
 
-    fn buffers(&self, ctx: &Context, scene: &Scene) -> Result<Buffers> {
+    fn buffers(&self, ctx: &Context, scene: &Scene, builder: BvhBuilder) -> Result<Buffers> {
         let n = scene.prim_count() as u64;
         let blocks = n.div_ceil(TILE);
         let mut header = vec![0u32; BUILD_HDR_WORDS as usize];
@@ -184,6 +199,12 @@ impl GpuBuilder {
             hist: storage("sort_hist", 256 * blocks * 4)?,
             nodes: storage("build_nodes", (2 * n - 1) * 32)?,
             aux: storage("build_aux", 2 * n * 16)?,
+            // The schedule: per-height arrays, the root list (n - 1) and the heights
+            // (2n, with the spare); the LBVH never reads it.
+            levels: storage(
+                "build_levels",
+                if builder == BvhBuilder::Trbvh { (LV_LIST + n + 2 * n) * 4 } else { LV_LIST * 4 },
+            )?,
             out_nodes: storage("accel_nodes", n.saturating_sub(1).max(1) * 64)?,
             out_indices: storage("accel_indices", n * 4)?,
             geometry,
@@ -208,7 +229,7 @@ impl GpuBuilder {
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
-        let b = self.buffers(ctx, scene)?;
+        let b = self.buffers(ctx, scene, builder)?;
         super::lap(&mut phases, "upload", &mut t);
         self.bind(ctx, scene, &b)?;
         let n32 = n as u32;
@@ -263,12 +284,26 @@ impl GpuBuilder {
                 steps.push(Step::Mark("gpu fit"));
             }
             _ => {
-                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT, 0)), groups: leaves });
+                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT | HEIGHT, 0)), groups: leaves });
                 steps.push(Step::Mark("gpu fit"));
-                let tgroups = groups(n as u64, BUILD_TREELET_GROUP)?;
+                let inner = groups(n as u64 - 1, BUILD_GROUP)?;
                 for (round, name) in round_names.iter().enumerate() {
-                    let p = push(tp.gamma(round as u32), tp.leaves as u32);
-                    steps.push(Step::Dispatch { kernel: &self.treelet, push: bytes(p), groups: tgroups });
+                    let gamma = tp.gamma(round as u32);
+                    for (mode, g) in [(LEVELS_COUNT, inner), (LEVELS_SCAN, [1, 1, 1]), (LEVELS_SCATTER, inner)] {
+                        steps.push(Step::Dispatch { kernel: &self.levels, push: bytes(push(mode, gamma)), groups: g });
+                    }
+                    // Roots are inner nodes, so heights start at 1; empty heights
+                    // dispatch no workgroups.
+                    for h in 1..BUILD_MAX_LEVELS {
+                        let mut p = push(gamma, tp.leaves as u32);
+                        p.c = h;
+                        steps.push(Step::DispatchIndirect {
+                            kernel: &self.treelet,
+                            push: bytes(p),
+                            args: &b.levels,
+                            offset: (LV_ARGS + 3 * u64::from(h)) * 4,
+                        });
+                    }
                     steps.push(Step::Mark(name));
                 }
                 steps.push(Step::Dispatch {
@@ -291,6 +326,12 @@ impl GpuBuilder {
         t = Instant::now();
         let header: Vec<u32> =
             bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.header, 0, u64::from(BUILD_HDR_WORDS) * 4)?);
+        if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
+            return Err(Error::Usage(format!(
+                "GPU build: a treelet root is {BUILD_MAX_LEVELS} or more levels above its leaves, more than \
+                 the restructuring schedule holds (use --build cpu)"
+            )));
+        }
         if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
             return Err(Error::Usage(format!(
                 "GPU build: a walk between a node and the root took over {BUILD_MAX_WALK} steps (use --build cpu)"
@@ -352,12 +393,15 @@ impl GpuBuilder {
         ctx.bind(s1, BINDING_BUILD_HIST, &b.hist)?;
         ctx.bind(&mut self.hierarchy, BINDING_BUILD_PAIRS, &b.pairs)?;
         ctx.bind(&mut self.hierarchy, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
-        for k in [&mut self.hierarchy, &mut self.fit, &mut self.treelet, &mut self.emit] {
+        for k in [&mut self.hierarchy, &mut self.fit, &mut self.levels, &mut self.treelet, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_NODES, &b.nodes)?;
             ctx.bind(k, BINDING_BUILD_AUX, &b.aux)?;
         }
-        for k in [&mut self.fit, &mut self.treelet, &mut self.emit] {
+        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_HEADER, &b.header)?;
+        }
+        for k in [&mut self.fit, &mut self.levels, &mut self.treelet] {
+            ctx.bind(k, BINDING_BUILD_LEVELS, &b.levels)?;
         }
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_INDICES, &b.out_indices)?;

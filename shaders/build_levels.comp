@@ -1,0 +1,66 @@
+#version 460
+// The schedule of one treelet restructuring round: every inner node with at least
+// gamma primitives below it is a treelet root, and roots are optimised by height
+// (build_treelet.comp, one indirect dispatch per height), lowest first. A node's
+// descendants all have lower heights, so every treelet is optimised after every
+// treelet below it, as on the CPU. Push: n, a = mode, b = gamma.
+//   COUNT (0):   roots per height (threads over the n - 1 inner nodes).
+//   SCAN (1):    one workgroup: offsets, dispatch arguments; counters zeroed.
+//   SCATTER (2): the roots into the list, grouped by height.
+// A root BUILD_MAX_LEVELS or more high sets BUILD_ERR_LEVELS and is left out (the
+// build then fails with that error). Every lane runs the atomics, idle lanes on the
+// spare slot BUILD_MAX_LEVELS (see build_fit.comp for why).
+#define USE_HEADER 1
+#define USE_NODES 1
+#define USE_LEVELS 1
+#include "build/common.glsl"
+
+layout(local_size_x = BUILD_GROUP) in;
+
+const uint COUNT = 0u;
+const uint SCAN = 1u;
+const uint SCATTER = 2u;
+
+shared uint s_scan[BUILD_GROUP];
+
+void main() {
+    uint lid = gl_LocalInvocationID.x;
+    if (pc.a == SCAN) {
+        uint c = lid < BUILD_MAX_LEVELS ? levels[LV_COUNT + lid] : 0u;
+        s_scan[lid] = c;
+        barrier();
+        // Inclusive scan (Hillis & Steele) over the BUILD_GROUP >= LV_SLOTS slots.
+        for (uint d = 1u; d < BUILD_GROUP; d <<= 1u) {
+            uint v = lid >= d ? s_scan[lid - d] : 0u;
+            barrier();
+            s_scan[lid] += v;
+            barrier();
+        }
+        if (lid < BUILD_MAX_LEVELS) {
+            uint groups = (c + BUILD_TREELET_GROUP - 1u) / BUILD_TREELET_GROUP;
+            levels[LV_OFFSET + lid] = s_scan[lid] - c;
+            levels[LV_ARGS + 3u * lid] = min(groups, 65535u);
+            levels[LV_ARGS + 3u * lid + 1u] = (groups + 65534u) / 65535u;
+            levels[LV_ARGS + 3u * lid + 2u] = 1u;
+        }
+        if (lid < LV_SLOTS) {
+            levels[LV_COUNT + lid] = 0u;
+            levels[LV_CURSOR + lid] = 0u;
+        }
+        return;
+    }
+    uint i = group_index() * BUILD_GROUP + lid;
+    bool root = i + 1u < pc.n && aux[i].y >= pc.b;
+    uint h = root ? levels[lv_height(i)] : BUILD_MAX_LEVELS;
+    if (root && h >= BUILD_MAX_LEVELS) {
+        atomicOr(hdr[BUILD_HDR_ERRORS], BUILD_ERR_LEVELS);
+        root = false;
+        h = BUILD_MAX_LEVELS;
+    }
+    if (pc.a == COUNT) {
+        atomicAdd(levels[LV_COUNT + h], 1u);
+    } else {
+        uint k = atomicAdd(levels[LV_CURSOR + h], 1u);
+        if (root) levels[LV_LIST + levels[LV_OFFSET + h] + k] = i;
+    }
+}
