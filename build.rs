@@ -1,5 +1,5 @@
 //! Compiles every `shaders/*.comp` to SPIR-V with shaderc and embeds it, and generates
-//! the straight-line treelet programme for the CPU (`src/accel/bvh/dp_gen.rs`).
+//! the straight-line treelet programme (`src/accel/bvh/dp_gen.rs`) for Rust and GLSL.
 //!
 //! `trace.comp` is compiled once per (structure, geometry) variant: a scene without
 //! spheres gets a kernel that declares no sphere buffer at all, one without triangles
@@ -22,6 +22,9 @@ mod bindings {
 #[path = "src/accel/bvh/dp_gen.rs"]
 mod dp_gen;
 
+/// The include name under which kernels get the generated treelet programme.
+const DP_INCLUDE: &str = "generated/treelet_dp.glsl";
+
 /// Geometry variants of the trace kernel: (suffix, HAS_TRIANGLES, HAS_SPHERES).
 const GEOMETRY: &[(&str, u32, u32)] = &[("tris", 1, 0), ("spheres", 0, 1), ("all", 1, 1)];
 
@@ -33,6 +36,7 @@ fn main() {
     println!("cargo:rerun-if-changed=shaders");
     println!("cargo:rerun-if-changed=src/accel/bvh/dp_gen.rs");
     std::fs::write(out_dir.join("treelet_dp.rs"), dp_gen::rust()).expect("write treelet_dp.rs to OUT_DIR");
+    let dp_glsl = dp_gen::glsl();
 
     let opened: Rc<RefCell<BTreeSet<PathBuf>>> = Rc::default();
     let compiler = shaderc::Compiler::new().expect("shaderc compiler");
@@ -84,7 +88,7 @@ fn main() {
             variants.push((stem.clone(), Vec::new()));
         }
         for (name, defines) in variants {
-            match compile(&compiler, &shader_dir, comp, &source, &defines, &opened) {
+            match compile(&compiler, &shader_dir, comp, &source, &defines, &opened, &dp_glsl) {
                 Ok(words) => {
                     let path = out_dir.join(format!("{name}.spv"));
                     std::fs::write(&path, words).expect("write SPIR-V to OUT_DIR");
@@ -119,6 +123,7 @@ fn compile(
     source: &str,
     defines: &[(String, String)],
     opened: &Rc<RefCell<BTreeSet<PathBuf>>>,
+    dp_glsl: &str,
 ) -> Result<Vec<u8>, String> {
     let mut opts = shaderc::CompileOptions::new().ok_or("shaderc options")?;
     opts.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
@@ -133,7 +138,11 @@ fn compile(
     }
     let dir = shader_dir.to_path_buf();
     let opened_cb = Rc::clone(opened);
+    let dp_glsl = dp_glsl.to_string();
     opts.set_include_callback(move |requested, _ty, requester, _depth| {
+        if requested == DP_INCLUDE {
+            return Ok(shaderc::ResolvedInclude { resolved_name: DP_INCLUDE.into(), content: dp_glsl.clone() });
+        }
         // Includes resolve against shaders/ first, then against the including file.
         let candidates = [dir.join(requested), Path::new(requester).parent().unwrap_or(&dir).join(requested)];
         for c in candidates {
