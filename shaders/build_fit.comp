@@ -6,9 +6,8 @@
 // sets BUILD_ERR_WALK.
 //   FIT (1):      box = union of the children's, count, cost with collapse
 //                 (treelet::Restructure::new).
-//   FINALIZE (2): aux.z = COLLAPSED where one leaf is cheaper and COLLAPSE (4) is set
-//                 (treelet::Restructure::collapse_flags), else the subtree's number
-//                 of output inner nodes.
+//   FINALIZE (2): aux.z = the subtree's number of output inner nodes (the LBVH, which
+//                 keeps one primitive per leaf; trbvh's collapse is build_finalize.comp).
 //   HEIGHT (8):   node heights for the restructuring schedule (leaves 0), and the
 //                 schedule's per-height counters zeroed.
 #define USE_HEADER 1
@@ -20,12 +19,7 @@ layout(local_size_x = BUILD_GROUP) in;
 
 const uint FIT = 1u;
 const uint FINALIZE = 2u;
-const uint COLLAPSE = 4u;
 const uint HEIGHT = 8u;
-
-uint inner_nodes(uint i) {
-    return (aux[i].z & COLLAPSED) != 0u ? 0u : aux[i].z;
-}
 
 shared uint s_climbing;
 
@@ -65,13 +59,7 @@ void main() {
                 if ((pc.a & FINALIZE) == 0u) aux[p].z = floatBitsToUint(cost);
             }
             if ((pc.a & FINALIZE) != 0u) {
-                uint count = aux[p].y;
-                bool collapse = false;
-                if ((pc.a & COLLAPSE) != 0u && count <= MAX_LEAF) {
-                    precise float leaf = (pc.ci * box_area(node_min(p), node_max(p))) * float(count);
-                    collapse = leaf <= uintBitsToFloat(aux[p].z);
-                }
-                aux[p].z = collapse ? COLLAPSED : 1u + inner_nodes(l) + inner_nodes(r);
+                aux[p].z = 1u + aux[l].z + aux[r].z; // leaves were set to 0
             }
             if ((pc.a & HEIGHT) != 0u) {
                 levels[lv_height(p)] = 1u + max(levels[lv_height(l)], levels[lv_height(r)]);

@@ -45,7 +45,6 @@ use crate::scene::Scene;
 /// Flags of `build_fit.comp`.
 const FIT: u32 = 1;
 const FINALIZE: u32 = 2;
-const COLLAPSE: u32 = 4;
 const HEIGHT: u32 = 8;
 /// Modes of `build_levels.comp`.
 const LEVELS_COUNT: u32 = 0;
@@ -74,6 +73,7 @@ pub struct GpuBuilder {
     fit: Kernel,
     levels: Kernel,
     treelet: Kernel,
+    finalize: Kernel,
     emit: Kernel,
     /// Milliseconds spent creating the pipelines (once per process, not per build).
     pub setup_ms: f64,
@@ -89,6 +89,34 @@ fn kernel(ctx: &Context, name: &str, bindings: &[BindingDesc]) -> Result<Kernel>
     let code = spirv::get(name)
         .ok_or_else(|| Error::Vulkan { what: format!("kernel '{name}'"), result: "not compiled".into() })?;
     ctx.create_kernel(name, code, bindings, &[], std::mem::size_of::<Push>() as u32)
+}
+
+/// The steps of one pass by height: `levels` lists the inner nodes with at least
+/// `gamma` primitives (every inner node for gamma 0) by height into `schedule`, then
+/// `kernel` runs once per height, lowest first, with push constants `p` and the height
+/// in `c`. Inner nodes have heights from 1; empty heights dispatch no workgroups.
+fn by_height<'a>(
+    levels: &'a Kernel,
+    kernel: &'a Kernel,
+    schedule: &'a Buffer,
+    inner: [u32; 3],
+    gamma: u32,
+    p: Push,
+) -> Vec<Step<'a>> {
+    let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
+    let mut steps: Vec<Step<'a>> = [(LEVELS_COUNT, inner), (LEVELS_SCAN, [1, 1, 1]), (LEVELS_SCATTER, inner)]
+        .into_iter()
+        .map(|(mode, groups)| Step::Dispatch { kernel: levels, push: bytes(Push { a: mode, b: gamma, ..p }), groups })
+        .collect();
+    for h in 1..BUILD_MAX_LEVELS {
+        steps.push(Step::DispatchIndirect {
+            kernel,
+            push: bytes(Push { c: h, ..p }),
+            args: schedule,
+            offset: (LV_ARGS + 3 * u64::from(h)) * 4,
+        });
+    }
+    steps
 }
 
 /// Geometry suffix of the bounds kernel: only the buffers the scene has.
@@ -156,7 +184,8 @@ impl GpuBuilder {
             hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
             fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
-            treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels])?,
+            treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
+            finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels])?,
             emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, out_nodes, out_idx])?,
             setup_ms: 0.0,
         };
@@ -289,28 +318,17 @@ impl GpuBuilder {
                 let inner = groups(n as u64 - 1, BUILD_GROUP)?;
                 for (round, name) in round_names.iter().enumerate() {
                     let gamma = tp.gamma(round as u32);
-                    for (mode, g) in [(LEVELS_COUNT, inner), (LEVELS_SCAN, [1, 1, 1]), (LEVELS_SCATTER, inner)] {
-                        steps.push(Step::Dispatch { kernel: &self.levels, push: bytes(push(mode, gamma)), groups: g });
-                    }
-                    // Roots are inner nodes, so heights start at 1; empty heights
-                    // dispatch no workgroups.
-                    for h in 1..BUILD_MAX_LEVELS {
-                        let mut p = push(gamma, tp.leaves as u32);
-                        p.c = h;
-                        steps.push(Step::DispatchIndirect {
-                            kernel: &self.treelet,
-                            push: bytes(p),
-                            args: &b.levels,
-                            offset: (LV_ARGS + 3 * u64::from(h)) * 4,
-                        });
-                    }
+                    steps.extend(by_height(
+                        &self.levels,
+                        &self.treelet,
+                        &b.levels,
+                        inner,
+                        gamma,
+                        push(gamma, tp.leaves as u32),
+                    ));
                     steps.push(Step::Mark(name));
                 }
-                steps.push(Step::Dispatch {
-                    kernel: &self.fit,
-                    push: bytes(push(FINALIZE | COLLAPSE, 0)),
-                    groups: leaves,
-                });
+                steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(0, 0)));
                 steps.push(Step::Mark("gpu collapse"));
             }
         }
@@ -393,14 +411,21 @@ impl GpuBuilder {
         ctx.bind(s1, BINDING_BUILD_HIST, &b.hist)?;
         ctx.bind(&mut self.hierarchy, BINDING_BUILD_PAIRS, &b.pairs)?;
         ctx.bind(&mut self.hierarchy, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
-        for k in [&mut self.hierarchy, &mut self.fit, &mut self.levels, &mut self.treelet, &mut self.emit] {
+        for k in [
+            &mut self.hierarchy,
+            &mut self.fit,
+            &mut self.levels,
+            &mut self.treelet,
+            &mut self.finalize,
+            &mut self.emit,
+        ] {
             ctx.bind(k, BINDING_BUILD_NODES, &b.nodes)?;
             ctx.bind(k, BINDING_BUILD_AUX, &b.aux)?;
         }
-        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.emit] {
+        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_HEADER, &b.header)?;
         }
-        for k in [&mut self.fit, &mut self.levels, &mut self.treelet] {
+        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize] {
             ctx.bind(k, BINDING_BUILD_LEVELS, &b.levels)?;
         }
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
