@@ -1,24 +1,32 @@
 #version 460
 // Output in the traversal layout (src/accel/bvh/mod.rs, shaders/accel/bvh.glsl), equal
 // word for word to Bvh::flatten of the same canonical tree: inner nodes in preorder,
-// leaf primitives in depth-first order. A node's preorder index and the depth-first
-// position of its first primitive come from one walk to the root: every ancestor
-// reached from its right child adds its left child's output-node and primitive counts.
-// Thread t handles canonical node t: an output inner node (not collapsed, no collapsed
-// ancestor) writes itself; a canonical leaf writes its primitive's index entry.
+// leaf primitives in depth-first order. Top-down by height: ROOT (one thread) seeds
+// the root, then TOP runs once per height, highest first, over build_levels.comp's
+// list of every inner node (a parent is higher than its children, so its values are
+// final). Each inner node p holds its preorder index (aux.w), the depth-first position
+// of its first primitive (its height slot in the schedule, no longer needed) and its
+// depth with a hidden bit (aux.x, the parent link, no longer needed); it hands them to
+// its children: the left child follows p, the right child follows the left child's
+// output nodes and primitives. An output inner node (not collapsed, no collapsed
+// ancestor) writes itself; a canonical leaf child gets its primitive's index entry.
 // A root that is a leaf or collapsed becomes one node with an empty right child.
-// Push: n.
+// Push: n, a = mode, c = height.
 #define USE_HEADER 1
 #define USE_NODES 1
+#define USE_LEVELS 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_GROUP) in;
+layout(local_size_x = BUILD_TREELET_GROUP) in;
 
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_NODES) writeonly buffer OutNodes { uvec4 out_nodes[]; };
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_INDICES) writeonly buffer OutIndices { uint out_indices[]; };
 
+const uint ROOT = 0u;
+const uint TOP = 1u;
 const uint LEAF_REF = 0x80000000u;
 const uint EMPTY_REF = 0xffffffffu;
+const uint HIDDEN = 0x80000000u;
 
 bool collapsed(uint i) { return !is_leaf(i) && aux[i].z == COLLAPSED; }
 uint inner_nodes(uint i) { return (is_leaf(i) || collapsed(i)) ? 0u : aux[i].z; }
@@ -40,50 +48,47 @@ void write_node(uint at, uint lref, uint l, uint rref, uint r) {
     }
 }
 
+// Hands (preorder index, first primitive, depth | hidden) to child c.
+void seed(uint c, uint pre, uint first, uint depth) {
+    if (is_leaf(c)) {
+        out_indices[first] = node_left(c) & ~LEAF_FLAG;
+        return;
+    }
+    aux[c].w = pre;
+    levels[lv_height(c)] = first;
+    aux[c].x = depth;
+}
+
 void main() {
-    uint t = group_index() * BUILD_GROUP + gl_LocalInvocationID.x;
-    uint n = pc.n;
-    if (t >= 2u * n - 1u) return;
-    bool leaf = is_leaf(t);
-    if (!leaf && collapsed(t) && aux[t].x != NONE) return;
-    // Walk to the root.
-    uint pre = 0u;
-    uint first = 0u;
-    uint depth = 1u;
-    bool hidden = false;
-    uint c = t;
-    uint g = 0u;
-    for (; g < BUILD_MAX_WALK; ++g) {
-        uint p = aux[c].x;
-        if (p == NONE) break;
-        if (collapsed(p)) hidden = true;
-        uint l = node_left(p);
-        pre += 1u;
-        depth += 1u;
-        if (node_right(p) == c) {
-            pre += inner_nodes(l);
-            first += aux[l].y;
+    if (pc.a == ROOT) {
+        if (gl_GlobalInvocationID.x != 0u) return;
+        // The root is node 0 (a leaf only when n = 1).
+        if (is_leaf(0u) || collapsed(0u)) {
+            write_node(0u, LEAF_REF | ((aux[0].y - 1u) & 7u), 0u, EMPTY_REF, 0u);
+            hdr[BUILD_HDR_DEPTH] = 1u;
+            hdr[BUILD_HDR_NODES] = 1u;
+        } else {
+            hdr[BUILD_HDR_NODES] = aux[0].z;
         }
-        c = p;
-    }
-    if (g == BUILD_MAX_WALK) {
-        atomicOr(hdr[BUILD_HDR_ERRORS], BUILD_ERR_WALK);
+        seed(0u, 0u, 0u, 1u);
         return;
     }
-    if (leaf) out_indices[first] = node_left(t) & ~LEAF_FLAG;
-    if (aux[t].x == NONE && (leaf || collapsed(t))) {
-        // The whole tree is one leaf.
-        write_node(0u, LEAF_REF | ((aux[t].y - 1u) & 7u), t, EMPTY_REF, t);
-        hdr[BUILD_HDR_DEPTH] = 1u;
-        hdr[BUILD_HDR_NODES] = 1u;
-        return;
-    }
-    if (leaf || hidden) return;
-    uint l = node_left(t);
-    uint r = node_right(t);
-    uint lref = child_ref(l, pre + 1u, first);
-    uint rref = child_ref(r, pre + 1u + inner_nodes(l), first + aux[l].y);
-    write_node(pre, lref, l, rref, r);
+    uint t = group_index() * BUILD_TREELET_GROUP + gl_LocalInvocationID.x;
+    uint h = pc.c;
+    if (t >= levels[LV_CURSOR + h]) return;
+    uint p = levels[LV_LIST + levels[LV_OFFSET + h] + t];
+    uint pre = aux[p].w;
+    uint first = levels[lv_height(p)];
+    uint depth = aux[p].x & ~HIDDEN;
+    bool hidden = (aux[p].x & HIDDEN) != 0u;
+    uint l = node_left(p);
+    uint r = node_right(p);
+    uint pre_r = pre + 1u + inner_nodes(l);
+    uint first_r = first + aux[l].y;
+    uint below = (depth + 1u) | ((hidden || collapsed(p)) ? HIDDEN : 0u);
+    seed(l, pre + 1u, first, below);
+    seed(r, pre_r, first_r, below);
+    if (hidden || collapsed(p)) return;
+    write_node(pre, child_ref(l, pre + 1u, first), l, child_ref(r, pre_r, first_r), r);
     atomicMax(hdr[BUILD_HDR_DEPTH], depth);
-    if (pre == 0u) hdr[BUILD_HDR_NODES] = aux[t].z;
 }

@@ -1,16 +1,18 @@
 #version 460
-// Collapse decisions top-down-ready, by height (the trbvh path; build_fit.comp's
-// FINALIZE | COLLAPSE does the same by climbing): dispatched once per height, lowest
-// first, over build_levels.comp's list of every inner node, so both children are final.
-// A node whose subtree is one leaf or cheaper as one (at most MAX_LEAF primitives)
-// gets aux.z = COLLAPSED, any other the number of output inner nodes in its subtree.
-// Push: n, c = height, ci.
+// Output-node counts and collapse decisions, by height: dispatched once per height,
+// lowest first, over build_levels.comp's list of every inner node, so both children
+// are final (treelet::Restructure::collapse_flags and the flattener's counts).
+// With COLLAPSE, a node whose subtree is cheaper as one leaf (at most MAX_LEAF
+// primitives) gets aux.z = COLLAPSED; any other node the number of output inner nodes
+// in its subtree. Push: n, a = COLLAPSE (trbvh) or 0 (the LBVH), c = height, ci.
 #define USE_HEADER 1
 #define USE_NODES 1
 #define USE_LEVELS 1
 #include "build/common.glsl"
 
 layout(local_size_x = BUILD_TREELET_GROUP) in;
+
+const uint COLLAPSE = 1u;
 
 uint inner_nodes(uint i) {
     return (is_leaf(i) || aux[i].z == COLLAPSED) ? 0u : aux[i].z;
@@ -23,7 +25,7 @@ void main() {
     uint p = levels[LV_LIST + levels[LV_OFFSET + h] + t];
     uint count = aux[p].y;
     bool collapse = false;
-    if (count <= MAX_LEAF) {
+    if (pc.a == COLLAPSE && count <= MAX_LEAF) {
         precise float leaf = (pc.ci * box_area(node_min(p), node_max(p))) * float(count);
         collapse = leaf <= uintBitsToFloat(aux[p].z);
     }

@@ -1,15 +1,11 @@
 #version 460
-// Bottom-up passes with atomic visit counters (Karras 2012, section 4): one thread per
+// Bottom-up fit with atomic visit counters (Karras 2012, section 4): one thread per
 // leaf climbs; at each parent the first thread to arrive stops and the second, which
-// finds both children done, handles the parent and climbs on (resetting the counter
-// for the next pass). Push: n, a = flags, ct, ci. A climb longer than BUILD_MAX_WALK
-// sets BUILD_ERR_WALK.
-//   FIT (1):      box = union of the children's, count, cost with collapse
-//                 (treelet::Restructure::new).
-//   FINALIZE (2): aux.z = the subtree's number of output inner nodes (the LBVH, which
-//                 keeps one primitive per leaf; trbvh's collapse is build_finalize.comp).
-//   HEIGHT (8):   node heights for the restructuring schedule (leaves 0), and the
-//                 schedule's per-height counters zeroed.
+// finds both children done, handles the parent and climbs on (resetting the counter).
+// A parent gets the union of its children's boxes, its primitive count, its cost with
+// collapse (treelet::Restructure::new) and its height (leaves 0) for the schedule of
+// the passes by height (build_levels.comp), whose counters are zeroed here.
+// Push: n, ct, ci. A climb longer than BUILD_MAX_WALK sets BUILD_ERR_WALK.
 #define USE_HEADER 1
 #define USE_NODES 1
 #define USE_LEVELS 1
@@ -17,21 +13,14 @@
 
 layout(local_size_x = BUILD_GROUP) in;
 
-const uint FIT = 1u;
-const uint FINALIZE = 2u;
-const uint HEIGHT = 8u;
-
 shared uint s_climbing;
 
 void main() {
     uint j = group_index() * BUILD_GROUP + gl_LocalInvocationID.x;
     bool climbing = j < pc.n;
     uint cur = pc.n - 1u + j;
-    if (climbing && (pc.a & FINALIZE) != 0u) aux[cur].z = 0u;
-    if ((pc.a & HEIGHT) != 0u) {
-        if (climbing) levels[lv_height(cur)] = 0u;
-        for (uint w = j; w < LV_ARGS; w += pc.n) levels[w] = 0u;
-    }
+    if (climbing) levels[lv_height(cur)] = 0u;
+    for (uint w = j; w < LV_ARGS; w += pc.n) levels[w] = 0u;
     // Every lane runs the atomic at every step, idle lanes on the spare entry 2n-1:
     // llvmpipe returned wrong old values from an atomic that only some lanes ran.
     uint spare = 2u * pc.n - 1u;
@@ -47,23 +36,15 @@ void main() {
             aux[p].w = 0u;
             uint l = node_left(p);
             uint r = node_right(p);
-            if ((pc.a & FIT) != 0u) {
-                vec3 lo = min(node_min(l), node_min(r));
-                vec3 hi = max(node_max(l), node_max(r));
-                uint count = aux[l].y + aux[r].y;
-                precise float children = uintBitsToFloat(aux[l].z) + uintBitsToFloat(aux[r].z);
-                float cost = node_cost(lo, hi, count, children);
-                nodes[2u * p].xyz = floatBitsToUint(lo);
-                nodes[2u * p + 1u].xyz = floatBitsToUint(hi);
-                aux[p].y = count;
-                if ((pc.a & FINALIZE) == 0u) aux[p].z = floatBitsToUint(cost);
-            }
-            if ((pc.a & FINALIZE) != 0u) {
-                aux[p].z = 1u + aux[l].z + aux[r].z; // leaves were set to 0
-            }
-            if ((pc.a & HEIGHT) != 0u) {
-                levels[lv_height(p)] = 1u + max(levels[lv_height(l)], levels[lv_height(r)]);
-            }
+            vec3 lo = min(node_min(l), node_min(r));
+            vec3 hi = max(node_max(l), node_max(r));
+            uint count = aux[l].y + aux[r].y;
+            precise float children = uintBitsToFloat(aux[l].z) + uintBitsToFloat(aux[r].z);
+            nodes[2u * p].xyz = floatBitsToUint(lo);
+            nodes[2u * p + 1u].xyz = floatBitsToUint(hi);
+            aux[p].y = count;
+            aux[p].z = floatBitsToUint(node_cost(lo, hi, count, children));
+            levels[lv_height(p)] = 1u + max(levels[lv_height(l)], levels[lv_height(r)]);
             memoryBarrierBuffer();
             cur = p;
         }

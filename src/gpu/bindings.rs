@@ -55,10 +55,11 @@ pub const BUILD_HDR_NODES: u32 = 8;
 pub const BUILD_HDR_WORDS: u32 = 16;
 /// Error bit: a bottom-up or top-down walk exceeded BUILD_MAX_WALK steps.
 pub const BUILD_ERR_WALK: u32 = 1;
-/// Error bit: a treelet root is BUILD_MAX_LEVELS or more levels above its deepest leaf.
+/// Error bit: an inner node is BUILD_MAX_LEVELS or more levels above its deepest leaf.
 pub const BUILD_ERR_LEVELS: u32 = 2;
-/// Most node heights a restructuring round schedules (one indirect dispatch each).
-pub const BUILD_MAX_LEVELS: u32 = 96;
+/// Node heights the passes by height schedule (one indirect dispatch each): every
+/// height of a tree the traversal kernel accepts (`MAX_BVH_DEPTH` inner nodes on a path).
+pub const BUILD_MAX_LEVELS: u32 = 129;
 /// Longest walk between a node and the root the build kernels take.
 pub const BUILD_MAX_WALK: u32 = 1024;
 /// Threads per workgroup of the build kernels other than treelet restructuring.

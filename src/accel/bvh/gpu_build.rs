@@ -11,22 +11,34 @@
 //! | morton | `build_morton` | 30-bit codes, `(code, primitive)` pairs |
 //! | sort | `build_sort_{hist,scan,scatter}` x 4 | stable LSD radix sort, 8-bit digits |
 //! | hierarchy | `build_hierarchy` | the radix tree, leaf boxes and costs |
-//! | fit | `build_fit` | boxes, counts, costs bottom-up with atomic visit counters |
-//! | restructure round r | `build_treelet` | treelets of up to 7 leaves, bottom-up (trbvh) |
-//! | collapse | `build_fit` | collapse decisions and output-node counts |
-//! | emit | `build_emit` | nodes and indices in the traversal layout |
+//! | fit | `build_fit` | boxes, counts, costs and node heights bottom-up with atomic visit counters |
+//! | restructure round r | `build_levels`, `build_treelet` per height | 7-leaf treelets, lowest first (trbvh) |
+//! | collapse (finalize for lbvh) | `build_levels`, `build_finalize` per height | collapse decisions, output-node counts |
+//! | emit | `build_emit`, per height from the top | nodes and indices in the traversal layout |
+//!
+//! **Passes by height.** llvmpipe runs the body of a divergent `if` under a lane mask
+//! even when no lane is active, so a kernel that climbs from the leaves and does a
+//! node's work where the climb arrives pays for that work at every step of every SIMD
+//! group. Only `fit` climbs; it also computes every node's height (leaves 0). The later
+//! passes list their nodes by height (`build_levels`: count, scan, scatter) and run
+//! one indirect dispatch per height, one thread per node: lowest first where a node
+//! needs its children final, highest first where it needs its parent's. The treelet
+//! kernel updates the heights in the subtree it rewrites, so the next round's schedule
+//! needs no new climb. Empty heights dispatch no workgroups.
 //!
 //! Every result equals the CPU builder's for the same scene, word for word: the Morton
 //! codes round alike (see [`super::lbvh::MortonGrid`]), the sort is stable over
 //! primitive order (equal codes order by index as the CPU's 64-bit keys do), the
 //! hierarchy is the same function of the keys, costs are computed with the same
 //! operations in the same order (`precise`), a treelet is optimised only after every
-//! treelet below it, as on the CPU, and the emit pass writes the flattener's preorder.
+//! treelet below it, as on the CPU, and the emit pass writes the flattener's preorder
+//! (a node's preorder index and first primitive handed down from its parent).
 //! The tests check this equality, which implies the same SAH cost.
 //!
-//! Buffers (at most 5 per kernel): header, primitive boxes, two pair arrays, the sort's
-//! histogram, canonical nodes (32 bytes), per-node aux words (16 bytes), output nodes
-//! (64 bytes) and indices. `2n - 1` canonical nodes must fit the device's storage-buffer
+//! Buffers (at most 6 per kernel): header, primitive boxes, two pair arrays, the sort's
+//! histogram, canonical nodes (32 bytes), per-node aux words (16 bytes), the schedule
+//! (per-height counters and dispatch arguments, a node list, node heights), output
+//! nodes (64 bytes) and indices. `2n - 1` canonical nodes must fit the device's storage-buffer
 //! range: about 4M primitives at 128 MiB.
 
 use std::collections::HashMap;
@@ -42,14 +54,18 @@ use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context, Kernel, Step};
 use crate::scene::Scene;
 
-/// Flags of `build_fit.comp`.
-const FIT: u32 = 1;
-const FINALIZE: u32 = 2;
-const HEIGHT: u32 = 8;
+/// `build_finalize.comp`: subtrees cheaper as one leaf become leaves (trbvh).
+const FINALIZE_COLLAPSE: u32 = 1;
+/// Modes of `build_emit.comp`.
+const EMIT_ROOT: u32 = 0;
+const EMIT_TOP: u32 = 1;
 /// Modes of `build_levels.comp`.
 const LEVELS_COUNT: u32 = 0;
 const LEVELS_SCAN: u32 = 1;
 const LEVELS_SCATTER: u32 = 2;
+// Every height of a tree the traversal accepts has a slot in the schedule.
+const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH);
+
 /// Words per per-height array of the schedule (heights, plus a spare slot).
 const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
 /// Word offset of the indirect dispatch arguments in the schedule.
@@ -185,14 +201,14 @@ impl GpuBuilder {
             fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
-            finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels])?,
-            emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, out_nodes, out_idx])?,
+            finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
+            emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, levels, out_nodes, out_idx])?,
             setup_ms: 0.0,
         };
         Ok(GpuBuilder { setup_ms: t.elapsed().as_secs_f64() * 1e3, ..g })
     }
 
-    fn buffers(&self, ctx: &Context, scene: &Scene, builder: BvhBuilder) -> Result<Buffers> {
+    fn buffers(&self, ctx: &Context, scene: &Scene) -> Result<Buffers> {
         let n = scene.prim_count() as u64;
         let blocks = n.div_ceil(TILE);
         let mut header = vec![0u32; BUILD_HDR_WORDS as usize];
@@ -228,12 +244,9 @@ impl GpuBuilder {
             hist: storage("sort_hist", 256 * blocks * 4)?,
             nodes: storage("build_nodes", (2 * n - 1) * 32)?,
             aux: storage("build_aux", 2 * n * 16)?,
-            // The schedule: per-height arrays, the root list (n - 1) and the heights
-            // (2n, with the spare); the LBVH never reads it.
-            levels: storage(
-                "build_levels",
-                if builder == BvhBuilder::Trbvh { (LV_LIST + n + 2 * n) * 4 } else { LV_LIST * 4 },
-            )?,
+            // The schedule: per-height arrays, the node list (n - 1) and the heights
+            // (2n, with the spare).
+            levels: storage("build_levels", (LV_LIST + n + 2 * n) * 4)?,
             out_nodes: storage("accel_nodes", n.saturating_sub(1).max(1) * 64)?,
             out_indices: storage("accel_indices", n * 4)?,
             geometry,
@@ -258,7 +271,7 @@ impl GpuBuilder {
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
-        let b = self.buffers(ctx, scene, builder)?;
+        let b = self.buffers(ctx, scene)?;
         super::lap(&mut phases, "upload", &mut t);
         self.bind(ctx, scene, &b)?;
         let n32 = n as u32;
@@ -307,32 +320,33 @@ impl GpuBuilder {
         steps.push(Step::Mark("gpu hierarchy"));
         let leaves = groups(n as u64, BUILD_GROUP)?;
         let round_names: Vec<String> = (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect();
-        match builder {
-            BvhBuilder::Lbvh => {
-                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT | FINALIZE, 0)), groups: leaves });
-                steps.push(Step::Mark("gpu fit"));
+        steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(0, 0)), groups: leaves });
+        steps.push(Step::Mark("gpu fit"));
+        let inner = groups(n as u64 - 1, BUILD_GROUP)?;
+        let collapse = if builder == BvhBuilder::Trbvh {
+            for (round, name) in round_names.iter().enumerate() {
+                let gamma = tp.gamma(round as u32);
+                let p = push(gamma, tp.leaves as u32);
+                steps.extend(by_height(&self.levels, &self.treelet, &b.levels, inner, gamma, p));
+                steps.push(Step::Mark(name));
             }
-            _ => {
-                steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(FIT | HEIGHT, 0)), groups: leaves });
-                steps.push(Step::Mark("gpu fit"));
-                let inner = groups(n as u64 - 1, BUILD_GROUP)?;
-                for (round, name) in round_names.iter().enumerate() {
-                    let gamma = tp.gamma(round as u32);
-                    steps.extend(by_height(
-                        &self.levels,
-                        &self.treelet,
-                        &b.levels,
-                        inner,
-                        gamma,
-                        push(gamma, tp.leaves as u32),
-                    ));
-                    steps.push(Step::Mark(name));
-                }
-                steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(0, 0)));
-                steps.push(Step::Mark("gpu collapse"));
-            }
+            FINALIZE_COLLAPSE
+        } else {
+            0
+        };
+        // Output-node counts (and trbvh's collapse) bottom-up; this leaves every inner
+        // node listed by height for the emit pass.
+        steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
+        steps.push(Step::Mark(if collapse != 0 { "gpu collapse" } else { "gpu finalize" }));
+        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(EMIT_ROOT, 0)), groups: [1, 1, 1] });
+        for h in (1..BUILD_MAX_LEVELS).rev() {
+            steps.push(Step::DispatchIndirect {
+                kernel: &self.emit,
+                push: bytes(Push { c: h, ..push(EMIT_TOP, 0) }),
+                args: &b.levels,
+                offset: (LV_ARGS + 3 * u64::from(h)) * 4,
+            });
         }
-        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(0, 0)), groups: groups(nodes, BUILD_GROUP)? });
         steps.push(Step::Mark("gpu emit"));
         let gpu = ctx.run_steps(&format!("build {}", builder.name()), &steps)?;
         drop(steps);
@@ -346,8 +360,9 @@ impl GpuBuilder {
             bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.header, 0, u64::from(BUILD_HDR_WORDS) * 4)?);
         if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
             return Err(Error::Usage(format!(
-                "GPU build: a treelet root is {BUILD_MAX_LEVELS} or more levels above its leaves, more than \
-                 the restructuring schedule holds (use --build cpu)"
+                "GPU build: the tree is more than {} levels deep, deeper than the traversal kernel's limit \
+                 {MAX_BVH_DEPTH} (use --build cpu to see the final depth)",
+                BUILD_MAX_LEVELS - 1
             )));
         }
         if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
@@ -425,7 +440,7 @@ impl GpuBuilder {
         for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_HEADER, &b.header)?;
         }
-        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize] {
+        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_LEVELS, &b.levels)?;
         }
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
