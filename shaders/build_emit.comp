@@ -17,7 +17,7 @@
 #define USE_LEVELS 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_TREELET_GROUP) in;
+layout(local_size_x = BUILD_LEVEL_GROUP) in;
 
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_NODES) writeonly buffer OutNodes { uvec4 out_nodes[]; };
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_INDICES) writeonly buffer OutIndices { uint out_indices[]; };
@@ -73,7 +73,7 @@ void main() {
         seed(0u, 0u, 0u, 1u);
         return;
     }
-    uint t = group_index() * BUILD_TREELET_GROUP + gl_LocalInvocationID.x;
+    uint t = group_index() * BUILD_LEVEL_GROUP + gl_LocalInvocationID.x;
     uint h = pc.c;
     if (t >= levels[LV_CURSOR + h]) return;
     uint p = levels[LV_LIST + levels[LV_OFFSET + h] + t];

@@ -10,7 +10,7 @@
 #define USE_LEVELS 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_TREELET_GROUP) in;
+layout(local_size_x = BUILD_LEVEL_GROUP) in;
 
 const uint COLLAPSE = 1u;
 
@@ -19,7 +19,7 @@ uint inner_nodes(uint i) {
 }
 
 void main() {
-    uint t = group_index() * BUILD_TREELET_GROUP + gl_LocalInvocationID.x;
+    uint t = group_index() * BUILD_LEVEL_GROUP + gl_LocalInvocationID.x;
     uint h = pc.c;
     if (t >= levels[LV_CURSOR + h]) return;
     uint p = levels[LV_LIST + levels[LV_OFFSET + h] + t];

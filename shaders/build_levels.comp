@@ -1,13 +1,13 @@
 #version 460
-// The schedule of one treelet restructuring round: every inner node with at least
-// gamma primitives below it is a treelet root, and roots are optimised by height
-// (build_treelet.comp, one indirect dispatch per height), lowest first. A node's
-// descendants all have lower heights, so every treelet is optimised after every
-// treelet below it, as on the CPU. Push: n, a = mode, b = gamma.
-//   COUNT (0):   roots per height (threads over the n - 1 inner nodes).
+// The schedule of one pass by height: the inner nodes with at least gamma primitives
+// below them (a round's treelet roots; every inner node for gamma 0) listed by height,
+// for one indirect dispatch per height (build_treelet, build_finalize, build_emit).
+// A node's descendants all have lower heights, so going lowest first every node comes
+// after its subtree, as in the CPU's bottom-up order. Push: n, a = mode, b = gamma.
+//   COUNT (0):   listed nodes per height (threads over the n - 1 inner nodes).
 //   SCAN (1):    one workgroup: offsets, dispatch arguments; counters zeroed.
-//   SCATTER (2): the roots into the list, grouped by height.
-// A root BUILD_MAX_LEVELS or more high sets BUILD_ERR_LEVELS and is left out (the
+//   SCATTER (2): the nodes into the list, grouped by height.
+// A node BUILD_MAX_LEVELS or more high sets BUILD_ERR_LEVELS and is left out (the
 // build then fails with that error). Every lane runs the atomics, idle lanes on the
 // spare slot BUILD_MAX_LEVELS (see build_fit.comp for why).
 #define USE_HEADER 1
@@ -37,7 +37,7 @@ void main() {
             barrier();
         }
         if (lid < BUILD_MAX_LEVELS) {
-            uint groups = (c + BUILD_TREELET_GROUP - 1u) / BUILD_TREELET_GROUP;
+            uint groups = (c + BUILD_LEVEL_GROUP - 1u) / BUILD_LEVEL_GROUP;
             levels[LV_OFFSET + lid] = s_scan[lid] - c;
             levels[LV_ARGS + 3u * lid] = min(groups, 65535u);
             levels[LV_ARGS + 3u * lid + 1u] = (groups + 65534u) / 65535u;

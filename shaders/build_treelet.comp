@@ -21,7 +21,7 @@
 #define USE_LEVELS 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_TREELET_GROUP) in;
+layout(local_size_x = BUILD_LEVEL_GROUP) in;
 
 const uint MAXK = 7u;
 const uint SUBSETS = 1u << MAXK;
@@ -205,7 +205,7 @@ void restructure(uint root) {
 }
 
 void main() {
-    uint t = group_index() * BUILD_TREELET_GROUP + gl_LocalInvocationID.x;
+    uint t = group_index() * BUILD_LEVEL_GROUP + gl_LocalInvocationID.x;
     uint h = pc.c;
     if (t < levels[LV_CURSOR + h]) restructure(levels[LV_LIST + levels[LV_OFFSET + h] + t]);
 }

@@ -93,12 +93,12 @@ bool is_leaf(uint i) { return (nodes[2u * i].w & LEAF_FLAG) != 0u; }
 #endif
 
 #ifdef USE_LEVELS
-// The restructuring schedule (gpu_build.rs allocates it for trbvh), in words:
-//   LV_COUNT + h   treelet roots of height h, counted (zeroed again by the scan)
-//   LV_OFFSET + h  first slot of height h in the root list
-//   LV_CURSOR + h  roots of height h placed; after the scatter, how many there are
+// The schedule of the passes by height (build_levels.comp), in words:
+//   LV_COUNT + h   listed nodes of height h, counted (zeroed again by the scan)
+//   LV_OFFSET + h  first slot of height h in the list
+//   LV_CURSOR + h  nodes of height h placed; after the scatter, how many there are
 //   LV_ARGS + 3h   indirect dispatch arguments of height h (2D grid, 1)
-//   LV_LIST + i    treelet roots, grouped by height
+//   LV_LIST + i    the listed nodes (treelet roots, or every inner node), by height
 //   lv_height(i)   height of node i (a leaf 0, an inner node 1 + its higher child's),
 //                  for the 2n - 1 nodes and the spare entry 2n - 1
 // Index BUILD_MAX_LEVELS of each per-height array is a spare for idle lanes' atomics.

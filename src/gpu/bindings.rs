@@ -39,8 +39,8 @@ pub const BINDING_BUILD_AUX: u32 = 9;
 pub const BINDING_BUILD_OUT_NODES: u32 = 10;
 /// Build: output primitive indices.
 pub const BINDING_BUILD_OUT_INDICES: u32 = 11;
-/// Build: the restructuring schedule (per-height counts, offsets and dispatch
-/// arguments, the treelet roots by height, node heights; see build/common.glsl).
+/// Build: the schedule of the passes by height (per-height counts, offsets and dispatch
+/// arguments, the nodes listed by height, node heights; see build/common.glsl).
 pub const BINDING_BUILD_LEVELS: u32 = 12;
 /// Header words: centroid box min xyz and max xyz as order-preserving uints.
 pub const BUILD_HDR_CMIN: u32 = 0;
@@ -66,8 +66,9 @@ pub const BUILD_MAX_WALK: u32 = 1024;
 pub const BUILD_GROUP: u32 = 256;
 /// Elements per thread of the radix sort (tile = BUILD_GROUP x this).
 pub const BUILD_SORT_ITEMS: u32 = 16;
-/// Threads per workgroup of treelet restructuring (one treelet root each).
-pub const BUILD_TREELET_GROUP: u32 = 64;
+/// Threads per workgroup of the passes by height (restructure, collapse, emit), one
+/// node each.
+pub const BUILD_LEVEL_GROUP: u32 = 64;
 
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -140,5 +141,5 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_MAX_WALK", BUILD_MAX_WALK),
     ("BUILD_GROUP", BUILD_GROUP),
     ("BUILD_SORT_ITEMS", BUILD_SORT_ITEMS),
-    ("BUILD_TREELET_GROUP", BUILD_TREELET_GROUP),
+    ("BUILD_LEVEL_GROUP", BUILD_LEVEL_GROUP),
 ];

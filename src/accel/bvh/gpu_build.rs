@@ -38,8 +38,8 @@
 //! Buffers (at most 6 per kernel): header, primitive boxes, two pair arrays, the sort's
 //! histogram, canonical nodes (32 bytes), per-node aux words (16 bytes), the schedule
 //! (per-height counters and dispatch arguments, a node list, node heights), output
-//! nodes (64 bytes) and indices. `2n - 1` canonical nodes must fit the device's storage-buffer
-//! range: about 4M primitives at 128 MiB.
+//! nodes (64 bytes) and indices. `2n - 1` canonical nodes must fit the device's
+//! storage-buffer range: about 4M primitives at 128 MiB.
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -70,7 +70,7 @@ const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH);
 const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
 /// Word offset of the indirect dispatch arguments in the schedule.
 const LV_ARGS: u64 = 3 * LV_SLOTS;
-/// Words of the schedule before the root list.
+/// Words of the schedule before the node list.
 const LV_LIST: u64 = 6 * LV_SLOTS;
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
