@@ -11,12 +11,13 @@
 #define USE_LEVELS 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_GROUP) in;
+// One subgroup per workgroup (SPEC_FIT_GROUP, set from the device's subgroup size).
+layout(local_size_x_id = SPEC_FIT_GROUP) in;
 
 shared uint s_climbing;
 
 void main() {
-    uint j = group_index() * BUILD_GROUP + gl_LocalInvocationID.x;
+    uint j = group_index() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
     bool climbing = j < pc.n;
     uint cur = pc.n - 1u + j;
     if (climbing) levels[lv_height(cur)] = 0u;

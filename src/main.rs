@@ -529,8 +529,15 @@ fn run(cli: Cli) -> Result<()> {
             }
             for d in list {
                 println!(
-                    "{}: {} ({}, Vulkan {}, {}), maxStorageBufferRange {} bytes, timestampPeriod {} ns",
-                    d.index, d.name, d.kind, d.api_version, d.driver, d.max_storage_buffer_range, d.timestamp_period_ns
+                    "{}: {} ({}, Vulkan {}, {}), maxStorageBufferRange {} bytes, timestampPeriod {} ns, subgroup {}",
+                    d.index,
+                    d.name,
+                    d.kind,
+                    d.api_version,
+                    d.driver,
+                    d.max_storage_buffer_range,
+                    d.timestamp_period_ns,
+                    d.subgroup_size
                 );
             }
             Ok(())

@@ -43,6 +43,8 @@ pub struct DeviceInfo {
     pub timestamp_period_ns: f32,
     /// Mesa's llvmpipe (lavapipe), which caps loop iterations per invocation.
     pub is_llvmpipe: bool,
+    /// Invocations per subgroup (8 on lavapipe here, 32 on NVIDIA).
+    pub subgroup_size: u32,
 }
 
 /// State shared by the context and every object it created; dropped last.
@@ -183,7 +185,8 @@ impl Context {
         // SAFETY: `pd` was enumerated from `instance`.
         let props = unsafe { instance.get_physical_device_properties(pd) };
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup);
         // SAFETY: as above; Vulkan 1.1+ query with a valid chain.
         unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
         DeviceInfo {
@@ -195,6 +198,7 @@ impl Context {
             max_storage_buffer_range: u64::from(props.limits.max_storage_buffer_range),
             timestamp_period_ns: props.limits.timestamp_period,
             is_llvmpipe: driver.driver_id == vk::DriverId::MESA_LLVMPIPE,
+            subgroup_size: subgroup.subgroup_size,
         }
     }
 

@@ -87,6 +87,8 @@ pub struct GpuBuilder {
     scatter: [Kernel; 2],
     hierarchy: Kernel,
     fit: Kernel,
+    /// Threads per workgroup of `fit`: the device's subgroup size, within 8..=256.
+    fit_group: u32,
     levels: Kernel,
     treelet: Kernel,
     finalize: Kernel,
@@ -102,9 +104,14 @@ impl std::fmt::Debug for GpuBuilder {
 }
 
 fn kernel(ctx: &Context, name: &str, bindings: &[BindingDesc]) -> Result<Kernel> {
+    kernel_with(ctx, name, bindings, &[])
+}
+
+/// [`kernel`] with specialization constants (id, value).
+fn kernel_with(ctx: &Context, name: &str, bindings: &[BindingDesc], spec: &[(u32, u32)]) -> Result<Kernel> {
     let code = spirv::get(name)
         .ok_or_else(|| Error::Vulkan { what: format!("kernel '{name}'"), result: "not compiled".into() })?;
-    ctx.create_kernel(name, code, bindings, &[], std::mem::size_of::<Push>() as u32)
+    ctx.create_kernel(name, code, bindings, spec, std::mem::size_of::<Push>() as u32)
 }
 
 /// The steps of one pass by height: `levels` lists the inner nodes with at least
@@ -185,6 +192,7 @@ impl GpuBuilder {
             }
             bounds.insert(geo, kernel(ctx, &format!("build_bounds_{geo}"), &b)?);
         }
+        let fit_group = ctx.info().subgroup_size.clamp(8, 256);
         let g = GpuBuilder {
             bounds,
             morton: kernel(ctx, "build_morton", &[hdr.clone(), pb.clone(), pairs.clone()])?,
@@ -198,7 +206,13 @@ impl GpuBuilder {
                 kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
             ],
             hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
-            fit: kernel(ctx, "build_fit", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
+            fit: kernel_with(
+                ctx,
+                "build_fit",
+                &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()],
+                &[(SPEC_FIT_GROUP, fit_group)],
+            )?,
+            fit_group,
             levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
@@ -318,7 +332,7 @@ impl GpuBuilder {
             groups: groups(nodes, BUILD_GROUP)?,
         });
         steps.push(Step::Mark("gpu hierarchy"));
-        let leaves = groups(n as u64, BUILD_GROUP)?;
+        let leaves = groups(n as u64, self.fit_group)?;
         let round_names: Vec<String> = (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect();
         steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(0, 0)), groups: leaves });
         steps.push(Step::Mark("gpu fit"));
