@@ -1,6 +1,7 @@
 #version 460
 // Primitive boxes (as prim::bounds) and the centroid box of the scene, reduced per
-// workgroup then with atomics on order-preserving uints. Push: n, a = triangles.
+// thread (ITEMS primitives each, consecutive threads on consecutive primitives), per
+// workgroup, then with atomics on order-preserving uints. Push: n, a = triangles.
 // Variants build_bounds_{tris,spheres,all} declare only the geometry they read.
 #define USE_HEADER 1
 #define USE_PRIM_BOUNDS 1
@@ -19,12 +20,16 @@ layout(std430, set = 0, binding = BINDING_SPHERES) readonly buffer BuildSpheres 
 shared uint s_min[3][BUILD_GROUP];
 shared uint s_max[3][BUILD_GROUP];
 
+// Primitives per thread: fewer workgroups, so fewer barriers and atomics.
+const uint ITEMS = 16u;
+
 void main() {
     uint lid = gl_LocalInvocationID.x;
-    uint i = group_index() * BUILD_GROUP + lid;
     uvec3 cmin = uvec3(NONE);
     uvec3 cmax = uvec3(0u);
-    if (i < pc.n) {
+    for (uint item = 0u; item < ITEMS; ++item) {
+        uint i = (group_index() * ITEMS + item) * BUILD_GROUP + lid;
+        if (i >= pc.n) continue;
         vec3 lo = vec3(0.0);
         vec3 hi = vec3(0.0);
 #if HAS_TRIANGLES
@@ -49,8 +54,9 @@ void main() {
         prim_bounds[2u * i] = vec4(lo, 0.0);
         prim_bounds[2u * i + 1u] = vec4(hi, 0.0);
         precise vec3 c = (lo + hi) * 0.5;
-        cmin = uvec3(float_order(c.x), float_order(c.y), float_order(c.z));
-        cmax = cmin;
+        uvec3 o = uvec3(float_order(c.x), float_order(c.y), float_order(c.z));
+        cmin = min(cmin, o);
+        cmax = max(cmax, o);
     }
     for (uint k = 0u; k < 3u; ++k) {
         s_min[k][lid] = cmin[k];

@@ -72,6 +72,8 @@ const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
 const LV_ARGS: u64 = 3 * LV_SLOTS;
 /// Words of the schedule before the node list.
 const LV_LIST: u64 = 6 * LV_SLOTS;
+/// Primitives per thread of `build_bounds.comp` (its ITEMS).
+const BOUNDS_ITEMS: u32 = 16;
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
 fn storage(binding: u32, name: &'static str) -> BindingDesc {
@@ -309,7 +311,7 @@ impl GpuBuilder {
             Step::Dispatch {
                 kernel: bounds_k,
                 push: bytes(push(scene.triangles.len() as u32, 0)),
-                groups: groups(n as u64, BUILD_GROUP)?,
+                groups: groups(n as u64, BUILD_GROUP * BOUNDS_ITEMS)?,
             },
             Step::Mark("gpu bounds"),
             Step::Dispatch { kernel: &self.morton, push: bytes(push(0, 0)), groups: groups(n as u64, BUILD_GROUP)? },
