@@ -26,19 +26,20 @@ layout(local_size_x = BUILD_LEVEL_GROUP) in;
 const uint MAXK = 7u;
 const uint SUBSETS = 1u << MAXK;
 
-
 float aux_cost(uint i) { return uintBitsToFloat(aux[i].z); }
 
-// The box and primitive count of leaf subset s: the union folded from its highest
-// leaf down, which is the CPU's order (box(S) = box(S without its lowest leaf) joined
-// with the lowest leaf's), so the bits match.
 // Per-thread tables of the treelet being solved: its leaves' boxes and counts, and the
-// optimal cost of every leaf subset (leaf i alone at 1 << i).
+// optimal cost of every leaf subset (leaf i alone at 1 << i). Only the costs are kept
+// per subset: llvmpipe keeps private arrays per lane in scratch memory, so boxes,
+// counts and best splits are recomputed where needed instead of stored.
 vec3 llo[MAXK];
 vec3 lhi[MAXK];
 uint lcount[MAXK];
 float copt[SUBSETS];
 
+// The box and primitive count of leaf subset s: the union folded from its highest
+// leaf down, which is the CPU's order (box(S) = box(S without its lowest leaf) joined
+// with the lowest leaf's), so the bits match.
 void subset_box(uint s, out vec3 lo, out vec3 hi, out uint count) {
     int h = findMSB(s);
     lo = llo[h];
@@ -119,10 +120,8 @@ void restructure(uint root) {
         set_height(root);
         return;
     }
-    // Dynamic programming over the subsets of the k leaves. Only the optimal costs are
-    // kept per subset: llvmpipe gives private arrays per-lane scratch memory, set up
-    // at every dispatch step, so a subset's box, count and best split are recomputed
-    // where needed instead of stored (about a sixth of the scratch of storing them).
+    // Dynamic programming over the subsets of the k leaves: generated straight-line code
+    // for 7 leaves, the loop otherwise.
     for (uint i = 0u; i < k; ++i) {
         uint l = leaf[i];
         llo[i] = node_min(l);
