@@ -1,45 +1,62 @@
 #version 460
-// Radix sort, pass 3 of 3: stable scatter. A tile is processed in BUILD_SORT_ITEMS
-// rounds of BUILD_GROUP pairs, in order; within a round a pair's rank among equal
-// digits comes from bit masks in shared memory (one bit per thread and digit), so no
-// subgroup size is assumed. Push: n, a = shift, b = blocks.
+// Radix sort, pass 3 of 3: stable scatter. One workgroup of one subgroup
+// (SPEC_SCATTER_GROUP threads, 8..64) walks a tile of BUILD_GROUP x BUILD_SORT_ITEMS
+// pairs in order, a workgroup's width at a time; within a step a pair's rank among
+// equal digits comes from bit masks in shared memory (one bit per thread and digit),
+// so no subgroup operation is needed. The lowest thread of each digit then advances
+// that digit's base and clears its mask. A one-subgroup workgroup keeps the barriers
+// cheap (llvmpipe runs them as coroutine switches). Push: n, a = shift, b = blocks.
 #define USE_PAIRS 1
 #define USE_PAIRS_OUT 1
 #define USE_HIST 1
 #include "build/common.glsl"
 
-layout(local_size_x = BUILD_GROUP) in;
+layout(local_size_x_id = SPEC_SCATTER_GROUP) in;
 
-const uint WORDS = BUILD_GROUP / 32u;
+const uint TILE = BUILD_GROUP * BUILD_SORT_ITEMS;
+const uint MAXW = 2u; // mask words per digit: up to 64 threads
 shared uint s_base[256];
-shared uint s_mask[256 * WORDS];
+shared uint s_mask[256 * MAXW];
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
+    uint g = gl_WorkGroupSize.x;
+    uint words = (g + 31u) / 32u;
     uint tile = group_index();
     if (tile >= pc.b) return;
-    s_base[lid] = hist[lid * pc.b + tile];
-    uint base = tile * BUILD_GROUP * BUILD_SORT_ITEMS;
+    for (uint d = lid; d < 256u; d += g) {
+        s_base[d] = hist[d * pc.b + tile];
+        s_mask[d * MAXW] = 0u;
+        s_mask[d * MAXW + 1u] = 0u;
+    }
+    barrier();
+    uint base = tile * TILE;
     uint word = lid / 32u;
     uint bit = 1u << (lid % 32u);
-    for (uint it = 0u; it < BUILD_SORT_ITEMS; ++it) {
-        for (uint w = 0u; w < WORDS; ++w) s_mask[lid * WORDS + w] = 0u;
-        barrier();
-        uint idx = base + it * BUILD_GROUP + lid;
+    for (uint it = 0u; it < TILE / g; ++it) {
+        uint idx = base + it * g + lid;
         bool valid = idx < pc.n;
         uvec2 p = valid ? pairs[idx] : uvec2(0u);
         uint digit = (p.x >> pc.a) & 255u;
-        if (valid) atomicOr(s_mask[digit * WORDS + word], bit);
+        if (valid) atomicOr(s_mask[digit * MAXW + word], bit);
         barrier();
+        uint total = 0u;
+        uint lowest = 0u;
         if (valid) {
-            uint rank = bitCount(s_mask[digit * WORDS + word] & (bit - 1u));
-            for (uint w = 0u; w < word; ++w) rank += bitCount(s_mask[digit * WORDS + w]);
+            uint m0 = s_mask[digit * MAXW];
+            uint m1 = words > 1u ? s_mask[digit * MAXW + 1u] : 0u;
+            uint mine = word == 0u ? m0 : m1;
+            uint rank = bitCount(mine & (bit - 1u)) + (word == 1u ? bitCount(m0) : 0u);
             pairs_out[s_base[digit] + rank] = p;
+            total = bitCount(m0) + bitCount(m1);
+            lowest = m0 != 0u ? uint(findLSB(m0)) : 32u + uint(findLSB(m1));
         }
         barrier();
-        uint added = 0u;
-        for (uint w = 0u; w < WORDS; ++w) added += bitCount(s_mask[lid * WORDS + w]);
-        s_base[lid] += added;
+        if (valid && lowest == lid) {
+            s_base[digit] += total;
+            s_mask[digit * MAXW] = 0u;
+            s_mask[digit * MAXW + 1u] = 0u;
+        }
         barrier();
     }
 }

@@ -100,6 +100,9 @@ pub const SPEC_DIFFUSE_PROBE: u32 = 6;
 /// Threads per workgroup of the bottom-up fit (`build_fit.comp`): one subgroup, so its
 /// barriers stay cheap (on lavapipe 8 threads took half the time of 256 at 1M).
 pub const SPEC_FIT_GROUP: u32 = 7;
+/// Threads per workgroup of the radix sort's scatter (`build_sort_scatter.comp`): one
+/// subgroup, at most 64.
+pub const SPEC_SCATTER_GROUP: u32 = 8;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -123,6 +126,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_INTERSECT", SPEC_INTERSECT),
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("SPEC_FIT_GROUP", SPEC_FIT_GROUP),
+    ("SPEC_SCATTER_GROUP", SPEC_SCATTER_GROUP),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("BINDING_BUILD_HEADER", BINDING_BUILD_HEADER),
     ("BINDING_BUILD_PRIM_BOUNDS", BINDING_BUILD_PRIM_BOUNDS),

@@ -195,6 +195,8 @@ impl GpuBuilder {
             bounds.insert(geo, kernel(ctx, &format!("build_bounds_{geo}"), &b)?);
         }
         let fit_group = ctx.info().subgroup_size.clamp(8, 256);
+        let scatter_group = ctx.info().subgroup_size.clamp(8, 64);
+        let scatter_b = [pairs.clone(), pairs_out.clone(), hist.clone()];
         let g = GpuBuilder {
             bounds,
             morton: kernel(ctx, "build_morton", &[hdr.clone(), pb.clone(), pairs.clone()])?,
@@ -204,8 +206,8 @@ impl GpuBuilder {
             ],
             scan: kernel(ctx, "build_sort_scan", std::slice::from_ref(&hist))?,
             scatter: [
-                kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
-                kernel(ctx, "build_sort_scatter", &[pairs.clone(), pairs_out.clone(), hist.clone()])?,
+                kernel_with(ctx, "build_sort_scatter", &scatter_b, &[(SPEC_SCATTER_GROUP, scatter_group)])?,
+                kernel_with(ctx, "build_sort_scatter", &scatter_b, &[(SPEC_SCATTER_GROUP, scatter_group)])?,
             ],
             hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
             fit: kernel_with(
