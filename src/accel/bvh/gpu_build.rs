@@ -63,8 +63,9 @@ const EMIT_TOP: u32 = 1;
 const LEVELS_COUNT: u32 = 0;
 const LEVELS_SCAN: u32 = 1;
 const LEVELS_SCATTER: u32 = 2;
-// Every height of a tree the traversal accepts has a slot in the schedule.
-const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH);
+// Every height of a tree the traversal accepts has a slot in the schedule, and the
+// one workgroup of `build_levels`'s scan covers every slot.
+const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH && BUILD_GROUP > BUILD_MAX_LEVELS);
 
 /// Words per per-height array of the schedule (heights, plus a spare slot).
 const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
