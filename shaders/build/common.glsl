@@ -103,12 +103,13 @@ bool is_leaf(uint i) { return (nodes[2u * i].w & LEAF_FLAG) != 0u; }
 //                  for the 2n - 1 nodes and the spare entry 2n - 1
 // Index BUILD_MAX_LEVELS of each per-height array is a spare for idle lanes' atomics.
 layout(std430, set = 0, binding = BINDING_BUILD_LEVELS) coherent buffer Levels { uint levels[]; };
-const uint LV_SLOTS = BUILD_MAX_LEVELS + 1u;
-const uint LV_COUNT = 0u;
-const uint LV_OFFSET = LV_SLOTS;
-const uint LV_CURSOR = 2u * LV_SLOTS;
-const uint LV_ARGS = 3u * LV_SLOTS;
-const uint LV_LIST = 6u * LV_SLOTS;
+// The offsets come from src/gpu/bindings.rs (BUILD_LV_*).
+const uint LV_SLOTS = BUILD_LV_SLOTS;
+const uint LV_COUNT = BUILD_LV_COUNT;
+const uint LV_OFFSET = BUILD_LV_OFFSET;
+const uint LV_CURSOR = BUILD_LV_CURSOR;
+const uint LV_ARGS = BUILD_LV_ARGS;
+const uint LV_LIST = BUILD_LV_LIST;
 uint lv_height(uint i) { return LV_LIST + pc.n + i; }
 #endif
 

@@ -60,6 +60,17 @@ pub const BUILD_ERR_LEVELS: u32 = 2;
 /// Node heights the passes by height schedule (one indirect dispatch each): every
 /// height of a tree the traversal kernel accepts (`MAX_BVH_DEPTH` inner nodes on a path).
 pub const BUILD_MAX_LEVELS: u32 = 129;
+/// Words of the schedule of the passes by height (binding BINDING_BUILD_LEVELS): per
+/// height (BUILD_MAX_LEVELS slots plus a spare), counts at BUILD_LV_COUNT, list offsets
+/// at BUILD_LV_OFFSET, placed counts at BUILD_LV_CURSOR, indirect dispatch arguments
+/// (three words) at BUILD_LV_ARGS; then the node list at BUILD_LV_LIST (n words) and
+/// the node heights (2n words). Described in shaders/build/common.glsl.
+pub const BUILD_LV_SLOTS: u32 = BUILD_MAX_LEVELS + 1;
+pub const BUILD_LV_COUNT: u32 = 0;
+pub const BUILD_LV_OFFSET: u32 = BUILD_LV_SLOTS;
+pub const BUILD_LV_CURSOR: u32 = 2 * BUILD_LV_SLOTS;
+pub const BUILD_LV_ARGS: u32 = 3 * BUILD_LV_SLOTS;
+pub const BUILD_LV_LIST: u32 = 6 * BUILD_LV_SLOTS;
 /// Longest walk between a node and the root the build kernels take.
 pub const BUILD_MAX_WALK: u32 = 1024;
 /// Threads per workgroup of the build kernels other than treelet restructuring.
@@ -146,6 +157,12 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_ERR_WALK", BUILD_ERR_WALK),
     ("BUILD_ERR_LEVELS", BUILD_ERR_LEVELS),
     ("BUILD_MAX_LEVELS", BUILD_MAX_LEVELS),
+    ("BUILD_LV_SLOTS", BUILD_LV_SLOTS),
+    ("BUILD_LV_COUNT", BUILD_LV_COUNT),
+    ("BUILD_LV_OFFSET", BUILD_LV_OFFSET),
+    ("BUILD_LV_CURSOR", BUILD_LV_CURSOR),
+    ("BUILD_LV_ARGS", BUILD_LV_ARGS),
+    ("BUILD_LV_LIST", BUILD_LV_LIST),
     ("BUILD_MAX_WALK", BUILD_MAX_WALK),
     ("BUILD_GROUP", BUILD_GROUP),
     ("BUILD_SORT_ITEMS", BUILD_SORT_ITEMS),

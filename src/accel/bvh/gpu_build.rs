@@ -67,12 +67,6 @@ const LEVELS_SCATTER: u32 = 2;
 // one workgroup of `build_levels`'s scan covers every slot.
 const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH && BUILD_GROUP > BUILD_MAX_LEVELS);
 
-/// Words per per-height array of the schedule (heights, plus a spare slot).
-const LV_SLOTS: u64 = BUILD_MAX_LEVELS as u64 + 1;
-/// Word offset of the indirect dispatch arguments in the schedule.
-const LV_ARGS: u64 = 3 * LV_SLOTS;
-/// Words of the schedule before the node list.
-const LV_LIST: u64 = 6 * LV_SLOTS;
 /// Primitives per thread of `build_bounds.comp` (its ITEMS).
 const BOUNDS_ITEMS: u32 = 16;
 /// Sort tile: pairs per workgroup.
@@ -117,10 +111,29 @@ fn kernel_with(ctx: &Context, name: &str, bindings: &[BindingDesc], spec: &[(u32
     ctx.create_kernel(name, code, bindings, spec, std::mem::size_of::<Push>() as u32)
 }
 
+/// One indirect dispatch of `kernel` per height 1..BUILD_MAX_LEVELS (inner nodes have
+/// heights from 1), lowest first or, with `descending`, highest first, over the nodes
+/// the last schedule in `schedule` listed; push constants `p` with the height in `c`.
+/// Empty heights dispatch no workgroups.
+fn per_height<'a>(kernel: &'a Kernel, schedule: &'a Buffer, p: Push, descending: bool) -> Vec<Step<'a>> {
+    let mut heights: Vec<u32> = (1..BUILD_MAX_LEVELS).collect();
+    if descending {
+        heights.reverse();
+    }
+    heights
+        .into_iter()
+        .map(|h| Step::DispatchIndirect {
+            kernel,
+            push: bytemuck::bytes_of(&Push { c: h, ..p }).to_vec(),
+            args: schedule,
+            offset: u64::from(BUILD_LV_ARGS + 3 * h) * 4,
+        })
+        .collect()
+}
+
 /// The steps of one pass by height: `levels` lists the inner nodes with at least
 /// `gamma` primitives (every inner node for gamma 0) by height into `schedule`, then
-/// `kernel` runs once per height, lowest first, with push constants `p` and the height
-/// in `c`. Inner nodes have heights from 1; empty heights dispatch no workgroups.
+/// `kernel` runs once per height, lowest first ([`per_height`]).
 fn by_height<'a>(
     levels: &'a Kernel,
     kernel: &'a Kernel,
@@ -134,14 +147,7 @@ fn by_height<'a>(
         .into_iter()
         .map(|(mode, groups)| Step::Dispatch { kernel: levels, push: bytes(Push { a: mode, b: gamma, ..p }), groups })
         .collect();
-    for h in 1..BUILD_MAX_LEVELS {
-        steps.push(Step::DispatchIndirect {
-            kernel,
-            push: bytes(Push { c: h, ..p }),
-            args: schedule,
-            offset: (LV_ARGS + 3 * u64::from(h)) * 4,
-        });
-    }
+    steps.extend(per_height(kernel, schedule, p, false));
     steps
 }
 
@@ -265,7 +271,7 @@ impl GpuBuilder {
             aux: storage("build_aux", 2 * n * 16)?,
             // The schedule: per-height arrays, the node list (n - 1) and the heights
             // (2n, with the spare).
-            levels: storage("build_levels", (LV_LIST + n + 2 * n) * 4)?,
+            levels: storage("build_levels", (u64::from(BUILD_LV_LIST) + n + 2 * n) * 4)?,
             out_nodes: storage("accel_nodes", n.saturating_sub(1).max(1) * 64)?,
             out_indices: storage("accel_indices", n * 4)?,
             geometry,
@@ -358,14 +364,7 @@ impl GpuBuilder {
         steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
         steps.push(Step::Mark(if collapse != 0 { "gpu collapse" } else { "gpu finalize" }));
         steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(EMIT_ROOT, 0)), groups: [1, 1, 1] });
-        for h in (1..BUILD_MAX_LEVELS).rev() {
-            steps.push(Step::DispatchIndirect {
-                kernel: &self.emit,
-                push: bytes(Push { c: h, ..push(EMIT_TOP, 0) }),
-                args: &b.levels,
-                offset: (LV_ARGS + 3 * u64::from(h)) * 4,
-            });
-        }
+        steps.extend(per_height(&self.emit, &b.levels, push(EMIT_TOP, 0), true));
         steps.push(Step::Mark("gpu emit"));
         let gpu = ctx.run_steps(&format!("build {}", builder.name()), &steps)?;
         drop(steps);
