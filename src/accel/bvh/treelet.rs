@@ -14,7 +14,10 @@
 //! it, and only at nodes whose subtree holds at least γ primitives. As in the paper,
 //! several rounds run with γ doubling each round ([`gamma`]). A round is a post-order
 //! walk that prunes subtrees below γ primitives; the two subtrees of a large node are
-//! walked by parallel tasks, since their treelets are disjoint. The result does not
+//! walked by parallel tasks, since their treelets are disjoint. Within one task's
+//! subtree the treelet roots go a height at a time, and the treelets of one height
+//! (disjoint too) are optimised eight at once, one per SIMD lane, by a generated
+//! straight-line programme (`dp_gen.rs`). The result does not
 //! depend on thread count or order: each treelet's solution reads only its own subtree
 //! (restructuring permutes nodes only within a treelet, so every node's subtree keeps
 //! its set of nodes), and the GPU kernel, which goes bottom-up by levels, gets the
@@ -27,7 +30,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{BNode, Binary, LEAF_FLAG, MAX_LEAF};
@@ -187,6 +190,144 @@ pub struct Restructure {
     root: u32,
 }
 
+/// Treelets optimised at once by the generated programme, one per SIMD lane.
+const LANES: usize = 8;
+/// One value per lane.
+type Lanes = [f32; LANES];
+
+/// The tables of [`LANES`] treelets of the same size, subset-major and lane-minor
+/// (`area[s][lane]`; subset bit i = treelet leaf i). On entry the leaves' entries
+/// (`1 << i`) are set; the generated programme fills the rest.
+struct LaneTables {
+    /// Box of each subset: min x, y, z, max x, y, z.
+    bounds: [[Lanes; 6]; SUBSETS],
+    /// Surface area of each subset's box.
+    area: [Lanes; SUBSETS],
+    /// Primitives in each subset.
+    count: [[i32; LANES]; SUBSETS],
+    /// Optimal cost of each subset (with collapse).
+    cost: [Lanes; SUBSETS],
+}
+
+impl LaneTables {
+    fn new() -> Box<LaneTables> {
+        Box::new(LaneTables {
+            bounds: [[[0.0; LANES]; 6]; SUBSETS],
+            area: [[0.0; LANES]; SUBSETS],
+            count: [[0; LANES]; SUBSETS],
+            cost: [[0.0; LANES]; SUBSETS],
+        })
+    }
+
+    /// Box of subset `s` in `lane`.
+    fn aabb(&self, s: usize, lane: usize) -> Aabb {
+        let b = &self.bounds[s];
+        Aabb { min: Vec3::new(b[0][lane], b[1][lane], b[2][lane]), max: Vec3::new(b[3][lane], b[4][lane], b[5][lane]) }
+    }
+
+    /// The first part P (holding the lowest leaf of `s`; P descending) with the
+    /// strictly cheapest cost(P) + cost(S∖P) in `lane`, or the lowest leaf alone if
+    /// none is below +inf: the split whose cost the generated programme found.
+    fn best_part(&self, s: usize, lane: usize) -> usize {
+        let low = s & s.wrapping_neg();
+        let rest = s ^ low;
+        let mut best = (f32::INFINITY, low);
+        let mut q = rest.wrapping_sub(1) & rest;
+        loop {
+            let p = low | q;
+            let c = self.cost[p][lane] + self.cost[s ^ p][lane];
+            if c < best.0 {
+                best = (c, p);
+            }
+            if q == 0 {
+                return best.1;
+            }
+            q = (q - 1) & rest;
+        }
+    }
+
+    /// Sets leaf `i` of the treelet in `lane`.
+    fn set_leaf(&mut self, lane: usize, i: usize, b: &Aabb, count: u32, cost: f32) {
+        let m = 1 << i;
+        for (a, v) in Slot::lanes(b).into_iter().enumerate() {
+            self.bounds[m][a][lane] = v;
+        }
+        self.count[m][lane] = count as i32;
+        self.cost[m][lane] = cost;
+    }
+}
+
+// Lane-wise steps of the generated programme. Each is written per lane as the scalar
+// code would be, as loops over lane indices (which LLVM turns into vector
+// instructions), hence `needless_range_loop` is allowed on them.
+
+/// Subset `s` = `rest` ∪ {`low`}: its box (min and max as x86's MINPS and MAXPS, as
+/// `Vec3A`), its area as [`area`] (0 when empty, the same sum order) and its count.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+fn lane_fold(t: &mut LaneTables, s: usize, rest: usize, low: usize) {
+    let (r, o) = (t.bounds[rest], t.bounds[low]);
+    let mut b = [[0f32; LANES]; 6];
+    for l in 0..LANES {
+        for a in 0..3 {
+            b[a][l] = if r[a][l] < o[a][l] { r[a][l] } else { o[a][l] };
+            b[a + 3][l] = if r[a + 3][l] > o[a + 3][l] { r[a + 3][l] } else { o[a + 3][l] };
+        }
+    }
+    // Separate loops with no short-circuit, so that each is one vector loop.
+    for l in 0..LANES {
+        let (ex, ey, ez) = (b[3][l] - b[0][l], b[4][l] - b[1][l], b[5][l] - b[2][l]);
+        let empty = (b[0][l] > b[3][l]) | (b[1][l] > b[4][l]) | (b[2][l] > b[5][l]);
+        let a = 2.0 * (ex * ey + ey * ez + ez * ex);
+        t.area[s][l] = if empty { 0.0 } else { a };
+    }
+    for l in 0..LANES {
+        t.count[s][l] = t.count[rest][l].wrapping_add(t.count[low][l]);
+    }
+    t.bounds[s] = b;
+}
+
+/// One step of a comparison chain: a sum `x + y` strictly below `b` replaces it (a NaN
+/// sum never does). Only costs are kept; [`LaneTables::best_part`] finds the part of
+/// the few subsets a new topology uses.
+#[inline(always)]
+fn lane_step(b: &mut Lanes, x: &Lanes, y: &Lanes) {
+    for l in 0..LANES {
+        let c = x[l] + y[l];
+        b[l] = if c < b[l] { c } else { b[l] };
+    }
+}
+
+/// Merges a later chain `b1` into an earlier one `b`.
+#[inline(always)]
+fn lane_merge(b: &mut Lanes, b1: &Lanes) {
+    lane_step(b, b1, &[0.0; LANES]);
+}
+
+/// Subset `s`'s optimal cost as [`Restructure::cost_of_area`], given its cheapest
+/// split's cost `b`: C_T·A + b, or one leaf (C_I·A·N) if cheaper and N ≤ MAX_LEAF.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+fn lane_node(t: &mut LaneTables, s: usize, b: &Lanes, traversal: f32, intersect: f32) {
+    for l in 0..LANES {
+        let (a, n) = (t.area[s][l], t.count[s][l]);
+        let split = traversal * a + b[l];
+        // Both sides computed, so that the choice is a select. Counts are below 2^31;
+        // a NaN leaf cost leaves `split` (f32::min returns the other argument).
+        let leaf = intersect * a * n as f32;
+        let leaf = if n <= MAX_LEAF as i32 { leaf } else { f32::NAN };
+        t.cost[s][l] = split.min(leaf);
+    }
+}
+
+/// A formed treelet: its `k` leaves and `k - 1` inner nodes (root first).
+#[derive(Debug, Clone, Copy, Default)]
+struct Formed {
+    k: usize,
+    leaves: [u32; TREELET_LEAVES],
+    internals: [u32; TREELET_LEAVES - 1],
+}
+
 /// A new topology for one treelet: (node, left, right, box, cost, count) per inner node.
 struct Update {
     len: usize,
@@ -232,13 +373,15 @@ impl Restructure {
         });
         let r = Restructure { costs: *costs, leaves, slots, root: bin.root };
         // Inner nodes bottom-up (children before parents).
-        r.post_order(r.root, 0, &|_| true, &|i, _| {
+        let enter = |_| true;
+        let visit = |i: u32, _| {
             let s = &r.slots[i as usize];
             let (l, rt) = (&r.slots[s.left.load(Relaxed) as usize], &r.slots[s.right.load(Relaxed) as usize]);
             let count = l.count() + rt.count();
             s.set_cost(count, r.node_cost(&s.bounds(), count, l.cost() + rt.cost()));
             (false, RoundStats::default())
-        });
+        };
+        r.post_order(r.root, 0, &enter, &visit, &|x| r.post_order_serial(x, &enter, &visit));
         r
     }
 
@@ -277,21 +420,25 @@ impl Restructure {
     /// accepted is skipped with its subtree): `visit(node, changed below)` returns
     /// whether its subtree changed, and statistics. Subtrees of at least [`PAR_GRAIN`]
     /// primitives are split between parallel tasks.
-    fn post_order<E, V>(&self, x: u32, depth: u32, enter: &E, visit: &V) -> (bool, RoundStats)
+    /// `serial(node)` does the same for one subtree below [`PAR_GRAIN`] primitives.
+    fn post_order<E, V, S>(&self, x: u32, depth: u32, enter: &E, visit: &V, serial: &S) -> (bool, RoundStats)
     where
         E: Fn(u32) -> bool + Sync,
         V: Fn(u32, bool) -> (bool, RoundStats) + Sync,
+        S: Fn(u32) -> (bool, RoundStats) + Sync,
     {
         let s = &self.slots[x as usize];
         if s.is_leaf() || !enter(x) {
             return (false, RoundStats::default());
         }
         if s.count() < PAR_GRAIN || depth >= PAR_DEPTH {
-            return self.post_order_serial(x, enter, visit);
+            return serial(x);
         }
         let (l, r) = (s.left.load(Relaxed), s.right.load(Relaxed));
-        let ((a, sa), (b, sb)) =
-            rayon::join(|| self.post_order(l, depth + 1, enter, visit), || self.post_order(r, depth + 1, enter, visit));
+        let ((a, sa), (b, sb)) = rayon::join(
+            || self.post_order(l, depth + 1, enter, visit, serial),
+            || self.post_order(r, depth + 1, enter, visit, serial),
+        );
         let (c, sc) = visit(x, a || b);
         (c, sa + sb + sc)
     }
@@ -328,8 +475,121 @@ impl Restructure {
     pub fn round(&mut self, gamma: u32) -> RoundStats {
         let this = &*self;
         let enter = |x: u32| this.slots[x as usize].count() >= gamma;
-        let (_, stats) = this.post_order(this.root, 0, &enter, &|x, below| this.settle(x, below));
+        let (_, stats) =
+            this.post_order(this.root, 0, &enter, &|x, below| this.settle(x, below), &|x| this.round_serial(x, gamma));
         stats
+    }
+
+    /// A round over the subtree of `top` (one task): its treelet roots are listed with
+    /// their heights among the roots (a root is higher than every root below it) and
+    /// optimised a height at a time, [`LANES`] treelets of the same size at once
+    /// ([`dp_lanes`]). Treelets of one height are disjoint, and each is optimised after
+    /// every treelet below it, so the tree is the post-order walk's.
+    fn round_serial(&self, top: u32, gamma: u32) -> (bool, RoundStats) {
+        const NONE: u32 = u32::MAX;
+        // Treelet roots in post-order: (node, left root, right root, height), the
+        // children as indices into `roots` or NONE.
+        let mut roots: Vec<(u32, u32, u32, u32)> = Vec::new();
+        let mut stack: Vec<(u32, bool)> = vec![(top, false)];
+        let mut done: Vec<u32> = Vec::new();
+        while let Some((x, post)) = stack.pop() {
+            let s = &self.slots[x as usize];
+            if post {
+                let r = done.pop().unwrap_or(NONE);
+                let l = done.pop().unwrap_or(NONE);
+                let h = |i: u32| if i == NONE { 0 } else { roots[i as usize].3 };
+                let height = 1 + h(l).max(h(r));
+                done.push(roots.len() as u32);
+                roots.push((x, l, r, height));
+            } else if s.is_leaf() || s.count() < gamma {
+                done.push(NONE);
+            } else {
+                stack.push((x, true));
+                stack.push((s.right.load(Relaxed), false));
+                stack.push((s.left.load(Relaxed), false));
+            }
+        }
+        let Some(&(_, _, _, top_height)) = roots.last() else { return (false, RoundStats::default()) };
+        // Counting sort by height, stable (post-order within a height).
+        let mut start = vec![0usize; top_height as usize + 2];
+        for r in &roots {
+            start[r.3 as usize + 1] += 1;
+        }
+        for h in 1..start.len() {
+            start[h] += start[h - 1];
+        }
+        let mut order = vec![0u32; roots.len()];
+        let mut fill = start.clone();
+        for (i, r) in roots.iter().enumerate() {
+            order[fill[r.3 as usize]] = i as u32;
+            fill[r.3 as usize] += 1;
+        }
+        let mut changed = vec![false; roots.len()];
+        let mut stats = RoundStats::default();
+        let mut tables = LaneTables::new();
+        let mut batch: Vec<(u32, bool)> = Vec::with_capacity(LANES);
+        let mut index: Vec<usize> = Vec::with_capacity(LANES);
+        let mut run = |batch: &mut Vec<(u32, bool)>, index: &mut Vec<usize>, changed: &mut [bool]| {
+            let (c, sc) = self.settle_lanes(batch, &mut tables);
+            for (lane, &i) in index.iter().enumerate() {
+                changed[i] = c[lane];
+            }
+            batch.clear();
+            index.clear();
+            sc
+        };
+        for h in 1..=top_height as usize {
+            for &i in &order[start[h]..start[h + 1]] {
+                let (x, l, r, _) = roots[i as usize];
+                let was = |c: u32| c != NONE && changed[c as usize];
+                let below = was(l) || was(r);
+                if !below && self.slots[x as usize].settled.load(Relaxed) {
+                    stats.skipped += 1;
+                    continue;
+                }
+                batch.push((x, below));
+                index.push(i as usize);
+                if batch.len() == LANES {
+                    stats = stats + run(&mut batch, &mut index, &mut changed);
+                }
+            }
+            if !batch.is_empty() {
+                stats = stats + run(&mut batch, &mut index, &mut changed);
+            }
+        }
+        (changed[roots.len() - 1], stats)
+    }
+
+    /// Optimises the treelets at the roots in `batch` (disjoint subtrees, at most
+    /// [`LANES`]; with each whether its subtree already changed below its root), at
+    /// once for treelets of the same size. Returns whether each subtree changed.
+    fn settle_lanes(&self, batch: &[(u32, bool)], t: &mut LaneTables) -> ([bool; LANES], RoundStats) {
+        let mut formed = [Formed::default(); LANES];
+        for (lane, &(root, _)) in batch.iter().enumerate() {
+            formed[lane] = self.form(root, lane, t);
+        }
+        let mut updates: [Option<Update>; LANES] = Default::default();
+        let mut sizes = [false; TREELET_LEAVES + 1];
+        for f in &formed[..batch.len()] {
+            sizes[f.k] = true;
+        }
+        for k in (3..=TREELET_LEAVES).filter(|&k| sizes[k]) {
+            // Lanes of other sizes compute junk from stale entries; nothing reads it.
+            treelet_lanes(k, t, self.costs.traversal, self.costs.intersect);
+            for (lane, &(root, _)) in batch.iter().enumerate() {
+                if formed[lane].k == k {
+                    updates[lane] = self.rebuild(root, &formed[lane], t, lane);
+                }
+            }
+        }
+        let mut changed = [false; LANES];
+        let mut stats = RoundStats::default();
+        for (lane, &(root, below)) in batch.iter().enumerate() {
+            let (c, sc) = self.apply(root, updates[lane].take(), below);
+            changed[lane] = c;
+            stats = stats + sc;
+        }
+        (changed, stats)
     }
 
     /// Optimises the treelet at `x` unless it is settled; returns whether the subtree
@@ -339,7 +599,13 @@ impl Restructure {
         if !below && s.settled.load(Relaxed) {
             return (false, RoundStats { skipped: 1, ..Default::default() });
         }
-        match self.optimise(x) {
+        let (changed, stats) = self.settle_lanes(&[(x, below)], &mut LaneTables::new());
+        (changed[0], stats)
+    }
+
+    /// Writes a treelet's new topology, or marks it settled if there is none.
+    fn apply(&self, x: u32, update: Option<Update>, below: bool) -> (bool, RoundStats) {
+        match update {
             Some(u) => {
                 for &(node, l, r, b, c, count) in &u.entries[..u.len] {
                     let slot = &self.slots[node as usize];
@@ -350,32 +616,31 @@ impl Restructure {
                 (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
             }
             None => {
-                s.settled.store(true, Relaxed);
+                self.slots[x as usize].settled.store(true, Relaxed);
                 (below, RoundStats { optimised: 1, ..Default::default() })
             }
         }
     }
 
-    /// The optimal topology of the treelet rooted at `root`, if it is cheaper.
-    fn optimise(&self, root: u32) -> Option<Update> {
+    /// Forms the treelet rooted at `root` (expanding the inner leaf of largest area
+    /// until full) and writes its leaves into `lane` of `t`.
+    fn form(&self, root: u32, lane: usize, t: &mut LaneTables) -> Formed {
         let slots = &self.slots;
-        // Form the treelet: expand the inner leaf of largest area until full.
         let r = &slots[root as usize];
-        let mut leaves = [0u32; TREELET_LEAVES];
+        let mut f = Formed::default();
         let mut inner = [false; TREELET_LEAVES];
+        let mut boxes = [Aabb::EMPTY; TREELET_LEAVES];
         let mut areas = [0f32; TREELET_LEAVES];
-        let mut boxes = [Box4::EMPTY; SUBSETS];
-        let mut internals = [0u32; TREELET_LEAVES - 1];
-        internals[0] = root;
+        f.internals[0] = root;
         let mut ni = 1;
         let look = |id: u32| {
             let s = &slots[id as usize];
             let b = s.bounds();
-            (Box4::from(&b), !s.is_leaf(), area(&b))
+            (b, !s.is_leaf(), area(&b))
         };
         for (slot, id) in [(0, r.left.load(Relaxed)), (1, r.right.load(Relaxed))] {
-            leaves[slot] = id;
-            (boxes[1 << slot], inner[slot], areas[slot]) = look(id);
+            f.leaves[slot] = id;
+            (boxes[slot], inner[slot], areas[slot]) = look(id);
         }
         let mut k = 2;
         while k < self.leaves {
@@ -386,54 +651,45 @@ impl Restructure {
                 }
             }
             let Some(slot) = pick else { break };
-            let e = &slots[leaves[slot] as usize];
-            internals[ni] = leaves[slot];
+            let e = &slots[f.leaves[slot] as usize];
+            f.internals[ni] = f.leaves[slot];
             ni += 1;
             let (l, rt) = (e.left.load(Relaxed), e.right.load(Relaxed));
             for (slot, id) in [(slot, l), (k, rt)] {
-                leaves[slot] = id;
-                (boxes[1 << slot], inner[slot], areas[slot]) = look(id);
+                f.leaves[slot] = id;
+                (boxes[slot], inner[slot], areas[slot]) = look(id);
             }
             k += 1;
         }
-        if k < 3 {
-            return None;
-        }
-        // Dynamic programming over the subsets of the k leaves.
-        let full = (1usize << k) - 1;
-        let mut counts = [0u32; SUBSETS];
-        let mut copt = [0f32; SUBSETS];
-        let mut popt = [0u8; SUBSETS];
-        for (i, &l) in leaves[..k].iter().enumerate() {
+        f.k = k;
+        for (i, &l) in f.leaves[..k].iter().enumerate() {
             let s = &slots[l as usize];
-            counts[1 << i] = s.count();
-            copt[1 << i] = s.cost();
+            t.set_leaf(lane, i, &boxes[i], s.count(), s.cost());
         }
-        let mut areas = [0f32; SUBSETS];
-        for s in 1..=full {
-            let low = s & s.wrapping_neg();
-            if s == low {
-                continue;
-            }
-            boxes[s] = boxes[s ^ low].union(&boxes[low]);
-            areas[s] = boxes[s].area();
-            counts[s] = counts[s ^ low] + counts[low];
-        }
-        dp(k, &mut copt, &mut popt, &|s, best| self.cost_of_area(areas[s], counts[s], best));
-        if copt[full] >= r.cost() * KEEP_FACTOR || copt[full].is_nan() {
+        f
+    }
+
+    /// The treelet's new topology from its optimal costs and parts in `lane` of `t`,
+    /// reusing its inner nodes root first; `None` unless it is cheaper than now.
+    fn rebuild(&self, root: u32, f: &Formed, t: &LaneTables, lane: usize) -> Option<Update> {
+        if f.k < 3 {
             return None;
         }
-        // Rebuild with the treelet's inner nodes, root first.
+        let full = (1usize << f.k) - 1;
+        let best = t.cost[full][lane];
+        if best >= self.slots[root as usize].cost() * KEEP_FACTOR || best.is_nan() {
+            return None;
+        }
         let mut update = Update { len: 0, entries: [(0, 0, 0, Aabb::EMPTY, 0.0, 0); TREELET_LEAVES - 1] };
         let mut next = 1;
         let mut work = [(0usize, 0u32); TREELET_LEAVES];
         let mut top = 1;
-        work[0] = (full, internals[0]);
+        work[0] = (full, f.internals[0]);
         let node_of = |sub: usize, next: &mut usize| -> u32 {
             if sub.count_ones() == 1 {
-                leaves[sub.trailing_zeros() as usize]
+                f.leaves[sub.trailing_zeros() as usize]
             } else {
-                let id = internals[*next];
+                let id = f.internals[*next];
                 *next += 1;
                 id
             }
@@ -441,11 +697,11 @@ impl Restructure {
         while top > 0 {
             top -= 1;
             let (s, id) = work[top];
-            let p = popt[s] as usize;
+            let p = t.best_part(s, lane);
             let (a, b) = (p, s ^ p);
             let la = node_of(a, &mut next);
             let lb = node_of(b, &mut next);
-            update.entries[update.len] = (id, la, lb, boxes[s].aabb(), copt[s], counts[s]);
+            update.entries[update.len] = (id, la, lb, t.aabb(s, lane), t.cost[s][lane], t.count[s][lane] as u32);
             update.len += 1;
             if a.count_ones() > 1 {
                 work[top] = (a, la);
@@ -456,7 +712,7 @@ impl Restructure {
                 top += 1;
             }
         }
-        debug_assert_eq!(next, ni);
+        debug_assert_eq!(next, f.k - 1);
         Some(update)
     }
 
@@ -476,53 +732,9 @@ impl Restructure {
     }
 }
 
-/// A box in SIMD lanes for the dynamic programming: the same bits as [`Aabb`]'s union
-/// and [`area`] (lane-wise min, max and subtraction are exact, and the area sums in the
-/// same order).
-#[derive(Debug, Clone, Copy)]
-struct Box4 {
-    min: Vec3A,
-    max: Vec3A,
-}
-
-impl Box4 {
-    const EMPTY: Box4 = Box4 { min: Vec3A::splat(f32::INFINITY), max: Vec3A::splat(f32::NEG_INFINITY) };
-
-    fn from(b: &Aabb) -> Box4 {
-        Box4 { min: b.min.into(), max: b.max.into() }
-    }
-    fn aabb(&self) -> Aabb {
-        Aabb { min: self.min.into(), max: self.max.into() }
-    }
-    #[inline]
-    fn union(&self, o: &Box4) -> Box4 {
-        Box4 { min: self.min.min(o.min), max: self.max.max(o.max) }
-    }
-    #[inline]
-    fn area(&self) -> f32 {
-        if self.min.cmpgt(self.max).any() {
-            return 0.0;
-        }
-        let e = self.max - self.min;
-        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
-    }
-}
-
 // The straight-line programme, generated by build.rs (src/accel/bvh/dp_gen.rs):
-// `dp(k, copt, popt, node)`, in the order of `tests::dp_loop`.
+// `treelet_lanes(k, tables, traversal, intersect)`, in the order of `tests::reference`.
 include!(concat!(env!("OUT_DIR"), "/treelet_dp.rs"));
-
-/// The first strictly cheapest of two (cost, P) candidates, `a` coming first in the
-/// canonical order. The generated code folds each run of partitions from (+inf, lowest
-/// leaf), so `a` is never NaN and a NaN sum never wins.
-#[inline(always)]
-fn first_min(a: (f32, u8), b: (f32, u8)) -> (f32, u8) {
-    if b.0 < a.0 {
-        b
-    } else {
-        a
-    }
-}
 
 /// Helper for tests: the collapsed SAH cost of a canonical tree.
 pub fn collapsed_cost(bin: &Binary, costs: &SahCosts) -> f64 {
@@ -533,43 +745,57 @@ pub fn collapsed_cost(bin: &Binary, costs: &SahCosts) -> f64 {
 mod tests {
     use super::*;
 
-    /// The cheapest partition of subset `s` as a loop: (copt[P] + copt[S∖P], P), P
-    /// running over the lowest leaf plus every proper subset of the rest, largest
-    /// first; the first strictly cheapest wins; (+inf, lowest leaf) if none is below
-    /// +inf. The kernel's order (build_treelet.comp, `best_split`).
-    fn best_partition_loop(copt: &[f32; SUBSETS], s: usize) -> (f32, u8) {
-        let low = s & s.wrapping_neg();
-        let rest = s ^ low;
-        let mut best = (f32::INFINITY, low as u8);
-        let mut q = (rest - 1) & rest;
-        loop {
-            let p = low | q;
-            let c = copt[p] + copt[s ^ p];
-            if c < best.0 {
-                best = (c, p as u8);
-            }
-            if q == 0 {
-                break;
-            }
-            q = (q - 1) & rest;
+    /// The loop the generated programme unrolls, for one treelet of `k` leaves (box,
+    /// count, cost each): subsets ascending, each folded as rest ∪ lowest leaf; its
+    /// partitions (P, S∖P) with the lowest leaf in P, P descending, the first strictly
+    /// cheapest winning and (+inf, lowest leaf) if none is below +inf; then the node
+    /// cost of [`Restructure::cost_of_area`]. Returns (area, count, cost, part) per subset.
+    #[allow(clippy::type_complexity)]
+    fn reference(
+        k: usize,
+        leaves: &[(Aabb, u32, f32)],
+        costs: &SahCosts,
+    ) -> ([f32; SUBSETS], [u32; SUBSETS], [f32; SUBSETS], [usize; SUBSETS]) {
+        let mut boxes = [Aabb::EMPTY; SUBSETS];
+        let (mut areas, mut counts, mut cost, mut part) =
+            ([0f32; SUBSETS], [0u32; SUBSETS], [0f32; SUBSETS], [0; SUBSETS]);
+        for (i, &(b, n, c)) in leaves[..k].iter().enumerate() {
+            (boxes[1 << i], counts[1 << i], cost[1 << i]) = (b, n, c);
         }
-        best
-    }
-
-    /// The loop form of [`dp`]: subsets ascending, each after its subsets.
-    fn dp_loop<F: Fn(usize, f32) -> f32>(k: usize, c: &mut [f32; SUBSETS], popt: &mut [u8; SUBSETS], node: &F) {
         for s in 1..(1usize << k) {
-            if s.count_ones() < 2 {
+            let low = s & s.wrapping_neg();
+            if s == low {
                 continue;
             }
-            let (best, p) = best_partition_loop(c, s);
-            c[s] = node(s, best);
-            popt[s] = p;
+            boxes[s] = boxes[s ^ low].union(&boxes[low]);
+            areas[s] = area(&boxes[s]);
+            counts[s] = counts[s ^ low] + counts[low];
+            let rest = s ^ low;
+            let mut best = (f32::INFINITY, low);
+            let mut q = (rest - 1) & rest;
+            loop {
+                let p = low | q;
+                let c = cost[p] + cost[s ^ p];
+                if c < best.0 {
+                    best = (c, p);
+                }
+                if q == 0 {
+                    break;
+                }
+                q = (q - 1) & rest;
+            }
+            let split = costs.traversal * areas[s] + best.0;
+            let leaf = costs.intersect * areas[s] * counts[s] as f32;
+            cost[s] = if counts[s] as usize <= MAX_LEAF { split.min(leaf) } else { split };
+            part[s] = best.1;
         }
+        (areas, counts, cost, part)
     }
 
-    /// The generated programme gives the loop's costs and choices bit for bit, for every
-    /// treelet size, on random costs with many ties, zeros, +inf and NaN.
+    /// The generated programme gives every lane the loop's areas, counts, costs and
+    /// (through `best_part`) splits bit for bit, for every treelet size, on random
+    /// treelets with many ties, zeros, +inf and NaN costs, flat, empty and half-inverted
+    /// boxes, and counts on both sides of MAX_LEAF.
     #[test]
     fn generated_programme_equals_the_loop() {
         let mut state = 0x2545_f491_4f6c_dd1du64;
@@ -579,36 +805,52 @@ mod tests {
             state ^= state << 17;
             state
         };
+        let costs = SahCosts::default();
         let special = [0.0, 1.0, 2.0, f32::INFINITY, f32::NAN];
-        for trial in 0..3000 {
+        let mut t = LaneTables::new();
+        for trial in 0..1500 {
             for k in 3..=TREELET_LEAVES {
-                let mut a = [0f32; SUBSETS];
-                let mut b = [0f32; SUBSETS];
-                let node_add: Vec<f32> = (0..SUBSETS)
-                    .map(|_| {
-                        let r = next();
-                        if trial % 3 == 0 {
-                            special[(r % 4) as usize]
-                        } else {
-                            (r % 1000) as f32 * 0.25
-                        }
-                    })
-                    .collect();
-                for i in 0..k {
-                    let r = next();
-                    let v = if r % 7 == 0 { special[(r >> 8) as usize % special.len()] } else { (r % 16) as f32 };
-                    a[1 << i] = v;
-                    b[1 << i] = v;
+                let mut lanes = vec![];
+                for lane in 0..LANES {
+                    let leaves: Vec<(Aabb, u32, f32)> = (0..k)
+                        .map(|_| {
+                            let r = next();
+                            let v: Vec<f32> = (0..6).map(|i| ((r >> (40 + 3 * i)) % 8) as f32 * 0.5).collect();
+                            let min = Vec3::new(v[0], v[1], v[2]);
+                            let b = match r % 9 {
+                                0 => Aabb::EMPTY,
+                                1 => Aabb { min, max: min },
+                                // Inverted on one axis only.
+                                2 => Aabb { min, max: min - Vec3::AXES[(r >> 60) as usize % 3] },
+                                _ => Aabb { min, max: min + Vec3::new(v[3], v[4], v[5]) },
+                            };
+                            let n = 1 + (r >> 8) as u32 % 4;
+                            let c = if trial % 3 == 0 && r % 5 == 0 {
+                                special[(r >> 16) as usize % special.len()]
+                            } else {
+                                ((r >> 20) % 16) as f32
+                            };
+                            (b, n, c)
+                        })
+                        .collect();
+                    for (i, &(b, n, c)) in leaves.iter().enumerate() {
+                        t.set_leaf(lane, i, &b, n, c);
+                    }
+                    lanes.push(leaves);
                 }
-                // A node cost like the real one: its own term plus the children's, with
-                // a leaf cap that makes ties common.
-                let node = |s: usize, ch: f32| (node_add[s] + ch).min(40.0 + node_add[s] * 0.5);
-                let (mut pa, mut pb) = ([0u8; SUBSETS], [0u8; SUBSETS]);
-                dp(k, &mut a, &mut pa, &node);
-                dp_loop(k, &mut b, &mut pb, &node);
-                for s in 1..(1usize << k) {
-                    assert_eq!(a[s].to_bits(), b[s].to_bits(), "k {k}, subset {s}, trial {trial}");
-                    assert_eq!(pa[s], pb[s], "k {k}, subset {s}, trial {trial}");
+                treelet_lanes(k, &mut t, costs.traversal, costs.intersect);
+                for (lane, leaves) in lanes.iter().enumerate() {
+                    let (areas, counts, cost, part) = reference(k, leaves, &costs);
+                    for s in 1..(1usize << k) {
+                        if s.count_ones() < 2 {
+                            continue;
+                        }
+                        let at = format!("k {k}, lane {lane}, subset {s}, trial {trial}");
+                        assert_eq!(t.area[s][lane].to_bits(), areas[s].to_bits(), "area, {at}");
+                        assert_eq!(t.count[s][lane] as u32, counts[s], "count, {at}");
+                        assert_eq!(t.cost[s][lane].to_bits(), cost[s].to_bits(), "cost, {at}");
+                        assert_eq!(t.best_part(s, lane), part[s], "part, {at}");
+                    }
                 }
             }
         }
