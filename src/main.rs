@@ -64,7 +64,9 @@ struct StructureArgs {
     #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
     octree: String,
     /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds; fast:
-    /// 5-leaf treelets, faster build, slightly higher SAH) or leaves=3..7,rounds=N.
+    /// 5-leaf treelets, faster build, slightly higher SAH; quality: a 4th round,
+    /// lower SAH, longer build) or leaves=3..7,rounds=0..8 (the minimum subtree size
+    /// is leaves x 1, 2, 4, then again from leaves).
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     trbvh: String,
     /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute
