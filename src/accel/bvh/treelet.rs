@@ -315,10 +315,12 @@ fn lane_step(b: &mut Lanes, x: &Lanes, y: &Lanes) {
     }
 }
 
-/// Merges a later chain `b1` into an earlier one `b`.
+/// Merges a later chain `b1` into an earlier one `b`: the first strictly cheapest.
 #[inline(always)]
 fn lane_merge(b: &mut Lanes, b1: &Lanes) {
-    lane_step(b, b1, &[0.0; LANES]);
+    for l in 0..LANES {
+        b[l] = if b1[l] < b[l] { b1[l] } else { b[l] };
+    }
 }
 
 /// Subset `s`'s optimal cost as [`Restructure::cost_of_area`], given its cheapest
