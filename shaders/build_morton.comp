@@ -2,10 +2,12 @@
 // 30-bit Morton codes of centroids in the centroid box, bit for bit as
 // lbvh::MortonGrid on the CPU: scale = 1024 / extent correctly rounded (Vulkan's
 // division is not, so the quotient is corrected with an exact residual), then
-// (c - min) * scale truncated to 0..1023. Output: pairs[i] = (code, i). Push: n.
+// (c - min) * scale truncated to 0..1023. Output: pairs[i] = (code, i); and for the
+// climb of build_fit.comp, split i's arrival word aux[i].w = NONE (i < n - 1). Push: n.
 #define USE_HEADER 1
 #define USE_PRIM_BOUNDS 1
 #define USE_PAIRS 1
+#define USE_AUX 1
 #include "common/ray.glsl"
 #include "build/common.glsl"
 
@@ -64,4 +66,5 @@ void main() {
     }
     uint code = (expand_bits(q[0]) << 2u) | (expand_bits(q[1]) << 1u) | expand_bits(q[2]);
     pairs[i] = uvec2(code, i);
+    if (i + 1u < pc.n) aux[i].w = NONE;
 }

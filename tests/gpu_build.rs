@@ -101,7 +101,7 @@ fn million_triangles_equal_cpu_build() {
     assert!(t < l * 0.95, "restructuring lowered the SAH cost only from {l} to {t}");
     // The GPU phases were timed and are named.
     let names: Vec<&str> = gpu_t.phases.iter().map(|p| p.name.as_str()).collect();
-    for want in ["gpu morton", "gpu sort", "gpu hierarchy", "gpu restructure round 3", "gpu emit"] {
+    for want in ["gpu morton", "gpu sort", "gpu hierarchy + fit", "gpu restructure round 3", "gpu emit"] {
         assert!(!ctx.has_timestamps() || names.contains(&want), "phase {want} missing from {names:?}");
     }
 }

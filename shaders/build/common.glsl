@@ -81,9 +81,11 @@ layout(std430, set = 0, binding = BINDING_BUILD_PAIRS_OUT) writeonly buffer Pair
 #ifdef USE_HIST
 layout(std430, set = 0, binding = BINDING_BUILD_HIST) buffer Hist { uint hist[]; };
 #endif
+#if defined(USE_NODES) || defined(USE_AUX)
+layout(std430, set = 0, binding = BINDING_BUILD_AUX) coherent buffer Aux { uvec4 aux[]; };
+#endif
 #ifdef USE_NODES
 layout(std430, set = 0, binding = BINDING_BUILD_NODES) coherent buffer Nodes { uvec4 nodes[]; };
-layout(std430, set = 0, binding = BINDING_BUILD_AUX) coherent buffer Aux { uvec4 aux[]; };
 
 vec3 node_min(uint i) { return uintBitsToFloat(nodes[2u * i].xyz); }
 vec3 node_max(uint i) { return uintBitsToFloat(nodes[2u * i + 1u].xyz); }

@@ -8,10 +8,9 @@
 //! | phase | kernel | work |
 //! |---|---|---|
 //! | bounds | `build_bounds_<geometry>` | primitive boxes; centroid box by workgroup reduction and atomics |
-//! | morton | `build_morton` | 30-bit codes, `(code, primitive)` pairs |
+//! | morton | `build_morton` | 30-bit codes, `(code, primitive)` pairs; the climb's arrival words |
 //! | sort | `build_sort_{hist,scan,scatter}` x 4 | stable LSD radix sort, 8-bit digits |
-//! | hierarchy | `build_hierarchy` | the radix tree, leaf boxes and costs |
-//! | fit | `build_fit` | boxes, counts, costs and node heights bottom-up with atomic visit counters |
+//! | hierarchy + fit | `build_fit` | the radix tree with boxes, counts, costs and node heights, bottom-up with atomic arrival words |
 //! | restructure round r | `build_levels`, `build_treelet` per height | 7-leaf treelets, lowest first (trbvh) |
 //! | collapse (finalize for lbvh) | `build_levels`, `build_finalize` per height | collapse decisions, output-node counts |
 //! | emit | `build_emit`, per height from the top | nodes and indices in the traversal layout |
@@ -19,7 +18,9 @@
 //! **Passes by height.** llvmpipe runs the body of a divergent `if` under a lane mask
 //! even when no lane is active, so a kernel that climbs from the leaves and does a
 //! node's work where the climb arrives pays for that work at every step of every SIMD
-//! group. Only `fit` climbs; it also computes every node's height (leaves 0). The later
+//! group. Only `fit` climbs (building the radix tree on the way up, so no per-node
+//! binary searches diverge either); it also computes every node's height (leaves 0).
+//! The later
 //! passes list their nodes by height (`build_levels`: count, scan, scatter) and run
 //! one indirect dispatch per height, one thread per node: lowest first where a node
 //! needs its children final, highest first where it needs its parent's. The treelet
@@ -29,7 +30,7 @@
 //! Every result equals the CPU builder's for the same scene, word for word: the Morton
 //! codes round alike (see [`super::lbvh::MortonGrid`]), the sort is stable over
 //! primitive order (equal codes order by index as the CPU's 64-bit keys do), the
-//! hierarchy is the same function of the keys, costs are computed with the same
+//! hierarchy is the same function of the keys with the same node numbers, costs are computed with the same
 //! operations in the same order (`precise`), a treelet is optimised only after every
 //! treelet below it, as on the CPU, and the emit pass writes the flattener's preorder
 //! (a node's preorder index and first primitive handed down from its parent).
@@ -82,7 +83,6 @@ pub struct GpuBuilder {
     hist: [Kernel; 2],
     scan: Kernel,
     scatter: [Kernel; 2],
-    hierarchy: Kernel,
     fit: Kernel,
     /// Threads per workgroup of `fit`: the device's subgroup size, within 8..=256.
     fit_group: u32,
@@ -204,9 +204,10 @@ impl GpuBuilder {
         let fit_group = ctx.info().subgroup_size.clamp(8, 256);
         let scatter_group = ctx.info().subgroup_size.clamp(8, 64);
         let scatter_b = [pairs.clone(), pairs_out.clone(), hist.clone()];
+        let fit_b = [hdr.clone(), pairs.clone(), pb.clone(), nodes.clone(), aux.clone(), levels.clone()];
         let g = GpuBuilder {
             bounds,
-            morton: kernel(ctx, "build_morton", &[hdr.clone(), pb.clone(), pairs.clone()])?,
+            morton: kernel(ctx, "build_morton", &[hdr.clone(), pb.clone(), pairs.clone(), aux.clone()])?,
             hist: [
                 kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
                 kernel(ctx, "build_sort_hist", &[pairs.clone(), hist.clone()])?,
@@ -216,13 +217,7 @@ impl GpuBuilder {
                 kernel_with(ctx, "build_sort_scatter", &scatter_b, &[(SPEC_SCATTER_GROUP, scatter_group)])?,
                 kernel_with(ctx, "build_sort_scatter", &scatter_b, &[(SPEC_SCATTER_GROUP, scatter_group)])?,
             ],
-            hierarchy: kernel(ctx, "build_hierarchy", &[pairs.clone(), pb, nodes.clone(), aux.clone()])?,
-            fit: kernel_with(
-                ctx,
-                "build_fit",
-                &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()],
-                &[(SPEC_FIT_GROUP, fit_group)],
-            )?,
+            fit: kernel_with(ctx, "build_fit", &fit_b, &[(SPEC_FIT_GROUP, fit_group)])?,
             fit_group,
             levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
@@ -336,17 +331,10 @@ impl GpuBuilder {
             steps.push(Step::Dispatch { kernel: &self.scatter[pass as usize % 2], push: p, groups: tiles });
         }
         steps.push(Step::Mark("gpu sort"));
-        let nodes = 2 * n as u64 - 1;
-        steps.push(Step::Dispatch {
-            kernel: &self.hierarchy,
-            push: bytes(push(0, 0)),
-            groups: groups(nodes, BUILD_GROUP)?,
-        });
-        steps.push(Step::Mark("gpu hierarchy"));
         let leaves = groups(n as u64, self.fit_group)?;
         let round_names: Vec<String> = (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect();
         steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(0, 0)), groups: leaves });
-        steps.push(Step::Mark("gpu fit"));
+        steps.push(Step::Mark("gpu hierarchy + fit"));
         let inner = groups(n as u64 - 1, BUILD_GROUP)?;
         let collapse = if builder == BvhBuilder::Trbvh {
             for (round, name) in round_names.iter().enumerate() {
@@ -442,23 +430,13 @@ impl GpuBuilder {
         ctx.bind(s1, BINDING_BUILD_PAIRS, &b.pairs_out)?;
         ctx.bind(s1, BINDING_BUILD_PAIRS_OUT, &b.pairs)?;
         ctx.bind(s1, BINDING_BUILD_HIST, &b.hist)?;
-        ctx.bind(&mut self.hierarchy, BINDING_BUILD_PAIRS, &b.pairs)?;
-        ctx.bind(&mut self.hierarchy, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
-        for k in [
-            &mut self.hierarchy,
-            &mut self.fit,
-            &mut self.levels,
-            &mut self.treelet,
-            &mut self.finalize,
-            &mut self.emit,
-        ] {
-            ctx.bind(k, BINDING_BUILD_NODES, &b.nodes)?;
-            ctx.bind(k, BINDING_BUILD_AUX, &b.aux)?;
-        }
+        ctx.bind(&mut self.morton, BINDING_BUILD_AUX, &b.aux)?;
+        ctx.bind(&mut self.fit, BINDING_BUILD_PAIRS, &b.pairs)?;
+        ctx.bind(&mut self.fit, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
         for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize, &mut self.emit] {
             ctx.bind(k, BINDING_BUILD_HEADER, &b.header)?;
-        }
-        for k in [&mut self.fit, &mut self.levels, &mut self.treelet, &mut self.finalize, &mut self.emit] {
+            ctx.bind(k, BINDING_BUILD_NODES, &b.nodes)?;
+            ctx.bind(k, BINDING_BUILD_AUX, &b.aux)?;
             ctx.bind(k, BINDING_BUILD_LEVELS, &b.levels)?;
         }
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
