@@ -187,6 +187,23 @@ impl Context {
 
     /// Copies `len` bytes from `offset` of a storage buffer back to the host.
     pub fn read_storage(&self, buffer: &Buffer, offset: u64, len: u64) -> Result<Vec<u8>> {
+        self.read_storage_with(buffer, offset, len, <[u8]>::to_vec)
+    }
+
+    /// Copies `count` values of `T` from byte `offset` of a storage buffer back to the
+    /// host, straight into the returned vector (one copy out of the mapped memory).
+    pub fn read_storage_pod<T: bytemuck::Pod>(&self, buffer: &Buffer, offset: u64, count: usize) -> Result<Vec<T>> {
+        let len = (count * std::mem::size_of::<T>()) as u64;
+        self.read_storage_with(buffer, offset, len, |bytes| {
+            let mut out = vec![T::zeroed(); count];
+            bytemuck::cast_slice_mut::<T, u8>(&mut out).copy_from_slice(bytes);
+            out
+        })
+    }
+
+    /// Copies `len` bytes from `offset` of a storage buffer into a readback buffer and
+    /// hands its mapped bytes to `take`.
+    fn read_storage_with<R>(&self, buffer: &Buffer, offset: u64, len: u64, take: impl FnOnce(&[u8]) -> R) -> Result<R> {
         if offset + len > buffer.size {
             return Err(Error::Vulkan {
                 what: format!("read buffer '{}'", buffer.name),
@@ -194,7 +211,7 @@ impl Context {
             });
         }
         if len == 0 {
-            return Ok(Vec::new());
+            return Ok(take(&[]));
         }
         let rb = self.create_buffer(&format!("{}.readback", buffer.name), len, BufferKind::Readback)?;
         self.submit(&format!("readback {}", buffer.name), |dev, cb| {
@@ -233,6 +250,6 @@ impl Context {
             .as_ref()
             .and_then(|a| a.mapped_slice())
             .ok_or_else(|| Error::Vulkan { what: "readback".into(), result: "not host visible".into() })?;
-        Ok(a[..len as usize].to_vec())
+        Ok(take(&a[..len as usize]))
     }
 }

@@ -362,8 +362,7 @@ impl GpuBuilder {
         }
         phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
         t = Instant::now();
-        let header: Vec<u32> =
-            bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.header, 0, u64::from(BUILD_HDR_WORDS) * 4)?);
+        let header: Vec<u32> = ctx.read_storage_pod(&b.header, 0, BUILD_HDR_WORDS as usize)?;
         if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
             return Err(Error::Usage(format!(
                 "GPU build: the tree is more than {} levels deep, deeper than the traversal kernel's limit \
@@ -389,8 +388,8 @@ impl GpuBuilder {
                 result: format!("{count} output nodes for {n} primitives"),
             });
         }
-        let nodes: Vec<GpuBvhNode> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_nodes, 0, count * 64)?);
-        let indices: Vec<u32> = bytemuck::pod_collect_to_vec(&ctx.read_storage(&b.out_indices, 0, n as u64 * 4)?);
+        let nodes: Vec<GpuBvhNode> = ctx.read_storage_pod(&b.out_nodes, 0, count as usize)?;
+        let indices: Vec<u32> = ctx.read_storage_pod(&b.out_indices, 0, n)?;
         super::lap(&mut phases, "readback", &mut t);
         Ok(Bvh {
             bounds: scene.bounds(),
