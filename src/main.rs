@@ -63,10 +63,11 @@ struct StructureArgs {
     /// without splitting, default 8), depth (deepest level, default 20, at most 24).
     #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
     octree: String,
-    /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds; fast:
-    /// 5-leaf treelets, faster build, slightly higher SAH; quality: a 4th round,
-    /// lower SAH, longer build) or leaves=3..7,rounds=0..8 (the minimum subtree size
-    /// is leaves x 1, 2, 4, then again from leaves).
+    /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds with minimum
+    /// subtree sizes 7, 7, 28; paper: 7, 14, 28 as Karras & Aila; fast: 5-leaf
+    /// treelets, faster build, higher SAH; quality: every round at 7, lower SAH, longer
+    /// build) and/or leaves=3..7, rounds=0..8, gamma=A/B/... (each round's minimum
+    /// subtree size as a multiple of leaves; sets the rounds), e.g. leaves=6,gamma=1/2/4.
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     trbvh: String,
     /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute

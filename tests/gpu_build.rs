@@ -47,7 +47,7 @@ fn gpu_builds_equal_cpu_builds() {
         for (b, tp) in [
             (BvhBuilder::Lbvh, TreeletParams::default()),
             (BvhBuilder::Trbvh, TreeletParams::default()),
-            (BvhBuilder::Trbvh, TreeletParams { leaves: 5, rounds: 4 }),
+            (BvhBuilder::Trbvh, TreeletParams::parse("leaves=5,gamma=1/2/1/4").expect("parameters")),
         ] {
             let cpu = Bvh::build_with(&scene, b, &tp);
             let gpu = builder.build(&ctx, &scene, b, &tp).unwrap_or_else(|e| panic!("{}: {e}", scene.name));
