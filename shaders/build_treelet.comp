@@ -90,20 +90,26 @@ void set_height(uint i) {
 void restructure(uint root) {
     uint leaf[MAXK];
     uint internal[MAXK - 1u];
+    // Each treelet leaf's area, or -1 if it is a leaf of the tree (not expandable):
+    // read once when the leaf joins, not at every expansion.
+    float area[MAXK];
     // Form the treelet.
     leaf[0] = node_left(root);
     leaf[1] = node_right(root);
+    for (uint i = 0u; i < 2u; ++i) {
+        uint l = leaf[i];
+        area[i] = is_leaf(l) ? -1.0 : box_area(node_min(l), node_max(l));
+    }
     internal[0] = root;
     uint k = 2u;
     uint ni = 1u;
     for (uint g = 0u; g < MAXK && k < pc.b; ++g) {
+        // The first expandable leaf of largest area (areas are never negative).
         uint pick = NONE;
         float best = 0.0;
         for (uint slot = 0u; slot < k; ++slot) {
-            uint l = leaf[slot];
-            if (is_leaf(l)) continue;
-            float a = box_area(node_min(l), node_max(l));
-            if (pick == NONE || a > best) {
+            float a = area[slot];
+            if (a >= 0.0 && (pick == NONE || a > best)) {
                 pick = slot;
                 best = a;
             }
@@ -112,8 +118,12 @@ void restructure(uint root) {
         uint e = leaf[pick];
         internal[ni] = e;
         ni += 1u;
-        leaf[pick] = node_left(e);
-        leaf[k] = node_right(e);
+        uint l = node_left(e);
+        uint r = node_right(e);
+        leaf[pick] = l;
+        leaf[k] = r;
+        area[pick] = is_leaf(l) ? -1.0 : box_area(node_min(l), node_max(l));
+        area[k] = is_leaf(r) ? -1.0 : box_area(node_min(r), node_max(r));
         k += 1u;
     }
     if (k < 3u) {
