@@ -76,7 +76,7 @@ pub struct TreeletParams {
 }
 
 impl Default for TreeletParams {
-    /// The paper's 7 leaves and 3 rounds, with γ at 7, 7 and 28 ([`SCHEDULE`]).
+    /// The paper's 7 leaves and 3 rounds, with γ at 7, 7 and 28 (not the paper's 7, 14, 28).
     fn default() -> Self {
         TreeletParams { leaves: TREELET_LEAVES, rounds: ROUNDS, gamma: SCHEDULE }
     }
@@ -433,7 +433,12 @@ impl Restructure {
             s.set_cost(count, r.node_cost(&s.bounds(), count, l.cost() + rt.cost()));
             (false, RoundStats::default())
         };
-        r.post_order(r.root, 0, &enter, &visit, &|x| r.post_order_serial(x, &enter, &visit));
+        r.post_order(r.root, 0, &enter, &visit, &|x| {
+            r.fold_serial(x, &enter, (false, RoundStats::default()), &mut |i, a, b| {
+                let (c, sc) = visit(i, a.0 || b.0);
+                (c, a.1 + b.1 + sc)
+            })
+        });
         r
     }
 
@@ -495,31 +500,31 @@ impl Restructure {
         (c, sa + sb + sc)
     }
 
-    fn post_order_serial<E, V>(&self, top: u32, enter: &E, visit: &V) -> (bool, RoundStats)
+    /// Post-order fold over the inner nodes below `top` that `enter` accepts, with an
+    /// explicit stack: `visit(node, left's value, right's value)` gives a node's value;
+    /// a tree leaf or a node not accepted (with its subtree) has the value `skipped`.
+    fn fold_serial<T: Copy, E, V>(&self, top: u32, enter: &E, skipped: T, visit: &mut V) -> T
     where
         E: Fn(u32) -> bool,
-        V: Fn(u32, bool) -> (bool, RoundStats),
+        V: FnMut(u32, T, T) -> T,
     {
-        let mut stats = RoundStats::default();
         let mut stack: Vec<(u32, bool)> = vec![(top, false)];
-        let mut changed: Vec<bool> = Vec::new();
+        let mut values: Vec<T> = Vec::new();
         while let Some((x, post)) = stack.pop() {
             let s = &self.slots[x as usize];
             if post {
-                let b = changed.pop().unwrap_or(false);
-                let a = changed.pop().unwrap_or(false);
-                let (c, sc) = visit(x, a || b);
-                stats = stats + sc;
-                changed.push(c);
+                let b = values.pop().unwrap_or(skipped);
+                let a = values.pop().unwrap_or(skipped);
+                values.push(visit(x, a, b));
             } else if s.is_leaf() || !enter(x) {
-                changed.push(false);
+                values.push(skipped);
             } else {
                 stack.push((x, true));
                 stack.push((s.right.load(Relaxed), false));
                 stack.push((s.left.load(Relaxed), false));
             }
         }
-        (changed.pop().unwrap_or(false), stats)
+        values.pop().unwrap_or(skipped)
     }
 
     /// One round: optimises the treelet of every inner node with at least `gamma`
@@ -535,32 +540,20 @@ impl Restructure {
     /// A round over the subtree of `top` (one task): its treelet roots are listed with
     /// their heights among the roots (a root is higher than every root below it) and
     /// optimised a height at a time, [`LANES`] treelets of the same size at once
-    /// ([`dp_lanes`]). Treelets of one height are disjoint, and each is optimised after
+    /// ([`treelet_lanes`]). Treelets of one height are disjoint, and each is optimised after
     /// every treelet below it, so the tree is the post-order walk's.
     fn round_serial(&self, top: u32, gamma: u32) -> (bool, RoundStats) {
         const NONE: u32 = u32::MAX;
         // Treelet roots in post-order: (node, left root, right root, height), the
         // children as indices into `roots` or NONE.
         let mut roots: Vec<(u32, u32, u32, u32)> = Vec::new();
-        let mut stack: Vec<(u32, bool)> = vec![(top, false)];
-        let mut done: Vec<u32> = Vec::new();
-        while let Some((x, post)) = stack.pop() {
-            let s = &self.slots[x as usize];
-            if post {
-                let r = done.pop().unwrap_or(NONE);
-                let l = done.pop().unwrap_or(NONE);
-                let h = |i: u32| if i == NONE { 0 } else { roots[i as usize].3 };
-                let height = 1 + h(l).max(h(r));
-                done.push(roots.len() as u32);
-                roots.push((x, l, r, height));
-            } else if s.is_leaf() || s.count() < gamma {
-                done.push(NONE);
-            } else {
-                stack.push((x, true));
-                stack.push((s.right.load(Relaxed), false));
-                stack.push((s.left.load(Relaxed), false));
-            }
-        }
+        let enter = |x: u32| self.slots[x as usize].count() >= gamma;
+        self.fold_serial(top, &enter, NONE, &mut |x, l, r| {
+            let h = |i: u32| if i == NONE { 0 } else { roots[i as usize].3 };
+            let height = 1 + h(l).max(h(r));
+            roots.push((x, l, r, height));
+            roots.len() as u32 - 1
+        });
         let Some(&(_, _, _, top_height)) = roots.last() else { return (false, RoundStats::default()) };
         // Counting sort by height, stable (post-order within a height).
         let mut start = vec![0usize; top_height as usize + 2];
