@@ -13,7 +13,8 @@
 //!   sorted keys alone (parallel over nodes). Inner node i is node i of the result,
 //!   leaf j (the j-th key) is node n - 1 + j.
 //! - Boxes: one post-order pass ([`build_fitted`]); the flattener fits its own, so a
-//!   plain LBVH skips it.
+//!   plain LBVH skips it, and treelet restructuring fits them in its own parallel
+//!   pass over the tree.
 
 use std::time::Instant;
 

@@ -256,8 +256,10 @@ impl Bvh {
             }
             BvhBuilder::Lbvh => (lbvh::build(&refs, &mut phases, &mut t), None),
             BvhBuilder::Trbvh => {
-                let mut bin = lbvh::build_fitted(&refs, &mut phases, &mut t);
+                // Restructuring fits the LBVH's boxes as it computes its costs.
+                let mut bin = lbvh::build(&refs, &mut phases, &mut t);
                 let mut work = treelet::Restructure::with_leaves(&bin, &costs, tp.leaves);
+                lap(&mut phases, "bounds + costs", &mut t);
                 for round in 0..tp.rounds {
                     let rs = work.round(tp.gamma(round));
                     lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);

@@ -410,7 +410,9 @@ impl std::ops::Add for RoundStats {
 }
 
 impl Restructure {
-    /// Counts and costs of `bin` (an LBVH or any canonical tree).
+    /// The tree `bin` (an LBVH or any canonical tree) with every inner node's box
+    /// fitted to its children's (whatever `bin` holds there: an LBVH comes unfitted),
+    /// primitive count and cost, in one parallel post-order pass.
     pub fn new(bin: &Binary, costs: &SahCosts) -> Restructure {
         Self::with_leaves(bin, costs, TREELET_LEAVES)
     }
@@ -428,9 +430,12 @@ impl Restructure {
         let enter = |_| true;
         let visit = |i: u32, _| {
             let s = &r.slots[i as usize];
-            let (l, rt) = (&r.slots[s.left.load(Relaxed) as usize], &r.slots[s.right.load(Relaxed) as usize]);
+            let (left, right) = (s.left.load(Relaxed), s.right.load(Relaxed));
+            let (l, rt) = (&r.slots[left as usize], &r.slots[right as usize]);
+            let b = l.bounds().union(&rt.bounds());
+            s.set_inner(left, right, &b);
             let count = l.count() + rt.count();
-            s.set_cost(count, r.node_cost(&s.bounds(), count, l.cost() + rt.cost()));
+            s.set_cost(count, r.node_cost(&b, count, l.cost() + rt.cost()));
             (false, RoundStats::default())
         };
         r.post_order(r.root, 0, &enter, &visit, &|x| {
