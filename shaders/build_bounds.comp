@@ -20,8 +20,9 @@ layout(std430, set = 0, binding = BINDING_SPHERES) readonly buffer BuildSpheres 
 shared uint s_min[3][BUILD_GROUP];
 shared uint s_max[3][BUILD_GROUP];
 
-// Primitives per thread: fewer workgroups, so fewer barriers and atomics.
-const uint ITEMS = 16u;
+// Primitives per thread (src/gpu/bindings.rs): fewer workgroups, so fewer barriers and
+// atomics.
+const uint ITEMS = BUILD_BOUNDS_ITEMS;
 
 void main() {
     uint lid = gl_LocalInvocationID.x;

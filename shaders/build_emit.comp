@@ -22,8 +22,8 @@ layout(local_size_x = BUILD_LEVEL_GROUP) in;
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_NODES) writeonly buffer OutNodes { uvec4 out_nodes[]; };
 layout(std430, set = 0, binding = BINDING_BUILD_OUT_INDICES) writeonly buffer OutIndices { uint out_indices[]; };
 
-const uint ROOT = 0u;
-const uint TOP = 1u;
+const uint ROOT = BUILD_EMIT_ROOT;
+const uint TOP = BUILD_EMIT_TOP;
 const uint LEAF_REF = 0x80000000u;
 const uint EMPTY_REF = 0xffffffffu;
 const uint HIDDEN = 0x80000000u;

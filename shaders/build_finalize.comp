@@ -12,7 +12,7 @@
 
 layout(local_size_x = BUILD_LEVEL_GROUP) in;
 
-const uint COLLAPSE = 1u;
+const uint COLLAPSE = BUILD_FINALIZE_COLLAPSE;
 
 uint inner_nodes(uint i) {
     return (is_leaf(i) || aux[i].z == COLLAPSED) ? 0u : aux[i].z;

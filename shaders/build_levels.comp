@@ -17,9 +17,9 @@
 
 layout(local_size_x = BUILD_GROUP) in;
 
-const uint COUNT = 0u;
-const uint SCAN = 1u;
-const uint SCATTER = 2u;
+const uint COUNT = BUILD_LEVELS_COUNT;
+const uint SCAN = BUILD_LEVELS_SCAN;
+const uint SCATTER = BUILD_LEVELS_SCATTER;
 
 shared uint s_scan[BUILD_GROUP];
 

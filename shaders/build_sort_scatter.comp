@@ -1,6 +1,6 @@
 #version 460
 // Radix sort, pass 3 of 3: stable scatter. One workgroup of one subgroup
-// (SPEC_SCATTER_GROUP threads, 8..64) walks a tile of BUILD_GROUP x BUILD_SORT_ITEMS
+// (SPEC_SCATTER_GROUP threads, 8..BUILD_SCATTER_MAX_GROUP) walks a tile of BUILD_GROUP x BUILD_SORT_ITEMS
 // pairs in order, a workgroup's width at a time; within a step a pair's rank among
 // equal digits comes from bit masks in shared memory (one bit per thread and digit),
 // so no subgroup operation is needed. The lowest thread of each digit then advances
@@ -14,7 +14,11 @@
 layout(local_size_x_id = SPEC_SCATTER_GROUP) in;
 
 const uint TILE = BUILD_GROUP * BUILD_SORT_ITEMS;
-const uint MAXW = 2u; // mask words per digit: up to 64 threads
+// Mask words per digit: two, so at most 64 threads (the code below reads both words).
+#if BUILD_SCATTER_MAX_GROUP > 64
+#error "build_sort_scatter.comp keeps two mask words per digit: at most 64 threads"
+#endif
+const uint MAXW = 2u;
 shared uint s_base[256];
 shared uint s_mask[256 * MAXW];
 

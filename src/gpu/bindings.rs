@@ -53,7 +53,7 @@ pub const BUILD_HDR_ERRORS: u32 = 7;
 pub const BUILD_HDR_NODES: u32 = 8;
 /// Header words in all.
 pub const BUILD_HDR_WORDS: u32 = 16;
-/// Error bit: a bottom-up or top-down walk exceeded BUILD_MAX_WALK steps.
+/// Error bit: a climb from a leaf (`build_fit.comp`) exceeded BUILD_MAX_WALK steps.
 pub const BUILD_ERR_WALK: u32 = 1;
 /// Error bit: an inner node is BUILD_MAX_LEVELS or more levels above its deepest leaf.
 pub const BUILD_ERR_LEVELS: u32 = 2;
@@ -77,9 +77,26 @@ pub const BUILD_MAX_WALK: u32 = 1024;
 pub const BUILD_GROUP: u32 = 256;
 /// Elements per thread of the radix sort (tile = BUILD_GROUP x this).
 pub const BUILD_SORT_ITEMS: u32 = 16;
+/// Primitives per thread of the bounds pass (`build_bounds.comp`): fewer workgroups,
+/// so fewer barriers and atomics.
+pub const BUILD_BOUNDS_ITEMS: u32 = 16;
+/// Most threads per workgroup of the sort's scatter (its shared bit masks hold one bit
+/// per thread; SPEC_SCATTER_GROUP is clamped to this).
+pub const BUILD_SCATTER_MAX_GROUP: u32 = 64;
 /// Threads per workgroup of the passes by height (restructure, collapse, emit), one
 /// node each.
 pub const BUILD_LEVEL_GROUP: u32 = 64;
+/// Modes (push constant `a`) of `build_levels.comp`: count the listed nodes per
+/// height, scan the counts, scatter the nodes into the list.
+pub const BUILD_LEVELS_COUNT: u32 = 0;
+pub const BUILD_LEVELS_SCAN: u32 = 1;
+pub const BUILD_LEVELS_SCATTER: u32 = 2;
+/// Mode of `build_finalize.comp`: subtrees cheaper as one leaf become leaves (trbvh;
+/// 0 only counts output nodes).
+pub const BUILD_FINALIZE_COLLAPSE: u32 = 1;
+/// Modes of `build_emit.comp`: seed the root, then one height from the top.
+pub const BUILD_EMIT_ROOT: u32 = 0;
+pub const BUILD_EMIT_TOP: u32 = 1;
 
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -112,7 +129,7 @@ pub const SPEC_DIFFUSE_PROBE: u32 = 6;
 /// barriers stay cheap (on lavapipe 8 threads took half the time of 256 at 1M).
 pub const SPEC_FIT_GROUP: u32 = 7;
 /// Threads per workgroup of the radix sort's scatter (`build_sort_scatter.comp`): one
-/// subgroup, at most 64.
+/// subgroup, at most BUILD_SCATTER_MAX_GROUP.
 pub const SPEC_SCATTER_GROUP: u32 = 8;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
@@ -166,5 +183,13 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_MAX_WALK", BUILD_MAX_WALK),
     ("BUILD_GROUP", BUILD_GROUP),
     ("BUILD_SORT_ITEMS", BUILD_SORT_ITEMS),
+    ("BUILD_BOUNDS_ITEMS", BUILD_BOUNDS_ITEMS),
+    ("BUILD_SCATTER_MAX_GROUP", BUILD_SCATTER_MAX_GROUP),
     ("BUILD_LEVEL_GROUP", BUILD_LEVEL_GROUP),
+    ("BUILD_LEVELS_COUNT", BUILD_LEVELS_COUNT),
+    ("BUILD_LEVELS_SCAN", BUILD_LEVELS_SCAN),
+    ("BUILD_LEVELS_SCATTER", BUILD_LEVELS_SCATTER),
+    ("BUILD_FINALIZE_COLLAPSE", BUILD_FINALIZE_COLLAPSE),
+    ("BUILD_EMIT_ROOT", BUILD_EMIT_ROOT),
+    ("BUILD_EMIT_TOP", BUILD_EMIT_TOP),
 ];

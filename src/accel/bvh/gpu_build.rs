@@ -20,20 +20,20 @@
 //! node's work where the climb arrives pays for that work at every step of every SIMD
 //! group. Only `fit` climbs (building the radix tree on the way up, so no per-node
 //! binary searches diverge either); it also computes every node's height (leaves 0).
-//! The later
-//! passes list their nodes by height (`build_levels`: count, scan, scatter) and run
-//! one indirect dispatch per height, one thread per node: lowest first where a node
-//! needs its children final, highest first where it needs its parent's. The treelet
+//! The later passes list their nodes by height (`build_levels`: count, scan, scatter)
+//! and run one indirect dispatch per height, one thread per node: lowest first where a
+//! node needs its children final, highest first where it needs its parent's. The treelet
 //! kernel updates the heights in the subtree it rewrites, so the next round's schedule
 //! needs no new climb. Empty heights dispatch no workgroups.
 //!
 //! Every result equals the CPU builder's for the same scene, word for word: the Morton
 //! codes round alike (see [`super::lbvh::MortonGrid`]), the sort is stable over
 //! primitive order (equal codes order by index as the CPU's 64-bit keys do), the
-//! hierarchy is the same function of the keys with the same node numbers, costs are computed with the same
-//! operations in the same order (`precise`), a treelet is optimised only after every
-//! treelet below it, as on the CPU, and the emit pass writes the flattener's preorder
-//! (a node's preorder index and first primitive handed down from its parent).
+//! hierarchy is the same function of the keys with the same node numbers, costs are
+//! computed with the same operations in the same order (`precise`), a treelet is
+//! optimised only after every treelet below it, as on the CPU, and the emit pass writes
+//! the flattener's preorder (a node's preorder index and first primitive handed down
+//! from its parent).
 //! The tests check this equality, which implies the same SAH cost.
 //!
 //! Buffers (at most 6 per kernel): header, primitive boxes, two pair arrays, the sort's
@@ -55,21 +55,10 @@ use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context, Kernel, Step};
 use crate::scene::Scene;
 
-/// `build_finalize.comp`: subtrees cheaper as one leaf become leaves (trbvh).
-const FINALIZE_COLLAPSE: u32 = 1;
-/// Modes of `build_emit.comp`.
-const EMIT_ROOT: u32 = 0;
-const EMIT_TOP: u32 = 1;
-/// Modes of `build_levels.comp`.
-const LEVELS_COUNT: u32 = 0;
-const LEVELS_SCAN: u32 = 1;
-const LEVELS_SCATTER: u32 = 2;
 // Every height of a tree the traversal accepts has a slot in the schedule, and the
 // one workgroup of `build_levels`'s scan covers every slot.
 const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH && BUILD_GROUP > BUILD_MAX_LEVELS);
 
-/// Primitives per thread of `build_bounds.comp` (its ITEMS).
-const BOUNDS_ITEMS: u32 = 16;
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
 fn storage(binding: u32, name: &'static str) -> BindingDesc {
@@ -143,10 +132,15 @@ fn by_height<'a>(
     p: Push,
 ) -> Vec<Step<'a>> {
     let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
-    let mut steps: Vec<Step<'a>> = [(LEVELS_COUNT, inner), (LEVELS_SCAN, [1, 1, 1]), (LEVELS_SCATTER, inner)]
-        .into_iter()
-        .map(|(mode, groups)| Step::Dispatch { kernel: levels, push: bytes(Push { a: mode, b: gamma, ..p }), groups })
-        .collect();
+    let mut steps: Vec<Step<'a>> =
+        [(BUILD_LEVELS_COUNT, inner), (BUILD_LEVELS_SCAN, [1, 1, 1]), (BUILD_LEVELS_SCATTER, inner)]
+            .into_iter()
+            .map(|(mode, groups)| Step::Dispatch {
+                kernel: levels,
+                push: bytes(Push { a: mode, b: gamma, ..p }),
+                groups,
+            })
+            .collect();
     steps.extend(per_height(kernel, schedule, p, false));
     steps
 }
@@ -202,7 +196,7 @@ impl GpuBuilder {
             bounds.insert(geo, kernel(ctx, &format!("build_bounds_{geo}"), &b)?);
         }
         let fit_group = ctx.info().subgroup_size.clamp(8, 256);
-        let scatter_group = ctx.info().subgroup_size.clamp(8, 64);
+        let scatter_group = ctx.info().subgroup_size.clamp(8, BUILD_SCATTER_MAX_GROUP);
         let scatter_b = [pairs.clone(), pairs_out.clone(), hist.clone()];
         let fit_b = [hdr.clone(), pairs.clone(), pb.clone(), nodes.clone(), aux.clone(), levels.clone()];
         let g = GpuBuilder {
@@ -315,7 +309,7 @@ impl GpuBuilder {
             Step::Dispatch {
                 kernel: bounds_k,
                 push: bytes(push(scene.triangles.len() as u32, 0)),
-                groups: groups(n as u64, BUILD_GROUP * BOUNDS_ITEMS)?,
+                groups: groups(n as u64, BUILD_GROUP * BUILD_BOUNDS_ITEMS)?,
             },
             Step::Mark("gpu bounds"),
             Step::Dispatch { kernel: &self.morton, push: bytes(push(0, 0)), groups: groups(n as u64, BUILD_GROUP)? },
@@ -343,7 +337,7 @@ impl GpuBuilder {
                 steps.extend(by_height(&self.levels, &self.treelet, &b.levels, inner, gamma, p));
                 steps.push(Step::Mark(name));
             }
-            FINALIZE_COLLAPSE
+            BUILD_FINALIZE_COLLAPSE
         } else {
             0
         };
@@ -351,8 +345,8 @@ impl GpuBuilder {
         // node listed by height for the emit pass.
         steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
         steps.push(Step::Mark(if collapse != 0 { "gpu collapse" } else { "gpu finalize" }));
-        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(EMIT_ROOT, 0)), groups: [1, 1, 1] });
-        steps.extend(per_height(&self.emit, &b.levels, push(EMIT_TOP, 0), true));
+        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(BUILD_EMIT_ROOT, 0)), groups: [1, 1, 1] });
+        steps.extend(per_height(&self.emit, &b.levels, push(BUILD_EMIT_TOP, 0), true));
         steps.push(Step::Mark("gpu emit"));
         let gpu = ctx.run_steps(&format!("build {}", builder.name()), &steps)?;
         drop(steps);

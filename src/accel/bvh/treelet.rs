@@ -906,7 +906,8 @@ mod tests {
         }
     }
 
-    /// Presets and keys parse; γ doubles by default; bad values are refused.
+    /// Presets and keys parse; each round's γ follows the schedule; bad values are
+    /// refused.
     #[test]
     fn parameters_parse_and_gamma_cycles() {
         let d = TreeletParams::default();
