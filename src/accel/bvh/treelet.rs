@@ -160,6 +160,11 @@ const SUBSETS: usize = 1 << TREELET_LEAVES;
 /// Subtrees with at least this many primitives are visited by parallel tasks; smaller
 /// ones by one task, serially.
 const PAR_GRAIN: u32 = 2048;
+/// Levels below the treelet roots' non-root children that a round reads ahead of
+/// treelet formation ([`Restructure::touch_below`]).
+const TOUCH_LEVELS: usize = 2;
+/// Levels of the tree split between parallel tasks when fitting it (2^10 subtrees).
+const FIT_PAR_LEVELS: u32 = 10;
 /// Deepest level visited by parallel recursion; deeper subtrees (only in degenerate
 /// trees) are visited serially with an explicit stack.
 const PAR_DEPTH: u32 = 48;
@@ -522,31 +527,72 @@ impl Restructure {
     /// As `new`, with treelets of `leaves` leaves (clamped to 3..=TREELET_LEAVES).
     pub fn with_leaves(bin: &Binary, costs: &SahCosts, leaves: usize) -> Restructure {
         let leaves = leaves.clamp(3, TREELET_LEAVES);
-        let slots: Vec<Slot> = bin.nodes.par_iter().map(Slot::new).collect();
-        slots.par_iter().filter(|s| s.is_leaf()).for_each(|s| {
-            let count = s.right.load(Relaxed);
-            s.set_cost(count, costs.intersect * area(&s.bounds()) * count as f32);
-        });
-        let r = Restructure { costs: *costs, leaves, slots, root: bin.root };
-        // Inner nodes bottom-up (children before parents).
-        let enter = |_| true;
-        let visit = |i: u32, _| {
-            let s = &r.slots[i as usize];
-            let (left, right) = (s.left.load(Relaxed), s.right.load(Relaxed));
-            let (l, rt) = (&r.slots[left as usize], &r.slots[right as usize]);
-            let b = l.bounds().union(&rt.bounds());
-            s.set_inner(left, right, &b);
-            let count = l.count() + rt.count();
-            s.set_cost(count, r.node_cost(&b, count, l.cost() + rt.cost()));
-            (false, RoundStats::default())
-        };
-        r.post_order(r.root, 0, &enter, &visit, &|x| {
-            r.fold_serial(x, &enter, (false, RoundStats::default()), &mut |i, a, b| {
-                let (c, sc) = visit(i, a.0 || b.0);
-                (c, a.1 + b.1 + sc)
+        let slots: Vec<Slot> = bin
+            .nodes
+            .par_iter()
+            .map(|n| {
+                let s = Slot::new(n);
+                if n.is_leaf() {
+                    s.set_cost(n.right, costs.intersect * area(&n.bounds) * n.right as f32);
+                }
+                s
             })
-        });
+            .collect();
+        let r = Restructure { costs: *costs, leaves, slots, root: bin.root };
+        r.fit(r.root, 0);
         r
+    }
+
+    /// Fits the box, count and cost of every inner node below `x` (children before
+    /// parents). Inner counts are not known yet, so the tree is split between
+    /// parallel tasks by depth, down to [`FIT_PAR_LEVELS`] (work stealing evens out
+    /// uneven subtrees); below that, [`Restructure::fit_serial`].
+    fn fit(&self, x: u32, depth: u32) {
+        let s = &self.slots[x as usize];
+        if s.is_leaf() {
+            return;
+        }
+        if depth >= FIT_PAR_LEVELS {
+            return self.fit_serial(x);
+        }
+        let (l, r) = (s.left.load(Relaxed), s.right.load(Relaxed));
+        rayon::join(|| self.fit(l, depth + 1), || self.fit(r, depth + 1));
+        self.fit_node(x);
+    }
+
+    /// [`Restructure::fit`] in one task: the inner nodes are listed level by level
+    /// (each level read in a loop without branches, so that cache misses overlap),
+    /// then fitted in the reverse order, children before parents.
+    fn fit_serial(&self, top: u32) {
+        let mut list = vec![top];
+        let mut kids: Vec<u32> = Vec::new();
+        let mut level = 0..1;
+        while !level.is_empty() {
+            kids.clear();
+            for &x in &list[level.clone()] {
+                let s = &self.slots[x as usize];
+                kids.push(s.left.load(Relaxed));
+                kids.push(s.right.load(Relaxed));
+            }
+            self.touch(kids.iter().copied());
+            let first = list.len();
+            list.extend(kids.iter().copied().filter(|&c| !self.slots[c as usize].is_leaf()));
+            level = first..list.len();
+        }
+        for &x in list.iter().rev() {
+            self.fit_node(x);
+        }
+    }
+
+    /// Sets inner node `x`'s box, count and cost from its children's.
+    fn fit_node(&self, x: u32) {
+        let s = &self.slots[x as usize];
+        let (left, right) = (s.left.load(Relaxed), s.right.load(Relaxed));
+        let (l, rt) = (&self.slots[left as usize], &self.slots[right as usize]);
+        let b = l.bounds().union(&rt.bounds());
+        s.set_inner(left, right, &b);
+        let count = l.count() + rt.count();
+        s.set_cost(count, self.node_cost(&b, count, l.cost() + rt.cost()));
     }
 
     fn node_cost(&self, b: &Aabb, count: u32, children: f32) -> f32 {
@@ -607,33 +653,6 @@ impl Restructure {
         (c, sa + sb + sc)
     }
 
-    /// Post-order fold over the inner nodes below `top` that `enter` accepts, with an
-    /// explicit stack: `visit(node, left's value, right's value)` gives a node's value;
-    /// a tree leaf or a node not accepted (with its subtree) has the value `skipped`.
-    fn fold_serial<T: Copy, E, V>(&self, top: u32, enter: &E, skipped: T, visit: &mut V) -> T
-    where
-        E: Fn(u32) -> bool,
-        V: FnMut(u32, T, T) -> T,
-    {
-        let mut stack: Vec<(u32, bool)> = vec![(top, false)];
-        let mut values: Vec<T> = Vec::new();
-        while let Some((x, post)) = stack.pop() {
-            let s = &self.slots[x as usize];
-            if post {
-                let b = values.pop().unwrap_or(skipped);
-                let a = values.pop().unwrap_or(skipped);
-                values.push(visit(x, a, b));
-            } else if s.is_leaf() || !enter(x) {
-                values.push(skipped);
-            } else {
-                stack.push((x, true));
-                stack.push((s.right.load(Relaxed), false));
-                stack.push((s.left.load(Relaxed), false));
-            }
-        }
-        values.pop().unwrap_or(skipped)
-    }
-
     /// One round: optimises the treelet of every inner node with at least `gamma`
     /// primitives below it, bottom-up.
     pub fn round(&mut self, gamma: u32) -> RoundStats {
@@ -644,67 +663,89 @@ impl Restructure {
         stats
     }
 
-    /// A round over the subtree of `top` (one task): its treelet roots are listed in
-    /// post-order, and optimised [`LANES`] treelets of the same size at once
-    /// ([`treelet_lanes`]) as they become ready: a root is ready once every root below
-    /// it is done. The roots of one batch are therefore disjoint, and each treelet is
-    /// optimised after every treelet below it, so the tree is the post-order walk's.
-    /// Ready roots wait in a queue (first in, first out), so a batch runs short only
-    /// when fewer than [`LANES`] roots are ready, near the top.
+    /// A round over the subtree of `top` (one task): its treelet roots are listed level
+    /// by level (each level's nodes are read independently of each other, so their
+    /// cache misses overlap, where a depth-first walk waits on one at a time), and
+    /// optimised [`LANES`] treelets of the same size at once ([`treelet_lanes`]) as they
+    /// become ready: a root is ready once every root below it is done. The roots of
+    /// one batch are therefore disjoint, and each treelet is optimised after every
+    /// treelet below it, so the tree is the post-order walk's. Ready roots wait in a
+    /// queue (first in, first out; the deepest listed first), so a batch runs short
+    /// only when fewer than [`LANES`] roots are ready, near the top.
     fn round_serial(&self, top: u32, gamma: u32) -> (bool, RoundStats) {
         const NONE: u32 = u32::MAX;
-        // Treelet roots in post-order: (node, left root, right root), the children as
-        // indices into `roots` or NONE.
-        let mut roots: Vec<(u32, u32, u32)> = Vec::new();
-        let enter = |x: u32| self.slots[x as usize].count() >= gamma;
-        self.fold_serial(top, &enter, NONE, &mut |x, l, r| {
-            roots.push((x, l, r));
-            roots.len() as u32 - 1
-        });
-        if roots.is_empty() {
+        let enter = |x: u32| {
+            let s = &self.slots[x as usize];
+            !s.is_leaf() && s.count() >= gamma
+        };
+        if !enter(top) {
             return (false, RoundStats::default());
         }
-        // Per root: its parent root and how many of its child roots are not done.
-        let mut parent = vec![NONE; roots.len()];
-        let mut waiting = vec![0u8; roots.len()];
-        let mut ready: std::collections::VecDeque<u32> = std::collections::VecDeque::new();
-        for (i, &(_, l, r)) in roots.iter().enumerate() {
-            for c in [l, r].into_iter().filter(|&c| c != NONE) {
-                parent[c as usize] = i as u32;
-                waiting[i] += 1;
+        // Treelet roots level by level: (node, index of its parent root or NONE); the
+        // inner nodes below them that are not roots, the fringe.
+        // Each level's children are first read in a loop without branches, so that
+        // their cache misses overlap; then sorted into roots and fringe.
+        let mut roots: Vec<(u32, u32)> = vec![(top, NONE)];
+        let mut fringe: Vec<u32> = Vec::new();
+        let mut kids: Vec<(u32, u32)> = Vec::new();
+        let mut level = 0..1;
+        while !level.is_empty() {
+            kids.clear();
+            for i in level.clone() {
+                let s = &self.slots[roots[i].0 as usize];
+                kids.push((s.left.load(Relaxed), i as u32));
+                kids.push((s.right.load(Relaxed), i as u32));
             }
-            if waiting[i] == 0 {
-                ready.push_back(i as u32);
+            self.touch(kids.iter().map(|k| k.0));
+            let first = roots.len();
+            for &(c, p) in &kids {
+                if enter(c) {
+                    roots.push((c, p));
+                } else if !self.slots[c as usize].is_leaf() {
+                    fringe.push(c);
+                }
             }
+            level = first..roots.len();
         }
-        let mut changed = vec![false; roots.len()];
+        self.touch_below(fringe);
+        // Per root: how many of its child roots are not done, and whether one of them
+        // changed its subtree.
+        let mut waiting = vec![0u8; roots.len()];
+        for &(_, p) in &roots[1..] {
+            waiting[p as usize] += 1;
+        }
+        let mut below = vec![false; roots.len()];
+        let mut ready: std::collections::VecDeque<u32> =
+            (0..roots.len() as u32).rev().filter(|&i| waiting[i as usize] == 0).collect();
         let mut stats = RoundStats::default();
+        let mut top_changed = false;
         let mut tables = LaneTables::new();
         let mut batch: Vec<(u32, bool)> = Vec::with_capacity(LANES);
         let mut index: Vec<u32> = Vec::with_capacity(LANES);
-        // Marks root `i` done with `c` (whether its subtree changed).
-        let mut done = |i: u32, c: bool, changed: &mut [bool], ready: &mut std::collections::VecDeque<u32>| {
-            changed[i as usize] = c;
-            let p = parent[i as usize];
-            if p != NONE {
-                waiting[p as usize] -= 1;
-                if waiting[p as usize] == 0 {
-                    ready.push_back(p);
-                }
+        // Marks root `i` done with `changed` (whether its subtree changed).
+        let mut done = |i: u32, changed: bool, below: &mut [bool], ready: &mut std::collections::VecDeque<u32>| {
+            let p = roots[i as usize].1;
+            if p == NONE {
+                top_changed = changed;
+                return;
+            }
+            below[p as usize] |= changed;
+            waiting[p as usize] -= 1;
+            if waiting[p as usize] == 0 {
+                ready.push_back(p);
             }
         };
         while !ready.is_empty() {
             while batch.len() < LANES {
                 let Some(i) = ready.pop_front() else { break };
-                let (x, l, r) = roots[i as usize];
-                let was = |c: u32| c != NONE && changed[c as usize];
-                let below = was(l) || was(r);
-                if !below && self.slots[x as usize].settled.load(Relaxed) {
+                let x = roots[i as usize].0;
+                let b = below[i as usize];
+                if !b && self.slots[x as usize].settled.load(Relaxed) {
                     stats.skipped += 1;
-                    done(i, false, &mut changed, &mut ready);
+                    done(i, false, &mut below, &mut ready);
                     continue;
                 }
-                batch.push((x, below));
+                batch.push((x, b));
                 index.push(i);
             }
             if batch.is_empty() {
@@ -713,12 +754,41 @@ impl Restructure {
             let (c, sc) = self.settle_lanes(&batch, &mut tables);
             stats = stats + sc;
             for (lane, &i) in index.iter().enumerate() {
-                done(i, c[lane], &mut changed, &mut ready);
+                done(i, c[lane], &mut below, &mut ready);
             }
             batch.clear();
             index.clear();
         }
-        (changed[roots.len() - 1], stats)
+        (top_changed, stats)
+    }
+
+    /// Reads the nodes [`TOUCH_LEVELS`] levels below the nodes of `fringe`, a level at
+    /// a time, so that treelet formation finds them in cache: these reads are
+    /// independent of each other, so their cache misses overlap, where formation
+    /// waits on each node before it can choose the next.
+    fn touch_below(&self, mut fringe: Vec<u32>) {
+        let mut kids = Vec::with_capacity(fringe.len() * 2);
+        for _ in 0..TOUCH_LEVELS {
+            kids.clear();
+            for &x in &fringe {
+                let s = &self.slots[x as usize];
+                kids.push(s.left.load(Relaxed));
+                kids.push(s.right.load(Relaxed));
+            }
+            self.touch(kids.iter().copied());
+            fringe.clear();
+            fringe.extend(kids.iter().copied().filter(|&c| !self.slots[c as usize].is_leaf()));
+        }
+    }
+
+    /// Reads the nodes `ids` (both ends of each: a node may straddle two cache lines)
+    /// in a loop without branches, so that their cache misses overlap.
+    fn touch(&self, ids: impl Iterator<Item = u32>) {
+        let seen = ids.fold(0u32, |a, c| {
+            let s = &self.slots[c as usize];
+            a ^ s.bounds[0].load(Relaxed) ^ s.cost.load(Relaxed)
+        });
+        std::hint::black_box(seen);
     }
 
     /// Optimises the treelets at the roots in `batch` (disjoint subtrees, at most
