@@ -263,6 +263,9 @@ struct LaneTables {
     count: [[i32; LANES]; SUBSETS],
     /// Optimal cost of each subset (with collapse).
     cost: [Lanes; SUBSETS],
+    /// Cheapest partition sum cost(P) + cost(S∖P) of each subset (+inf if none is
+    /// below +inf), for [`LaneTables::best_part`].
+    split: [Lanes; SUBSETS],
 }
 
 impl LaneTables {
@@ -272,6 +275,7 @@ impl LaneTables {
             area: [[0.0; LANES]; SUBSETS],
             count: [[0; LANES]; SUBSETS],
             cost: [[0.0; LANES]; SUBSETS],
+            split: [[0.0; LANES]; SUBSETS],
         })
     }
 
@@ -283,20 +287,22 @@ impl LaneTables {
 
     /// The first part P (holding the lowest leaf of `s`; P descending) with the
     /// strictly cheapest cost(P) + cost(S∖P) in `lane`, or the lowest leaf alone if
-    /// none is below +inf: the split whose cost the generated programme found.
+    /// none is below +inf: the split whose cost the generated programme found. That
+    /// is the first P whose sum equals the cheapest sum the programme kept (`split`;
+    /// the same addition, and never NaN), so the scan stops there and carries no
+    /// comparison chain from one partition to the next.
     fn best_part(&self, s: usize, lane: usize) -> usize {
         let low = s & s.wrapping_neg();
         let rest = s ^ low;
-        let mut best = (f32::INFINITY, low);
+        let best = self.split[s][lane];
+        if best == f32::INFINITY {
+            return low;
+        }
         let mut q = rest.wrapping_sub(1) & rest;
         loop {
             let p = low | q;
-            let c = self.cost[p][lane] + self.cost[s ^ p][lane];
-            if c < best.0 {
-                best = (c, p);
-            }
-            if q == 0 {
-                return best.1;
+            if self.cost[p][lane] + self.cost[s ^ p][lane] == best || q == 0 {
+                return p;
             }
             q = (q - 1) & rest;
         }
@@ -331,8 +337,9 @@ trait LaneOps: Copy {
     fn step(self, b: Self::V, x: &Lanes, y: &Lanes) -> Self::V;
     /// Merges a later chain `b1` into an earlier one `b`: the first strictly cheapest.
     fn merge(self, b: Self::V, b1: Self::V) -> Self::V;
-    /// Subset `s`'s optimal cost as [`Restructure::cost_of_area`], given its cheapest
-    /// split's cost `b`: C_T·A + b, or one leaf (C_I·A·N) if cheaper and N ≤
+    /// Keeps `b`, the cheapest partition sum of subset `s` (for
+    /// [`LaneTables::best_part`]), and sets `s`'s optimal cost as
+    /// [`Restructure::cost_of_area`]: C_T·A + b, or one leaf (C_I·A·N) if cheaper and N ≤
     /// MAX_LEAF. As `f32::min`, a NaN on one side gives the other.
     fn node(self, t: &mut LaneTables, s: usize, b: Self::V, traversal: f32, intersect: f32);
 }
@@ -394,6 +401,7 @@ impl LaneOps for PlainLanes {
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
     fn node(self, t: &mut LaneTables, s: usize, b: Lanes, traversal: f32, intersect: f32) {
+        t.split[s] = b;
         for l in 0..LANES {
             let (a, n) = (t.area[s][l], t.count[s][l]);
             let split = traversal * a + b[l];
@@ -465,6 +473,7 @@ impl LaneOps for AvxLanes {
     #[inline(always)]
     fn node(self, t: &mut LaneTables, s: usize, b: pulp::f32x8, traversal: f32, intersect: f32) {
         let v = self.0;
+        t.split[s] = pulp::cast(b);
         let a = Self::load(&t.area[s]);
         let n: pulp::i32x8 = pulp::cast(t.count[s]);
         let split = v.add_f32x8(v.mul_f32x8(v.splat_f32x8(traversal), a), b);
@@ -485,12 +494,6 @@ struct Formed {
     k: usize,
     leaves: [u32; TREELET_LEAVES],
     internals: [u32; TREELET_LEAVES - 1],
-}
-
-/// A new topology for one treelet: (node, left, right, box, cost, count) per inner node.
-struct Update {
-    len: usize,
-    entries: [(u32, u32, u32, Aabb, f32, u32); TREELET_LEAVES - 1],
 }
 
 /// Treelet restructuring work in one round.
@@ -799,26 +802,30 @@ impl Restructure {
         for (lane, &(root, _)) in batch.iter().enumerate() {
             formed[lane] = self.form(root, lane, t);
         }
-        let mut updates: [Option<Update>; LANES] = Default::default();
         let mut sizes = [false; TREELET_LEAVES + 1];
         for f in &formed[..batch.len()] {
             sizes[f.k] = true;
         }
+        let mut changed = [false; LANES];
+        let mut stats = RoundStats::default();
         for k in (3..=TREELET_LEAVES).filter(|&k| sizes[k]) {
             // Lanes of other sizes compute junk from stale entries; nothing reads it.
             treelet_lanes(k, t, self.costs.traversal, self.costs.intersect);
-            for (lane, &(root, _)) in batch.iter().enumerate() {
+            for (lane, &(root, below)) in batch.iter().enumerate() {
                 if formed[lane].k == k {
-                    updates[lane] = self.rebuild(root, &formed[lane], t, lane);
+                    let (c, sc) = self.rewrite(root, &formed[lane], t, lane, below);
+                    changed[lane] = c;
+                    stats = stats + sc;
                 }
             }
         }
-        let mut changed = [false; LANES];
-        let mut stats = RoundStats::default();
+        // Treelets too small to restructure (fewer than 3 leaves).
         for (lane, &(root, below)) in batch.iter().enumerate() {
-            let (c, sc) = self.apply(root, updates[lane].take(), below);
-            changed[lane] = c;
-            stats = stats + sc;
+            if formed[lane].k < 3 {
+                let (c, sc) = self.rewrite(root, &formed[lane], t, lane, below);
+                changed[lane] = c;
+                stats = stats + sc;
+            }
         }
         (changed, stats)
     }
@@ -832,25 +839,6 @@ impl Restructure {
         }
         let (changed, stats) = self.settle_lanes(&[(x, below)], &mut LaneTables::new());
         (changed[0], stats)
-    }
-
-    /// Writes a treelet's new topology, or marks it settled if there is none.
-    fn apply(&self, x: u32, update: Option<Update>, below: bool) -> (bool, RoundStats) {
-        match update {
-            Some(u) => {
-                for &(node, l, r, b, c, count) in &u.entries[..u.len] {
-                    let slot = &self.slots[node as usize];
-                    slot.set_inner(l, r, &b);
-                    slot.set_cost(count, c);
-                    slot.settled.store(false, Relaxed);
-                }
-                (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
-            }
-            None => {
-                self.slots[x as usize].settled.store(true, Relaxed);
-                (below, RoundStats { optimised: 1, ..Default::default() })
-            }
-        }
     }
 
     /// Forms the treelet rooted at `root` (expanding the inner leaf of largest area
@@ -900,18 +888,17 @@ impl Restructure {
         f
     }
 
-    /// The treelet's new topology from its optimal costs and parts in `lane` of `t`,
-    /// reusing its inner nodes root first; `None` unless it is cheaper than now.
-    fn rebuild(&self, root: u32, f: &Formed, t: &LaneTables, lane: usize) -> Option<Update> {
-        if f.k < 3 {
-            return None;
-        }
+    /// Writes the treelet's new topology from its optimal costs and parts in `lane` of
+    /// `t`, reusing its inner nodes root first, if it is cheaper than now; else marks
+    /// the treelet settled. Returns whether the subtree of `root` changed (`below`:
+    /// whether it changed under the treelet already).
+    fn rewrite(&self, root: u32, f: &Formed, t: &LaneTables, lane: usize, below: bool) -> (bool, RoundStats) {
         let full = (1usize << f.k) - 1;
         let best = t.cost[full][lane];
-        if best >= self.slots[root as usize].cost() * KEEP_FACTOR || best.is_nan() {
-            return None;
+        if f.k < 3 || best >= self.slots[root as usize].cost() * KEEP_FACTOR || best.is_nan() {
+            self.slots[root as usize].settled.store(true, Relaxed);
+            return (below, RoundStats { optimised: 1, ..Default::default() });
         }
-        let mut update = Update { len: 0, entries: [(0, 0, 0, Aabb::EMPTY, 0.0, 0); TREELET_LEAVES - 1] };
         let mut next = 1;
         let mut work = [(0usize, 0u32); TREELET_LEAVES];
         let mut top = 1;
@@ -932,8 +919,10 @@ impl Restructure {
             let (a, b) = (p, s ^ p);
             let la = node_of(a, &mut next);
             let lb = node_of(b, &mut next);
-            update.entries[update.len] = (id, la, lb, t.aabb(s, lane), t.cost[s][lane], t.count[s][lane] as u32);
-            update.len += 1;
+            let slot = &self.slots[id as usize];
+            slot.set_inner(la, lb, &t.aabb(s, lane));
+            slot.set_cost(t.count[s][lane] as u32, t.cost[s][lane]);
+            slot.settled.store(false, Relaxed);
             if a.count_ones() > 1 {
                 work[top] = (a, la);
                 top += 1;
@@ -944,7 +933,7 @@ impl Restructure {
             }
         }
         debug_assert_eq!(next, f.k - 1);
-        Some(update)
+        (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
     }
 
     /// Marks every inner node whose subtree is cheaper as one leaf (at most
