@@ -287,7 +287,7 @@ impl Bvh {
     /// a leaf of its subtree's primitives. Depth-first order, left child first (see
     /// [`flatten`] for how the work is split between threads).
     pub fn flatten(bin: &Binary, refs: &PrimRefs, collapse: Option<&[bool]>, bounds: Aabb, builder: BvhBuilder) -> Bvh {
-        let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse);
+        let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse, builder == BvhBuilder::Trbvh);
         Bvh { bounds, nodes, indices, depth, prims: refs.len(), builder, build_ms: 0.0, phases: Vec::new() }
     }
 
