@@ -1,4 +1,4 @@
-//! The flattener: a canonical [`Binary`] tree into the GPU layout (see the `bvh`
+//! The flattener: a canonical tree ([`Nodes`]: a `Binary`, or the tree being restructured) into the GPU layout (see the `bvh`
 //! module docs), depth first, left child first.
 //!
 //! A large tree is flattened in parallel, with the same result word for word:
@@ -14,7 +14,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{Binary, GpuBvhNode, PrimRefs, EMPTY_REF, LEAF_REF, MAX_LEAF};
+use super::{GpuBvhNode, Nodes, PrimRefs, EMPTY_REF, LEAF_REF, MAX_LEAF};
 use crate::math::Aabb;
 
 /// Levels below the root whose subtrees are flattened as parallel parts (at most
@@ -32,7 +32,7 @@ const PAR_MIN_PRIMS: usize = 1 << 14;
 /// trees whose nodes are already near their parents (bvh-sah, lbvh: 19–22 against
 /// 24–32 and 26–27 against 35–40 ms).
 pub(super) fn flatten(
-    bin: &Binary,
+    bin: &impl Nodes,
     refs: &PrimRefs,
     collapse: Option<&[bool]>,
     read_ahead: bool,
@@ -43,16 +43,16 @@ pub(super) fn flatten(
 
 /// [`flatten`], in parts from `par_min_prims` primitives on; also the number of parts.
 fn flatten_from(
-    bin: &Binary,
+    bin: &impl Nodes,
     refs: &PrimRefs,
     collapse: Option<&[bool]>,
     par_min_prims: usize,
     read_ahead: bool,
 ) -> (Vec<GpuBvhNode>, Vec<u32>, u32, usize) {
-    let root = bin.root;
+    let root = bin.root();
     let mut roots = Vec::new();
     if refs.len() >= par_min_prims && is_open(bin, collapse, root) {
-        let node = &bin.nodes[root as usize];
+        let node = bin.node(root);
         for c in [node.left, node.right] {
             part_roots(bin, collapse, c, 1, 1, &mut roots);
         }
@@ -76,7 +76,7 @@ fn flatten_from(
     // The root is always an inner node; a one-leaf tree gets an empty sibling.
     match f.child(root) {
         Child::Node(n) => {
-            let node = bin.nodes[n as usize];
+            let node = bin.node(n);
             let l = f.child(node.left);
             let r = f.child(node.right);
             f.emit_inner(l, r, 1);
@@ -97,34 +97,34 @@ fn flatten_from(
 /// level in a loop without branches, so that their cache misses overlap (the
 /// depth-first flattening waits on each node in turn; a part of a large tree fits in
 /// the last-level cache where the whole tree does not).
-fn read_ahead(bin: &Binary, collapse: Option<&[bool]>, top: u32) {
+fn read_ahead(bin: &impl Nodes, collapse: Option<&[bool]>, top: u32) {
     let mut level = vec![top];
     let mut kids = Vec::new();
     let mut seen = 0u32;
     while !level.is_empty() {
         kids.clear();
         for &x in &level {
-            let node = &bin.nodes[x as usize];
+            let node = bin.node(x);
             kids.push(node.left);
             kids.push(node.right);
         }
         for &c in &kids {
-            seen ^= bin.nodes[c as usize].left ^ u32::from(collapse.is_some_and(|f| f[c as usize]));
+            seen ^= bin.node(c).left ^ u32::from(collapse.is_some_and(|f| f[c as usize]));
         }
         level.clear();
-        level.extend(kids.iter().copied().filter(|&c| !bin.nodes[c as usize].is_leaf()));
+        level.extend(kids.iter().copied().filter(|&c| !bin.node(c).is_leaf()));
     }
     std::hint::black_box(seen);
 }
 
 /// Whether `n` is an inner node the flattener keeps (not a leaf, not collapsed).
-fn is_open(bin: &Binary, collapse: Option<&[bool]>, n: u32) -> bool {
-    !bin.nodes[n as usize].is_leaf() && !collapse.is_some_and(|c| c[n as usize])
+fn is_open(bin: &impl Nodes, collapse: Option<&[bool]>, n: u32) -> bool {
+    !bin.node(n).is_leaf() && !collapse.is_some_and(|c| c[n as usize])
 }
 
 /// Collects the part roots below `n` (a child of a node at `depth`, at `level` below
 /// the root) as (node, depth of its parent).
-fn part_roots(bin: &Binary, collapse: Option<&[bool]>, n: u32, depth: u32, level: u32, out: &mut Vec<(u32, u32)>) {
+fn part_roots(bin: &impl Nodes, collapse: Option<&[bool]>, n: u32, depth: u32, level: u32, out: &mut Vec<(u32, u32)>) {
     if !is_open(bin, collapse, n) {
         return;
     }
@@ -132,7 +132,7 @@ fn part_roots(bin: &Binary, collapse: Option<&[bool]>, n: u32, depth: u32, level
         out.push((n, depth));
         return;
     }
-    let node = &bin.nodes[n as usize];
+    let node = bin.node(n);
     for c in [node.left, node.right] {
         part_roots(bin, collapse, c, depth + 1, level + 1, out);
     }
@@ -154,7 +154,7 @@ struct Hole {
 }
 
 /// Fills the output from the serial pass `f` and the parts (see the module docs).
-fn assemble(f: &Flattener, parts: &[Part]) -> (Vec<GpuBvhNode>, Vec<u32>) {
+fn assemble<T: Nodes>(f: &Flattener<T>, parts: &[Part]) -> (Vec<GpuBvhNode>, Vec<u32>) {
     let mut nodes = vec![[[0u32; 4]; 4]; f.nodes.len() + f.skipped_nodes];
     let mut indices = vec![0u32; f.indices.len() + f.skipped_indices];
     // Jobs in output order: a run of the serial pass, then a part, and so on.
@@ -214,8 +214,8 @@ enum Child {
     Owned(Vec<u32>),
 }
 
-struct Flattener<'a> {
-    bin: &'a Binary,
+struct Flattener<'a, T: Nodes> {
+    bin: &'a T,
     refs: &'a PrimRefs,
     collapse: Option<&'a [bool]>,
     nodes: Vec<GpuBvhNode>,
@@ -231,8 +231,8 @@ struct Flattener<'a> {
     skipped_indices: usize,
 }
 
-impl<'a> Flattener<'a> {
-    fn new(bin: &'a Binary, refs: &'a PrimRefs, collapse: Option<&'a [bool]>, capacity: usize) -> Self {
+impl<'a, T: Nodes> Flattener<'a, T> {
+    fn new(bin: &'a T, refs: &'a PrimRefs, collapse: Option<&'a [bool]>, capacity: usize) -> Self {
         Flattener {
             bin,
             refs,
@@ -249,7 +249,7 @@ impl<'a> Flattener<'a> {
     }
 
     fn child(&mut self, n: u32) -> Child {
-        let node = &self.bin.nodes[n as usize];
+        let node = self.bin.node(n);
         if node.is_leaf() {
             let r = node.range();
             return Child::Range(r.start, r.len(), node.bounds, false);
@@ -282,12 +282,12 @@ impl<'a> Flattener<'a> {
             Child::Range(_, 0, _, _) => (EMPTY_REF, Aabb::EMPTY),
             Child::Range(start, len, b, gathered) if len <= MAX_LEAF => {
                 let first = self.next_index();
-                let src = if gathered { &self.gathered } else { &self.bin.prims };
+                let src = if gathered { &self.gathered } else { self.bin.prims() };
                 self.indices.extend_from_slice(&src[start..start + len]);
                 (LEAF_REF | (first << 3) | (len as u32 - 1), b)
             }
             Child::Range(start, len, _, gathered) => {
-                let src = if gathered { &self.gathered } else { &self.bin.prims };
+                let src = if gathered { &self.gathered } else { self.bin.prims() };
                 self.emit(Child::Owned(src[start..start + len].to_vec()), depth)
             }
             Child::Owned(list) if list.is_empty() => (EMPTY_REF, Aabb::EMPTY),
@@ -311,7 +311,7 @@ impl<'a> Flattener<'a> {
                 if let Some(k) = self.parts.iter().position(|p| p.0 == n) {
                     return self.hole(k);
                 }
-                let node = self.bin.nodes[n as usize];
+                let node = self.bin.node(n);
                 let l = self.child(node.left);
                 let r = self.child(node.right);
                 self.emit_inner(l, r, depth + 1)

@@ -182,18 +182,6 @@ impl Binary {
         (split, count)
     }
 
-    /// As [`Binary::gather`] without allocating, for a small subtree (recursive: its
-    /// depth is below its primitive count, at most [`MAX_LEAF`] when collapsing).
-    fn gather_small(&self, n: u32, out: &mut Vec<u32>) {
-        let node = &self.nodes[n as usize];
-        if node.is_leaf() {
-            out.extend_from_slice(&self.prims[node.range()]);
-        } else {
-            self.gather_small(node.left, out);
-            self.gather_small(node.right, out);
-        }
-    }
-
     /// Every primitive in the subtree of `n`, in depth-first order.
     pub fn gather(&self, n: u32, out: &mut Vec<u32>) {
         let mut stack = vec![n];
@@ -206,6 +194,43 @@ impl Binary {
                 stack.push(node.left);
             }
         }
+    }
+}
+
+/// A canonical binary tree as the flattener reads it: a [`Binary`], or the tree being
+/// restructured ([`treelet::Restructure`]), flattened where it is without a copy.
+pub trait Nodes: Sync {
+    /// The root node.
+    fn root(&self) -> u32;
+    /// Node `n`.
+    fn node(&self, n: u32) -> BNode;
+    /// The primitive order leaves index into.
+    fn prims(&self) -> &[u32];
+
+    /// Every primitive in the subtree of `n`, in depth-first order, for a small
+    /// subtree (recursive: its depth is below its primitive count, at most
+    /// [`MAX_LEAF`] when collapsing).
+    fn gather_small(&self, n: u32, out: &mut Vec<u32>) {
+        let node = self.node(n);
+        if node.is_leaf() {
+            out.extend_from_slice(&self.prims()[node.range()]);
+        } else {
+            self.gather_small(node.left, out);
+            self.gather_small(node.right, out);
+        }
+    }
+}
+
+impl Nodes for Binary {
+    fn root(&self) -> u32 {
+        self.root
+    }
+    #[inline]
+    fn node(&self, n: u32) -> BNode {
+        self.nodes[n as usize]
+    }
+    fn prims(&self) -> &[u32] {
+        &self.prims
     }
 }
 
@@ -248,18 +273,18 @@ impl Bvh {
         let refs = PrimRefs::new(scene);
         lap(&mut phases, "prim bounds", &mut t);
         let costs = SahCosts::default();
-        let (bin, collapse) = match builder {
+        let bounds = scene.bounds();
+        let mut bvh = match builder {
             BvhBuilder::Sah => {
                 let bin = binned::build(&refs, &costs);
                 lap(&mut phases, "binned SAH", &mut t);
-                (bin, None)
+                Bvh::flatten(&bin, &refs, None, bounds, builder)
             }
-            BvhBuilder::Lbvh => (lbvh::build(&refs, &mut phases, &mut t), None),
+            BvhBuilder::Lbvh => Bvh::flatten(&lbvh::build(&refs, &mut phases, &mut t), &refs, None, bounds, builder),
             BvhBuilder::Trbvh => {
-                // Restructuring fits the LBVH's boxes as it computes its costs.
-                let mut bin = lbvh::build(&refs, &mut phases, &mut t);
-                let mut work = treelet::Restructure::with_leaves(&bin, &costs, tp.leaves);
-                lap(&mut phases, "bounds + costs", &mut t);
+                // The LBVH goes straight into the restructuring's nodes, which are
+                // flattened where they are.
+                let mut work = treelet::Restructure::lbvh(&refs, &costs, tp.leaves, &mut phases, &mut t);
                 for round in 0..tp.rounds {
                     let rs = work.round(tp.gamma(round));
                     lap(&mut phases, &format!("restructure round {}", round + 1), &mut t);
@@ -270,13 +295,11 @@ impl Bvh {
                         ));
                     }
                 }
-                work.write_back(&mut bin);
                 let flags = work.collapse_flags();
                 lap(&mut phases, "collapse", &mut t);
-                (bin, Some(flags))
+                Bvh::flatten(&work, &refs, Some(&flags), bounds, builder)
             }
         };
-        let mut bvh = Bvh::flatten(&bin, &refs, collapse.as_deref(), scene.bounds(), builder);
         lap(&mut phases, "flatten", &mut t);
         bvh.phases = phases;
         bvh.build_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -286,7 +309,13 @@ impl Bvh {
     /// Turns a canonical tree into the GPU layout. `collapse[n]` makes inner node `n`
     /// a leaf of its subtree's primitives. Depth-first order, left child first (see
     /// [`flatten`] for how the work is split between threads).
-    pub fn flatten(bin: &Binary, refs: &PrimRefs, collapse: Option<&[bool]>, bounds: Aabb, builder: BvhBuilder) -> Bvh {
+    pub fn flatten(
+        bin: &impl Nodes,
+        refs: &PrimRefs,
+        collapse: Option<&[bool]>,
+        bounds: Aabb,
+        builder: BvhBuilder,
+    ) -> Bvh {
         let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse, builder == BvhBuilder::Trbvh);
         Bvh { bounds, nodes, indices, depth, prims: refs.len(), builder, build_ms: 0.0, phases: Vec::new() }
     }

@@ -34,8 +34,11 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{BNode, Binary, LEAF_FLAG, MAX_LEAF};
+use std::time::Instant;
+
+use super::{lap, lbvh, BNode, Binary, Nodes, PrimRefs, LEAF_FLAG, MAX_LEAF};
 use crate::accel::sah::{area, SahCosts};
+use crate::accel::Phase;
 use crate::math::Aabb;
 
 /// Most leaves per treelet (the paper's choice, and the default).
@@ -205,6 +208,14 @@ impl Slot {
             settled: AtomicBool::new(false),
         }
     }
+    /// As `new`, with a leaf's cost (C_I·A·N) and count set.
+    fn with_cost(n: &BNode, costs: &SahCosts) -> Slot {
+        let s = Slot::new(n);
+        if n.is_leaf() {
+            s.set_cost(n.right, costs.intersect * area(&n.bounds) * n.right as f32);
+        }
+        s
+    }
     fn bounds(&self) -> Aabb {
         let f = |i: usize| f32::from_bits(self.bounds[i].load(Relaxed));
         Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) }
@@ -243,6 +254,8 @@ pub struct Restructure {
     leaves: usize,
     slots: Vec<Slot>,
     root: u32,
+    /// The primitive order leaves index into.
+    prims: Vec<u32>,
 }
 
 /// Treelets optimised at once by the generated programme, one per SIMD lane.
@@ -529,20 +542,43 @@ impl Restructure {
 
     /// As `new`, with treelets of `leaves` leaves (clamped to 3..=TREELET_LEAVES).
     pub fn with_leaves(bin: &Binary, costs: &SahCosts, leaves: usize) -> Restructure {
-        let leaves = leaves.clamp(3, TREELET_LEAVES);
-        let slots: Vec<Slot> = bin
-            .nodes
-            .par_iter()
-            .map(|n| {
-                let s = Slot::new(n);
-                if n.is_leaf() {
-                    s.set_cost(n.right, costs.intersect * area(&n.bounds) * n.right as f32);
-                }
-                s
-            })
-            .collect();
-        let r = Restructure { costs: *costs, leaves, slots, root: bin.root };
+        let slots: Vec<Slot> = bin.nodes.par_iter().map(|n| Slot::with_cost(n, costs)).collect();
+        let r = Restructure {
+            costs: *costs,
+            leaves: leaves.clamp(3, TREELET_LEAVES),
+            slots,
+            root: bin.root,
+            prims: bin.prims.clone(),
+        };
         r.fit(r.root, 0);
+        r
+    }
+
+    /// The LBVH of `refs` built straight into the restructuring's nodes (no
+    /// [`Binary`] in between), then fitted as [`Restructure::new`]; with treelets of
+    /// `leaves` leaves. Records the phases `morton + sort`, `hierarchy` and
+    /// `bounds + costs`.
+    pub fn lbvh(
+        refs: &PrimRefs,
+        costs: &SahCosts,
+        leaves: usize,
+        phases: &mut Vec<Phase>,
+        t: &mut Instant,
+    ) -> Restructure {
+        if refs.len() < 2 {
+            let bin = lbvh::build(refs, phases, t);
+            let r = Self::with_leaves(&bin, costs, leaves);
+            lap(phases, "bounds + costs", t);
+            return r;
+        }
+        let keys = lbvh::sorted_keys(refs);
+        lap(phases, "morton + sort", t);
+        let prims = lbvh::key_prims(&keys);
+        let slots = lbvh::radix_nodes(refs, &keys, &prims, |n| Slot::with_cost(&n, costs));
+        lap(phases, "hierarchy", t);
+        let r = Restructure { costs: *costs, leaves: leaves.clamp(3, TREELET_LEAVES), slots, root: 0, prims };
+        r.fit(r.root, 0);
+        lap(phases, "bounds + costs", t);
         r
     }
 
@@ -949,6 +985,20 @@ impl Restructure {
                 leaf <= s.cost()
             })
             .collect()
+    }
+}
+
+/// The tree being restructured, flattened where it is.
+impl Nodes for Restructure {
+    fn root(&self) -> u32 {
+        self.root
+    }
+    #[inline]
+    fn node(&self, n: u32) -> BNode {
+        self.slots[n as usize].node()
+    }
+    fn prims(&self) -> &[u32] {
+        &self.prims
     }
 }
 
