@@ -378,6 +378,38 @@ mod tests {
         PrimRefs { bounds, centroids }
     }
 
+    /// The climb that builds trbvh's LBVH straight into the restructuring's nodes
+    /// (Apetrei's order) gives Karras's tree node for node, fitted, with the same
+    /// costs, and the same tree after three rounds; also for 0 to 3 primitives and
+    /// when every centroid (so every Morton code) is the same.
+    #[test]
+    fn climbed_lbvh_equals_karras() {
+        let costs = SahCosts::default();
+        for n in [0, 1, 2, 3, 40, 3000, 20_000] {
+            for same in [false, true] {
+                let refs = boxes(n, same);
+                let mut phases = Vec::new();
+                let mut t = std::time::Instant::now();
+                let mut climbed = treelet::Restructure::lbvh(&refs, &costs, 7, &mut phases, &mut t);
+                let karras = lbvh::build_fitted(&refs, &mut phases, &mut t);
+                let mut fitted = treelet::Restructure::with_leaves(&karras, &costs, 7);
+                for round in 0..=3 {
+                    let at = format!("{n} primitives, same {same}, after {round} rounds");
+                    assert_eq!(climbed.root(), fitted.root(), "{at}");
+                    assert_eq!(climbed.prims(), fitted.prims(), "{at}");
+                    assert_eq!(climbed.root_cost().to_bits(), fitted.root_cost().to_bits(), "{at}");
+                    for i in 0..karras.nodes.len() as u32 {
+                        assert_eq!(climbed.node(i), fitted.node(i), "node {i}, {at}");
+                    }
+                    if round < 3 {
+                        climbed.round(treelet::gamma(round));
+                        fitted.round(treelet::gamma(round));
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn parts_give_the_serial_layout_word_for_word() {
         let costs = SahCosts::default();
