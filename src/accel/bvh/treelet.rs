@@ -604,7 +604,7 @@ impl Restructure {
             })
             .collect();
         let r = Restructure { costs: *costs, leaves: leaves.clamp(3, TREELET_LEAVES), slots, root: 0, prims };
-        let arrived: Vec<AtomicU32> = (0..n - 1).map(|_| AtomicU32::new(u32::MAX)).collect();
+        let arrived: Vec<AtomicU32> = (0..n - 1).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect();
         (0..n).into_par_iter().for_each(|j| r.climb(&keys, &arrived, j));
         lap(phases, "hierarchy + fit", t);
         r
