@@ -378,6 +378,12 @@ mod tests {
         PrimRefs { bounds, centroids }
     }
 
+    /// The test inputs: (primitives, every centroid the same, boxes) for 0 to 20,000
+    /// primitives.
+    fn cases() -> impl Iterator<Item = (usize, bool, PrimRefs)> {
+        [0, 1, 2, 3, 40, 3000, 20_000].into_iter().flat_map(|n| [false, true].map(|same| (n, same, boxes(n, same))))
+    }
+
     /// The climb that builds trbvh's LBVH straight into the restructuring's nodes
     /// (Apetrei's order) gives Karras's tree node for node, fitted, with the same
     /// costs, and the same tree after three rounds; also for 0 to 3 primitives and
@@ -385,26 +391,22 @@ mod tests {
     #[test]
     fn climbed_lbvh_equals_karras() {
         let costs = SahCosts::default();
-        for n in [0, 1, 2, 3, 40, 3000, 20_000] {
-            for same in [false, true] {
-                let refs = boxes(n, same);
-                let mut phases = Vec::new();
-                let mut t = std::time::Instant::now();
-                let mut climbed = treelet::Restructure::lbvh(&refs, &costs, 7, &mut phases, &mut t);
-                let karras = lbvh::build_fitted(&refs, &mut phases, &mut t);
-                let mut fitted = treelet::Restructure::with_leaves(&karras, &costs, 7);
-                for round in 0..=3 {
-                    let at = format!("{n} primitives, same {same}, after {round} rounds");
-                    assert_eq!(climbed.root(), fitted.root(), "{at}");
-                    assert_eq!(climbed.prims(), fitted.prims(), "{at}");
-                    assert_eq!(climbed.root_cost().to_bits(), fitted.root_cost().to_bits(), "{at}");
-                    for i in 0..karras.nodes.len() as u32 {
-                        assert_eq!(climbed.node(i), fitted.node(i), "node {i}, {at}");
-                    }
-                    if round < 3 {
-                        climbed.round(treelet::gamma(round));
-                        fitted.round(treelet::gamma(round));
-                    }
+        for (n, same, refs) in cases() {
+            let (mut phases, mut t) = (Vec::new(), std::time::Instant::now());
+            let mut climbed = treelet::Restructure::lbvh(&refs, &costs, 7, &mut phases, &mut t);
+            let karras = lbvh::build_fitted(&refs, &mut phases, &mut t);
+            let mut fitted = treelet::Restructure::with_leaves(&karras, &costs, 7);
+            for round in 0..=3 {
+                let at = format!("{n} primitives, same {same}, after {round} rounds");
+                assert_eq!(climbed.root(), fitted.root(), "{at}");
+                assert_eq!(climbed.prims(), fitted.prims(), "{at}");
+                assert_eq!(climbed.root_cost().to_bits(), fitted.root_cost().to_bits(), "{at}");
+                for i in 0..karras.nodes.len() as u32 {
+                    assert_eq!(climbed.node(i), fitted.node(i), "node {i}, {at}");
+                }
+                if round < 3 {
+                    climbed.round(treelet::gamma(round));
+                    fitted.round(treelet::gamma(round));
                 }
             }
         }
@@ -413,32 +415,28 @@ mod tests {
     #[test]
     fn parts_give_the_serial_layout_word_for_word() {
         let costs = SahCosts::default();
-        for n in [0, 1, 2, 3, 40, 3000, 20_000] {
-            for same in [false, true] {
-                let refs = boxes(n, same);
-                let mut phases = Vec::new();
-                let mut t = std::time::Instant::now();
-                let fitted = lbvh::build_fitted(&refs, &mut phases, &mut t);
-                let mut work = treelet::Restructure::with_leaves(&fitted, &costs, 7);
-                let mut restructured = fitted.clone();
-                for round in 0..3 {
-                    work.round(treelet::gamma(round));
-                }
-                work.write_back(&mut restructured);
-                let flags = work.collapse_flags();
-                let cases = [
-                    ("lbvh", lbvh::build(&refs, &mut phases, &mut t), None),
-                    ("bvh-sah", binned::build(&refs, &costs), None),
-                    ("trbvh", restructured, Some(flags.as_slice())),
-                ];
-                for (name, bin, collapse) in &cases {
-                    let serial = flatten_from(bin, &refs, *collapse, usize::MAX, false);
-                    let parts = flatten_from(bin, &refs, *collapse, 0, true);
-                    let what = format!("{name}, {n} boxes, same centroids {same}");
-                    assert_eq!(serial.3, 0, "{what}");
-                    assert!(n < 3000 || parts.3 >= 8, "{what}: {} parts", parts.3);
-                    assert!(serial.0 == parts.0 && serial.1 == parts.1 && serial.2 == parts.2, "{what}");
-                }
+        for (n, same, refs) in cases() {
+            let (mut phases, mut t) = (Vec::new(), std::time::Instant::now());
+            let fitted = lbvh::build_fitted(&refs, &mut phases, &mut t);
+            let mut work = treelet::Restructure::with_leaves(&fitted, &costs, 7);
+            let mut restructured = fitted.clone();
+            for round in 0..3 {
+                work.round(treelet::gamma(round));
+            }
+            work.write_back(&mut restructured);
+            let flags = work.collapse_flags();
+            let cases = [
+                ("lbvh", lbvh::build(&refs, &mut phases, &mut t), None),
+                ("bvh-sah", binned::build(&refs, &costs), None),
+                ("trbvh", restructured, Some(flags.as_slice())),
+            ];
+            for (name, bin, collapse) in &cases {
+                let serial = flatten_from(bin, &refs, *collapse, usize::MAX, false);
+                let parts = flatten_from(bin, &refs, *collapse, 0, true);
+                let what = format!("{name}, {n} boxes, same centroids {same}");
+                assert_eq!(serial.3, 0, "{what}");
+                assert!(n < 3000 || parts.3 >= 8, "{what}: {} parts", parts.3);
+                assert!(serial.0 == parts.0 && serial.1 == parts.1 && serial.2 == parts.2, "{what}");
             }
         }
     }
