@@ -185,7 +185,18 @@ pub fn build(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binar
     if n == 1 {
         return Binary { nodes: vec![BNode::leaf(refs.bounds[0], 0, 1)], root: 0, prims };
     }
-    let nodes = radix_nodes(refs, &keys, &prims, |b| b);
+    let nodes: Vec<BNode> = (0..2 * n - 1)
+        .into_par_iter()
+        .map(|i| {
+            if i < n - 1 {
+                let (left, right) = inner_children(&keys, i);
+                BNode { bounds: Aabb::EMPTY, left, right }
+            } else {
+                let j = i - (n - 1);
+                BNode::leaf(refs.bounds[prims[j] as usize], j as u32, 1)
+            }
+        })
+        .collect();
     lap(phases, "hierarchy", t);
     Binary { nodes, root: 0, prims }
 }
@@ -193,30 +204,6 @@ pub fn build(refs: &PrimRefs, phases: &mut Vec<Phase>, t: &mut Instant) -> Binar
 /// The primitive of each sorted key: the order leaves index into.
 pub(super) fn key_prims(keys: &[u64]) -> Vec<u32> {
     keys.par_iter().map(|k| *k as u32).collect()
-}
-
-/// The radix tree over the sorted `keys` (at least 2), each node made into a `T` by
-/// `make` as it is found (parallel over nodes): inner node i is node i, leaf j (the
-/// j-th key, primitive `prims[j]`) is node n - 1 + j; inner boxes empty.
-pub(super) fn radix_nodes<T: Send>(
-    refs: &PrimRefs,
-    keys: &[u64],
-    prims: &[u32],
-    make: impl Fn(BNode) -> T + Sync,
-) -> Vec<T> {
-    let n = keys.len();
-    (0..2 * n - 1)
-        .into_par_iter()
-        .map(|i| {
-            make(if i < n - 1 {
-                let (left, right) = inner_children(keys, i);
-                BNode { bounds: Aabb::EMPTY, left, right }
-            } else {
-                let j = i - (n - 1);
-                BNode::leaf(refs.bounds[prims[j] as usize], j as u32, 1)
-            })
-        })
-        .collect()
 }
 
 /// [`build`] with every inner node's box fitted (what restructuring needs; the

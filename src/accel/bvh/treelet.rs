@@ -10,15 +10,20 @@
 //! treelet's inner nodes are reused for the new topology; subtrees below its leaves are
 //! kept intact.
 //!
+//! The tree to restructure is the LBVH, built straight into this module's nodes by a
+//! climb from the leaves ([`Restructure::lbvh`]), or any canonical tree
+//! ([`Restructure::new`]).
+//!
 //! Nodes are processed bottom-up, so a treelet is optimised after every treelet below
 //! it, and only at nodes whose subtree holds at least γ primitives. As in the paper,
 //! several rounds run, with γ set per round ([`TreeletParams::gamma`]; by default 7, 7,
 //! 28, where the paper doubles it: 7, 14, 28). A round is a post-order
 //! walk that prunes subtrees below γ primitives; the two subtrees of a large node are
 //! walked by parallel tasks, since their treelets are disjoint. Within one task's
-//! subtree the treelet roots go a height at a time, and the treelets of one height
-//! (disjoint too) are optimised eight at once, one per SIMD lane, by a generated
-//! straight-line programme (`dp_gen.rs`). The result does not
+//! subtree the treelet roots are listed level by level, and a root is optimised once
+//! the roots below it are done: eight disjoint treelets at once, one per SIMD lane
+//! (AVX2 where the processor has it, else SSE), by a generated straight-line
+//! programme (`dp_gen.rs`). The result does not
 //! depend on thread count or order: each treelet's solution reads only its own subtree
 //! (restructuring permutes nodes only within a treelet, so every node's subtree keeps
 //! its set of nodes), and the GPU kernel, which goes bottom-up by levels, gets the
@@ -261,7 +266,8 @@ impl Slot {
 }
 
 /// The tree being restructured: its nodes with primitive counts and costs, kept
-/// across rounds. Read the result back with [`Restructure::write_back`].
+/// across rounds. Flatten it where it is (it is [`Nodes`]), or copy the result into
+/// a [`Binary`] with [`Restructure::write_back`].
 #[derive(Debug)]
 pub struct Restructure {
     costs: SahCosts,
@@ -570,9 +576,9 @@ impl Restructure {
     }
 
     /// The LBVH of `refs` built straight into the restructuring's nodes (no
-    /// [`Binary`] in between), then fitted as [`Restructure::new`]; with treelets of
-    /// `leaves` leaves. Records the phases `morton + sort`, `hierarchy` and
-    /// `bounds + costs`.
+    /// [`Binary`] in between) and fitted as [`Restructure::new`] does, by one climb
+    /// from the leaves (`Restructure::climb`); with treelets of `leaves` leaves.
+    /// Records the phases `morton + sort` and `hierarchy + fit`.
     pub fn lbvh(
         refs: &PrimRefs,
         costs: &SahCosts,
@@ -583,7 +589,7 @@ impl Restructure {
         if refs.len() < 2 {
             let bin = lbvh::build(refs, phases, t);
             let r = Self::with_leaves(&bin, costs, leaves);
-            lap(phases, "bounds + costs", t);
+            lap(phases, "hierarchy + fit", t);
             return r;
         }
         let keys = lbvh::sorted_keys(refs);
