@@ -38,11 +38,10 @@ use std::sync::atomic::{
     AtomicU32,
     Ordering::{AcqRel, Relaxed},
 };
+use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
-
-use std::time::Instant;
 
 use super::{lap, lbvh, BNode, Binary, Nodes, PrimRefs, LEAF_FLAG, MAX_LEAF};
 use crate::accel::sah::{area, SahCosts};
@@ -166,6 +165,7 @@ impl TreeletParams {
     }
 }
 
+// A node is 40 bytes (README, "trbvh"): the settled mark shares the count's word.
 const _: () = assert!(std::mem::size_of::<Slot>() == 40);
 const SUBSETS: usize = 1 << TREELET_LEAVES;
 
@@ -245,7 +245,7 @@ impl Slot {
     }
     /// Marks the treelet rooted here settled (see [`SETTLED`]); a new count and cost
     /// ([`Slot::set_cost`]) clear the mark.
-    fn settle(&self) {
+    fn mark_settled(&self) {
         self.count.store(self.count.load(Relaxed) | SETTLED, Relaxed);
     }
     fn cost(&self) -> f32 {
@@ -1013,7 +1013,7 @@ impl Restructure {
         let full = (1usize << f.k) - 1;
         let best = t.cost[full][lane];
         if f.k < 3 || best >= self.slots[root as usize].cost() * KEEP_FACTOR || best.is_nan() {
-            self.slots[root as usize].settle();
+            self.slots[root as usize].mark_settled();
             return (below, RoundStats { optimised: 1, ..Default::default() });
         }
         let mut next = 1;
