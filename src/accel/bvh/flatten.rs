@@ -1,5 +1,6 @@
-//! The flattener: a canonical tree ([`Nodes`]: a `Binary`, or the tree being restructured) into the GPU layout (see the `bvh`
-//! module docs), depth first, left child first.
+//! The flattener: a canonical tree ([`Nodes`]: a `Binary`, or the tree being
+//! restructured) into the GPU layout (see the `bvh` module docs), depth first, left
+//! child first.
 //!
 //! A large tree is flattened in parallel, with the same result word for word:
 //!
@@ -25,19 +26,12 @@ const PAR_MIN_PRIMS: usize = 1 << 14;
 
 /// Flattens `bin`: (nodes, indices, depth). `collapse[n]` makes inner node `n` a leaf
 /// of its subtree's primitives.
-///
-/// With `read_ahead`, each part's nodes are read level by level before it is
-/// flattened ([`read_ahead`]): worth it for a restructured tree (trbvh: 38–42 against
-/// 31–32 ms at 1M triangles), whose nodes the treelets have scattered, and a loss for
-/// trees whose nodes are already near their parents (bvh-sah, lbvh: 19–22 against
-/// 24–32 and 26–27 against 35–40 ms).
 pub(super) fn flatten(
     bin: &impl Nodes,
     refs: &PrimRefs,
     collapse: Option<&[bool]>,
-    read_ahead: bool,
 ) -> (Vec<GpuBvhNode>, Vec<u32>, u32) {
-    let (nodes, indices, depth, _) = flatten_from(bin, refs, collapse, PAR_MIN_PRIMS, read_ahead);
+    let (nodes, indices, depth, _) = flatten_from(bin, refs, collapse, PAR_MIN_PRIMS);
     (nodes, indices, depth)
 }
 
@@ -47,7 +41,6 @@ fn flatten_from(
     refs: &PrimRefs,
     collapse: Option<&[bool]>,
     par_min_prims: usize,
-    read_ahead: bool,
 ) -> (Vec<GpuBvhNode>, Vec<u32>, u32, usize) {
     let root = bin.root();
     let mut roots = Vec::new();
@@ -62,9 +55,6 @@ fn flatten_from(
     let parts: Vec<Part> = roots
         .par_iter()
         .map(|&(n, depth)| {
-            if read_ahead {
-                self::read_ahead(bin, collapse, n);
-            }
             let mut f = Flattener::new(bin, refs, collapse, share);
             let (_, bounds) = f.emit(Child::Node(n), depth);
             Part { nodes: f.nodes, indices: f.indices, bounds, depth: f.depth }
@@ -91,30 +81,6 @@ fn flatten_from(
     }
     let (nodes, indices) = assemble(&f, &parts);
     (nodes, indices, depth, parts.len())
-}
-
-/// Reads the nodes below `top` level by level before the part is flattened, each
-/// level in a loop without branches, so that their cache misses overlap (the
-/// depth-first flattening waits on each node in turn; a part of a large tree fits in
-/// the last-level cache where the whole tree does not).
-fn read_ahead(bin: &impl Nodes, collapse: Option<&[bool]>, top: u32) {
-    let mut level = vec![top];
-    let mut kids = Vec::new();
-    let mut seen = 0u32;
-    while !level.is_empty() {
-        kids.clear();
-        for &x in &level {
-            let node = bin.node(x);
-            kids.push(node.left);
-            kids.push(node.right);
-        }
-        for &c in &kids {
-            seen ^= bin.node(c).left ^ u32::from(collapse.is_some_and(|f| f[c as usize]));
-        }
-        level.clear();
-        level.extend(kids.iter().copied().filter(|&c| !bin.node(c).is_leaf()));
-    }
-    std::hint::black_box(seen);
 }
 
 /// Whether `n` is an inner node the flattener keeps (not a leaf, not collapsed).
@@ -431,8 +397,8 @@ mod tests {
                 ("trbvh", restructured, Some(flags.as_slice())),
             ];
             for (name, bin, collapse) in &cases {
-                let serial = flatten_from(bin, &refs, *collapse, usize::MAX, false);
-                let parts = flatten_from(bin, &refs, *collapse, 0, true);
+                let serial = flatten_from(bin, &refs, *collapse, usize::MAX);
+                let parts = flatten_from(bin, &refs, *collapse, 0);
                 let what = format!("{name}, {n} boxes, same centroids {same}");
                 assert_eq!(serial.3, 0, "{what}");
                 assert!(n < 3000 || parts.3 >= 8, "{what}: {} parts", parts.3);

@@ -316,7 +316,7 @@ impl Bvh {
         bounds: Aabb,
         builder: BvhBuilder,
     ) -> Bvh {
-        let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse, builder == BvhBuilder::Trbvh);
+        let (nodes, indices, depth) = flatten::flatten(bin, refs, collapse);
         Bvh { bounds, nodes, indices, depth, prims: refs.len(), builder, build_ms: 0.0, phases: Vec::new() }
     }
 
