@@ -13,8 +13,9 @@ use crate::scene::Scene;
 /// (kind, build ns per primitive, trace ns per ray at 100k primitives), measured with
 /// `arbor bench --tris 100000,1000000 --size 1024x1024 --repeat 3` on lavapipe (2 cores):
 /// build medians over 100k and 1M triangles, trace medians at 100k. trbvh's build
-/// figure was measured again after its builder got 1.5x faster (November 2026: 19.5
-/// ms at 100k and 197.5 ms at 1M in the BVH issue's run, README "Benchmark").
+/// figure was measured again after its builder got 1.5x faster (November 2026:
+/// 18.6–20.0 ms at 100k and 188–211 ms at 1M in three runs of the BVH issue's
+/// command, README "Benchmark").
 const TREES: &[(AccelKind, f64, f64)] = &[
     (AccelKind::Kdtree, 2100.0, 180.0),
     (AccelKind::BvhSah, 950.0, 300.0),
