@@ -173,7 +173,7 @@ const SUBSETS: usize = 1 << TREELET_LEAVES;
 /// ones by one task, serially.
 const PAR_GRAIN: u32 = 2048;
 /// Levels below the treelet roots' non-root children that a round reads ahead of
-/// treelet formation ([`Restructure::touch_below`]).
+/// treelet formation ([`Restructure::inner_below`]).
 const TOUCH_LEVELS: usize = 2;
 /// Levels of the tree split between parallel tasks when fitting it (2^10 subtrees).
 const FIT_PAR_LEVELS: u32 = 10;
@@ -681,13 +681,26 @@ impl Restructure {
     }
 
     /// [`Restructure::fit`] in one task: the inner nodes are listed level by level
-    /// (each level read in a loop without branches, so that cache misses overlap),
-    /// then fitted in the reverse order, children before parents.
+    /// ([`Restructure::inner_below`]), then fitted in the reverse order, children
+    /// before parents.
     fn fit_serial(&self, top: u32) {
-        let mut list = vec![top];
+        for &x in self.inner_below(vec![top], usize::MAX).iter().rev() {
+            self.fit_node(x);
+        }
+    }
+
+    /// The inner nodes `start`, then those up to `levels` levels below them, level by
+    /// level. Each level's nodes are read first in a loop without branches
+    /// ([`Restructure::touch`]), so that their cache misses overlap, where a
+    /// depth-first walk waits on each node before it knows the next.
+    fn inner_below(&self, start: Vec<u32>, levels: usize) -> Vec<u32> {
+        let mut list = start;
         let mut kids: Vec<u32> = Vec::new();
-        let mut level = 0..1;
-        while !level.is_empty() {
+        let mut level = 0..list.len();
+        for _ in 0..levels {
+            if level.is_empty() {
+                break;
+            }
             kids.clear();
             for &x in &list[level.clone()] {
                 let s = &self.slots[x as usize];
@@ -699,9 +712,7 @@ impl Restructure {
             list.extend(kids.iter().copied().filter(|&c| !self.slots[c as usize].is_leaf()));
             level = first..list.len();
         }
-        for &x in list.iter().rev() {
-            self.fit_node(x);
-        }
+        list
     }
 
     /// Sets inner node `x`'s box, count and cost from its children's.
@@ -827,7 +838,9 @@ impl Restructure {
             }
             level = first..roots.len();
         }
-        self.touch_below(fringe);
+        // Read ahead of treelet formation, which waits on each node before it can
+        // choose the next.
+        self.inner_below(fringe, TOUCH_LEVELS);
         // Per root: how many of its child roots are not done, and whether one of them
         // changed its subtree.
         let mut waiting = vec![0u8; roots.len()];
@@ -880,25 +893,6 @@ impl Restructure {
             index.clear();
         }
         (top_changed, stats)
-    }
-
-    /// Reads the nodes [`TOUCH_LEVELS`] levels below the nodes of `fringe`, a level at
-    /// a time, so that treelet formation finds them in cache: these reads are
-    /// independent of each other, so their cache misses overlap, where formation
-    /// waits on each node before it can choose the next.
-    fn touch_below(&self, mut fringe: Vec<u32>) {
-        let mut kids = Vec::with_capacity(fringe.len() * 2);
-        for _ in 0..TOUCH_LEVELS {
-            kids.clear();
-            for &x in &fringe {
-                let s = &self.slots[x as usize];
-                kids.push(s.left.load(Relaxed));
-                kids.push(s.right.load(Relaxed));
-            }
-            self.touch(kids.iter().copied());
-            fringe.clear();
-            fringe.extend(kids.iter().copied().filter(|&c| !self.slots[c as usize].is_leaf()));
-        }
     }
 
     /// Reads the nodes `ids` (both ends of each: a node may straddle two cache lines)
@@ -1011,8 +1005,8 @@ impl Restructure {
     /// whether it changed under the treelet already).
     fn rewrite(&self, root: u32, f: &Formed, t: &LaneTables, lane: usize, below: bool) -> (bool, RoundStats) {
         let full = (1usize << f.k) - 1;
-        let best = t.cost[full][lane];
-        if f.k < 3 || best >= self.slots[root as usize].cost() * KEEP_FACTOR || best.is_nan() {
+        let best = if f.k < 3 { f32::NAN } else { t.cost[full][lane] };
+        if best.is_nan() || best >= self.slots[root as usize].cost() * KEEP_FACTOR {
             self.slots[root as usize].mark_settled();
             return (below, RoundStats { optimised: 1, ..Default::default() });
         }
