@@ -123,20 +123,9 @@ fn quantile(v: &[u32], q: f64) -> u32 {
     s[rank - 1]
 }
 
-fn bench_case(
-    ctx: &Context,
-    scene: &Scene,
-    (kind, params): (AccelKind, &crate::accel::AccelParams),
-    size: (u32, u32),
-    rays: RayKind,
-    repeat: usize,
-    progress: &dyn Progress,
-) -> Result<Case> {
-    let mut settings = RenderSettings::for_size(size.0, size.1);
-    settings.primary_only = rays == RayKind::Primary;
-    settings.diffuse_probe = rays == RayKind::Diffuse;
-    settings.accel = kind;
-    let mut case = Case {
+/// A case with nothing measured yet, at camera size `size`.
+fn new_case(size: (u32, u32)) -> Case {
+    Case {
         phases: Vec::new(),
         build_ms: Vec::new(),
         trace_ms: Vec::new(),
@@ -148,27 +137,54 @@ fn bench_case(
         prims_p99: 0,
         nodes: Vec::new(),
         prims: Vec::new(),
-    };
-    let mut pipelines = None;
-    for r in 0..=repeat {
-        let accel = crate::accel::Accel::build_on_reusing(ctx, kind, scene, params, &mut pipelines)?;
-        let (frame, st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
-        case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
-        case.nodes_p99 = quantile(&frame.nodes, 0.99);
-        case.prims_p99 = quantile(&frame.tests, 0.99);
-        case.nodes = frame.nodes;
-        case.prims = frame.prim;
-        progress.inc(1);
-        if r > 0 {
-            let ms = st.trace_ms.unwrap_or(st.wall_ms);
-            case.build_ms.push(st.build.build_ms);
-            case.phases.push(st.build.phases.clone());
-            case.trace_ms.push(ms);
-            case.rates.push(st.rays as f64 / (ms * 1e3));
-        }
-        case.stats = st;
     }
-    Ok(case)
+}
+
+/// One build and trace of `kind` into `case`: recorded when `timed` (else a warm-up).
+/// `pipelines` keeps a GPU build's kernels from one round to the next.
+fn bench_round(
+    ctx: &Context,
+    scene: &Scene,
+    (kind, params): (AccelKind, &crate::accel::AccelParams),
+    rays: RayKind,
+    timed: bool,
+    case: &mut Case,
+    pipelines: &mut Option<crate::accel::bvh::gpu_build::GpuBuilder>,
+) -> Result<()> {
+    let mut settings = RenderSettings::for_size(case.size.0, case.size.1);
+    settings.primary_only = rays == RayKind::Primary;
+    settings.diffuse_probe = rays == RayKind::Diffuse;
+    settings.accel = kind;
+    let accel = crate::accel::Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
+    let (frame, st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
+    case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
+    case.nodes_p99 = quantile(&frame.nodes, 0.99);
+    case.prims_p99 = quantile(&frame.tests, 0.99);
+    case.nodes = frame.nodes;
+    case.prims = frame.prim;
+    if timed {
+        let ms = st.trace_ms.unwrap_or(st.wall_ms);
+        case.build_ms.push(st.build.build_ms);
+        case.phases.push(st.build.phases.clone());
+        case.trace_ms.push(ms);
+        case.rates.push(st.rays as f64 / (ms * 1e3));
+    }
+    case.stats = st;
+    Ok(())
+}
+
+/// A case of one scene and ray kind on its way through the rounds.
+struct Run<'v> {
+    kind: AccelKind,
+    params: &'v AccelParams,
+    label: String,
+    /// Index of the intersection mode in `Options::intersect`.
+    mi: usize,
+    mode: IntersectMode,
+    case: Case,
+    pipelines: Option<crate::accel::bvh::gpu_build::GpuBuilder>,
+    /// Why it failed (it runs no further rounds).
+    error: Option<String>,
 }
 
 /// One row of the benchmark's output (bench.json, bench.csv; columns in the README).
@@ -388,24 +404,61 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                 scene.max_depth = 1;
             }
             let first_row = rows.len();
+            // The cases (structure by intersection mode) take turns: a warm-up round,
+            // then `repeat` timed rounds, each running every case once. Drift in the
+            // machine's load then falls on every case alike, and the ratios between
+            // structures compare like with like.
+            let mut runs: Vec<Run> = variants
+                .iter()
+                .flat_map(|v| opts.intersect.iter().enumerate().map(move |m| (v, m)))
+                .map(|((kind, p, label), (mi, &mode))| {
+                    let mut label = label.clone();
+                    if opts.intersect.len() > 1 {
+                        label = format!("{label}/{mode}");
+                    }
+                    if kinds.len() > 1 {
+                        label = format!("{label}/{}", kind_of_rays.name());
+                    }
+                    let size = if *kind == AccelKind::None { (side, side) } else { (w, h) };
+                    Run { kind: *kind, params: p, label, mi, mode, case: new_case(size), pipelines: None, error: None }
+                })
+                .collect();
+            for round in 0..=repeat {
+                let what = if round == 0 { "warm-up".to_string() } else { format!("round {round} of {repeat}") };
+                for run in runs.iter_mut().filter(|r| r.error.is_none()) {
+                    progress.message(format!("{short}, {}, {what}", run.label));
+                    scene.intersect = run.mode;
+                    let timed = round > 0;
+                    let done = bench_round(
+                        ctx,
+                        &scene,
+                        (run.kind, run.params),
+                        kind_of_rays,
+                        timed,
+                        &mut run.case,
+                        &mut run.pipelines,
+                    );
+                    // A structure can fail on a scene where it degenerates (the grid in
+                    // the stadium needs more steps per ray than llvmpipe's loop limit;
+                    // brute force too with shadow rays on big scenes): report it, go on.
+                    if let Err(e) = done {
+                        let msg = format!("{e:#}");
+                        progress.line(&format!("{short:>16} {nt:>9} {:>16} failed: {msg}", run.label));
+                        run.error = Some(msg);
+                        progress.inc((repeat - round) as u64);
+                    }
+                    progress.inc(1);
+                }
+            }
             // Brute-force rate per intersection mode, for the speedup column.
             let mut brute_rates: Vec<Option<f64>> = vec![None; opts.intersect.len()];
-            // Each structure's modes run back to back, so that their Mrays/s compare
-            // under the same machine load.
-            let cases = variants.iter().flat_map(|v| opts.intersect.iter().enumerate().map(move |m| (v, m)));
-            for ((kind, p, label), (mi, &mode)) in cases {
-                let kind = *kind;
+            for run in runs.iter().filter(|r| r.kind == AccelKind::None && r.error.is_none()) {
+                brute_rates[run.mi] = Some(median(&mut run.case.rates.clone()));
+            }
+            for run in runs {
+                let Run { kind, params: p, label, mi, mode, case: c, error, .. } = run;
                 scene.intersect = mode;
-                let brute_rate = &mut brute_rates[mi];
-                let mut label = label.clone();
-                if opts.intersect.len() > 1 {
-                    label = format!("{label}/{mode}");
-                }
-                if kinds.len() > 1 {
-                    label = format!("{label}/{}", kind_of_rays.name());
-                }
-                progress.message(format!("{short}, {label}"));
-                let size = if kind == AccelKind::None { (side, side) } else { (w, h) };
+                let size = c.size;
                 let mut row = Row {
                     scene: name.clone(),
                     triangles: nt,
@@ -436,24 +489,13 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                     error: None,
                     build_phases: Vec::new(),
                 };
-                let c = match bench_case(ctx, &scene, (kind, p), size, kind_of_rays, repeat, progress) {
-                    Ok(c) => c,
-                    // A structure can fail on a scene where it degenerates (the grid in
-                    // the stadium needs more steps per ray than llvmpipe's loop limit;
-                    // brute force too with shadow rays on big scenes): report it, go on.
-                    Err(e) => {
-                        let msg = format!("{e:#}");
-                        progress.line(&format!("{short:>16} {nt:>9} {label:>16} failed: {msg}"));
-                        row.error = Some(msg);
-                        rows.push(row);
-                        progress.inc(repeat as u64 + 1);
-                        continue;
-                    }
-                };
-                let rate = median(&mut c.rates.clone());
-                if kind == AccelKind::None {
-                    *brute_rate = Some(rate);
+                if let Some(msg) = error {
+                    row.error = Some(msg);
+                    rows.push(row);
+                    continue;
                 }
+                let brute_rate = brute_rates[mi];
+                let rate = median(&mut c.rates.clone());
                 let st = &c.stats;
                 let pixels = u64::from(c.size.0) * u64::from(c.size.1);
                 // Inside a closed mesh: also rays aimed at its vertices and edges (CPU

@@ -110,7 +110,8 @@ struct BenchArgs {
     /// Image size WIDTHxHEIGHT of the camera rays (128x128 with --quick unless given).
     #[arg(long, default_value = "256x256", value_name = "WxH")]
     size: String,
-    /// Timed repeats per case (after one warm-up run); medians are reported.
+    /// Timed rounds (after one warm-up round); in each, every structure builds and
+    /// traces once, in turn; medians are reported.
     #[arg(long, default_value_t = 5)]
     repeat: usize,
     /// Write all figures as JSON here.
@@ -616,7 +617,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         tris.iter().map(|n| format!("builtin:blob:{n}")).chain(args.scene.iter().cloned()).collect();
     let ctx = context(&args.device)?;
     eprintln!(
-        "device: {} ({}); {w}x{h} camera rays, kinds {}; brute force on a smaller image of the same view; median of {repeat} after 1 warm-up",
+        "device: {} ({}); {w}x{h} camera rays, kinds {}; brute force on a smaller image of the same view; median of {repeat} rounds (structures in turn) after 1 warm-up",
         ctx.info().name,
         ctx.info().kind,
         kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")

@@ -30,6 +30,31 @@ fn validate_every_builder_on_every_edge_case() {
     }
 }
 
+/// The BVHs' scene box, made from the primitive boxes, is the scene's own, bit for bit
+/// (spheres, signed zeros, tiny and huge coordinates, no primitives).
+#[test]
+fn scene_box_from_primitive_boxes_is_the_scenes() {
+    let mut scenes = bvh_cases();
+    scenes.extend(edge_cases());
+    let mut empty = edge_cases().remove(0);
+    empty.triangles.clear();
+    scenes.push(empty);
+    scenes.push(scene_from(
+        "signed zeros",
+        Some(common::scenes::tris(&[[
+            Vec3::new(-0.0, 0.0, 1.0),
+            Vec3::new(0.0, -0.0, 2.0),
+            Vec3::new(-0.0, 1.0, 0.0),
+        ]])),
+        &[(Vec3::new(0.0, 0.0, -0.0), 0.5)],
+    ));
+    for scene in &scenes {
+        let (a, b) = (PrimRefs::new(scene).scene_box(), scene.bounds());
+        let bits = |x: &arbor::math::Aabb| [x.min.to_array(), x.max.to_array()].map(|v| v.map(f32::to_bits));
+        assert_eq!(bits(&a), bits(&b), "{}", scene.name);
+    }
+}
+
 #[test]
 fn empty_scene_builds_a_root_with_no_children() {
     let mut scene = edge_cases().remove(0);

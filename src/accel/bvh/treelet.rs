@@ -31,8 +31,8 @@
 //! has changed since, is skipped in later rounds: its optimum would be the same.
 //!
 //! A restructuring is applied only when it lowers the treelet root's cost, so the SAH
-//! cost (with collapse) never increases. Afterwards [`Restructure::collapse_flags`]
-//! marks the subtrees that are cheaper as one leaf.
+//! cost (with collapse) never increases. The flattener then collapses the subtrees that
+//! are cheaper as one leaf ([`Restructure::collapses`]).
 
 use std::sync::atomic::{
     AtomicU32,
@@ -1046,19 +1046,15 @@ impl Restructure {
         (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
     }
 
-    /// Marks every inner node whose subtree is cheaper as one leaf (at most
-    /// [`MAX_LEAF`] primitives).
-    pub fn collapse_flags(&self) -> Vec<bool> {
-        self.slots
-            .par_iter()
-            .map(|s| {
-                if s.is_leaf() || s.count() as usize > MAX_LEAF {
-                    return false;
-                }
-                let leaf = self.costs.intersect * area(&s.bounds()) * s.count() as f32;
-                leaf <= s.cost()
-            })
-            .collect()
+    /// Whether inner node `n`'s subtree is cheaper as one leaf (of at most
+    /// [`MAX_LEAF`] primitives): the collapse the flattener applies.
+    fn collapses(&self, n: u32) -> bool {
+        let s = &self.slots[n as usize];
+        if s.is_leaf() || s.count() as usize > MAX_LEAF {
+            return false;
+        }
+        let leaf = self.costs.intersect * area(&s.bounds()) * s.count() as f32;
+        leaf <= s.cost()
     }
 }
 
@@ -1073,6 +1069,9 @@ impl Nodes for Restructure {
     }
     fn prims(&self) -> &[u32] {
         &self.prims
+    }
+    fn collapsed(&self, n: u32) -> bool {
+        self.collapses(n)
     }
 }
 
