@@ -4,13 +4,19 @@
 //!
 //! A large tree is flattened in parallel, with the same result word for word:
 //!
-//! 1. The subtrees [`SPLIT_LEVELS`] levels below the root become parts. Each part is
-//!    flattened by its own task, with its nodes and indices numbered from zero.
-//! 2. One serial pass flattens the nodes above the parts. Where a part belongs it
-//!    leaves a hole of the part's size, so every position it writes is final.
-//! 3. The output is allocated zeroed (no pages touched yet) and filled in parallel:
-//!    each part is copied into its hole with its references moved by the hole's
-//!    place, and the serial pass's runs between the holes are copied as they are.
+//! 1. The subtrees [`SPLIT_LEVELS`] levels below the root become parts.
+//! 2. Where the tree knows each part's size without a walk ([`Nodes::emitted`]: the
+//!    LBVH, whose leaves hold one primitive each in key order), the output is
+//!    allocated zeroed (no pages touched yet). A serial pass over the nodes above the
+//!    parts finds where each part's hole goes, each part is flattened by its own task
+//!    straight into its hole, and the serial pass runs again with the parts' boxes.
+//!    Every node and index below the top levels is written once, in its final place.
+//! 3. Otherwise each part is first flattened by its own task into vectors of its own,
+//!    numbered from zero; the serial pass leaves holes of their sizes; then the output
+//!    is filled in parallel: each part is copied into its hole with its references
+//!    moved by the hole's place, and the serial pass's runs between the holes are
+//!    copied as they are. (The parts' vectors are fresh memory: about 64 MB at a
+//!    million primitives, which a first build faults in page by page.)
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -41,37 +47,90 @@ fn flatten_from(bin: &impl Nodes, refs: &PrimRefs, par_min_prims: usize) -> (Vec
             part_roots(bin, c, 1, 1, &mut roots);
         }
     }
+    if !roots.is_empty() {
+        let sizes: Option<Vec<(usize, usize)>> = roots.iter().map(|r| bin.emitted(r.0)).collect();
+        if let (Some(total), Some(sizes)) = (bin.emitted(root), sizes) {
+            return flatten_in_place(bin, refs, &roots, &sizes, total);
+        }
+    }
     // An even share; a larger part grows its vectors (large ones move by remapping).
     let share = refs.len() / roots.len().max(1) + 1;
     let parts: Vec<Part> = roots
         .par_iter()
         .map(|&(n, depth)| {
-            let mut f = Flattener::new(bin, refs, share);
+            let mut f = Flattener::new(bin, refs, Sink::owned(share), Sink::owned(share));
             let (_, bounds) = f.emit(Child::Node(n), depth);
-            Part { nodes: f.nodes, indices: f.indices, bounds, depth: f.depth }
+            Part { nodes: f.nodes.into_vec(), indices: f.indices.into_vec(), bounds, depth: f.depth }
         })
         .collect();
 
-    let mut f = Flattener::new(bin, refs, if roots.is_empty() { refs.len() } else { 64 });
+    let capacity = if roots.is_empty() { refs.len() } else { 64 };
+    let mut f = Flattener::new(bin, refs, Sink::owned(capacity), Sink::owned(capacity));
     f.parts = roots.iter().map(|r| r.0).zip(parts.iter().map(|p| (p.nodes.len(), p.indices.len(), p.bounds))).collect();
-    // The root is always an inner node; a one-leaf tree gets an empty sibling.
-    match f.child(root) {
-        Child::Node(n) => {
-            let node = bin.node(n);
-            let l = f.child(node.left);
-            let r = f.child(node.right);
-            f.emit_inner(l, r, 1);
-        }
-        leaf => {
-            f.emit_inner(leaf, Child::Owned(Vec::new()), 1);
-        }
-    }
+    f.emit_root();
     let depth = parts.iter().fold(f.depth, |d, p| d.max(p.depth));
     if f.holes.is_empty() {
-        return (f.nodes, f.indices, depth, 0);
+        return (f.nodes.into_vec(), f.indices.into_vec(), depth, 0);
     }
     let (nodes, indices) = assemble(&f, &parts);
     (nodes, indices, depth, parts.len())
+}
+
+/// Step 2 of the module docs: the parts (`roots`, of `sizes` nodes and indices) and
+/// the nodes above them written straight into an output of `total` nodes and indices.
+/// The serial pass runs twice: first for the holes' places (they depend on the sizes
+/// alone), then, once the parts have been written and their boxes are known, again
+/// with the boxes (it writes the same places; it is the top few levels).
+fn flatten_in_place<T: Nodes>(
+    bin: &T,
+    refs: &PrimRefs,
+    roots: &[(u32, u32)],
+    sizes: &[(usize, usize)],
+    total: (usize, usize),
+) -> (Vec<GpuBvhNode>, Vec<u32>, u32, usize) {
+    let mut nodes = vec![[[0u32; 4]; 4]; total.0];
+    let mut indices = vec![0u32; total.1];
+    let top = |nodes: &mut [GpuBvhNode], indices: &mut [u32], boxes: &[Aabb]| {
+        let mut f = Flattener::new(bin, refs, Sink::Slice(nodes, 0), Sink::Slice(indices, 0));
+        f.parts = roots.iter().zip(sizes).zip(boxes).map(|((r, s), b)| (r.0, (s.0, s.1, *b))).collect();
+        f.emit_root();
+        assert_eq!((f.nodes.len(), f.indices.len()), total, "flattened sizes");
+        (f.holes, f.depth)
+    };
+    let (holes, _) = top(&mut nodes, &mut indices, &vec![Aabb::EMPTY; roots.len()]);
+    // The holes in output order, as disjoint slices for the parts' tasks.
+    let mut jobs = Vec::with_capacity(holes.len());
+    let (mut rest_n, mut rest_i): (&mut [GpuBvhNode], &mut [u32]) = (&mut nodes, &mut indices);
+    let (mut at_n, mut at_i) = (0, 0);
+    for h in &holes {
+        let (pn, pi) = sizes[h.part];
+        let (_, tn) = std::mem::take(&mut rest_n).split_at_mut(h.nodes - at_n);
+        let (_, ti) = std::mem::take(&mut rest_i).split_at_mut(h.indices - at_i);
+        let (dn, tn) = tn.split_at_mut(pn);
+        let (di, ti) = ti.split_at_mut(pi);
+        jobs.push((h, dn, di));
+        (at_n, at_i) = (h.nodes + pn, h.indices + pi);
+        (rest_n, rest_i) = (tn, ti);
+    }
+    let done: Vec<(usize, Aabb, u32)> = jobs
+        .into_par_iter()
+        .map(|(h, dn, di)| {
+            let (n, depth) = roots[h.part];
+            let size = (dn.len(), di.len());
+            let mut f = Flattener::new(bin, refs, Sink::Slice(dn, 0), Sink::Slice(di, 0));
+            (f.base_nodes, f.base_indices) = (h.nodes, h.indices);
+            let (_, bounds) = f.emit(Child::Node(n), depth);
+            assert_eq!((f.nodes.len(), f.indices.len()), size, "part size");
+            (h.part, bounds, f.depth)
+        })
+        .collect();
+    let mut boxes = vec![Aabb::EMPTY; roots.len()];
+    for &(k, b, _) in &done {
+        boxes[k] = b;
+    }
+    let (_, depth) = top(&mut nodes, &mut indices, &boxes);
+    let depth = done.iter().fold(depth, |d, p| d.max(p.2));
+    (nodes, indices, depth, holes.len())
 }
 
 /// Whether `n` is an inner node the flattener keeps (not a leaf, not collapsed).
@@ -103,7 +162,8 @@ struct Part {
     depth: u32,
 }
 
-/// Where a part goes: after this many nodes and indices of the serial pass.
+/// Where a part goes: after this many nodes and indices of the serial pass (owned
+/// sinks), or at this place in the output (in place).
 struct Hole {
     part: usize,
     nodes: usize,
@@ -112,8 +172,9 @@ struct Hole {
 
 /// Fills the output from the serial pass `f` and the parts (see the module docs).
 fn assemble<T: Nodes>(f: &Flattener<T>, parts: &[Part]) -> (Vec<GpuBvhNode>, Vec<u32>) {
-    let mut nodes = vec![[[0u32; 4]; 4]; f.nodes.len() + f.skipped_nodes];
-    let mut indices = vec![0u32; f.indices.len() + f.skipped_indices];
+    let (f_nodes, f_indices) = (f.nodes.written(), f.indices.written());
+    let mut nodes = vec![[[0u32; 4]; 4]; f_nodes.len() + f.skipped_nodes];
+    let mut indices = vec![0u32; f_indices.len() + f.skipped_indices];
     // Jobs in output order: a run of the serial pass, then a part, and so on.
     enum Src<'a> {
         Run(&'a [GpuBvhNode], &'a [u32]),
@@ -123,10 +184,10 @@ fn assemble<T: Nodes>(f: &Flattener<T>, parts: &[Part]) -> (Vec<GpuBvhNode>, Vec
     let (mut rest_n, mut rest_i): (&mut [GpuBvhNode], &mut [u32]) = (&mut nodes, &mut indices);
     let (mut at_n, mut at_i, mut out_n, mut out_i) = (0, 0, 0, 0);
     for h in f.holes.iter().map(Some).chain([None]) {
-        let (end_n, end_i) = h.map_or((f.nodes.len(), f.indices.len()), |h| (h.nodes, h.indices));
+        let (end_n, end_i) = h.map_or((f_nodes.len(), f_indices.len()), |h| (h.nodes, h.indices));
         let (dn, tn) = std::mem::take(&mut rest_n).split_at_mut(end_n - at_n);
         let (di, ti) = std::mem::take(&mut rest_i).split_at_mut(end_i - at_i);
-        jobs.push((dn, di, Src::Run(&f.nodes[at_n..end_n], &f.indices[at_i..end_i])));
+        jobs.push((dn, di, Src::Run(&f_nodes[at_n..end_n], &f_indices[at_i..end_i])));
         (out_n, out_i) = (out_n + end_n - at_n, out_i + end_i - at_i);
         (at_n, at_i) = (end_n, end_i);
         (rest_n, rest_i) = (tn, ti);
@@ -171,29 +232,90 @@ enum Child {
     Owned(Vec<u32>),
 }
 
-struct Flattener<'a, T: Nodes> {
+/// Where a flattener writes: vectors of its own, or a slice of the output with the
+/// number written (or skipped) so far.
+enum Sink<'o, T> {
+    Own(Vec<T>),
+    Slice(&'o mut [T], usize),
+}
+
+impl<T: Copy> Sink<'_, T> {
+    fn owned(capacity: usize) -> Self {
+        Sink::Own(Vec::with_capacity(capacity))
+    }
+    fn len(&self) -> usize {
+        match self {
+            Sink::Own(v) => v.len(),
+            Sink::Slice(_, at) => *at,
+        }
+    }
+    fn push(&mut self, x: T) {
+        match self {
+            Sink::Own(v) => v.push(x),
+            Sink::Slice(s, at) => {
+                s[*at] = x;
+                *at += 1;
+            }
+        }
+    }
+    fn extend(&mut self, x: &[T]) {
+        match self {
+            Sink::Own(v) => v.extend_from_slice(x),
+            Sink::Slice(s, at) => {
+                s[*at..*at + x.len()].copy_from_slice(x);
+                *at += x.len();
+            }
+        }
+    }
+    fn set(&mut self, i: usize, x: T) {
+        match self {
+            Sink::Own(v) => v[i] = x,
+            Sink::Slice(s, _) => s[i] = x,
+        }
+    }
+    fn written(&self) -> &[T] {
+        match self {
+            Sink::Own(v) => v,
+            Sink::Slice(s, at) => &s[..*at],
+        }
+    }
+    fn into_vec(self) -> Vec<T> {
+        match self {
+            Sink::Own(v) => v,
+            Sink::Slice(s, at) => s[..at].to_vec(),
+        }
+    }
+}
+
+struct Flattener<'a, 'o, T: Nodes> {
     bin: &'a T,
     refs: &'a PrimRefs,
-    nodes: Vec<GpuBvhNode>,
-    indices: Vec<u32>,
+    nodes: Sink<'o, GpuBvhNode>,
+    indices: Sink<'o, u32>,
+    /// Output place of the sinks' first element.
+    base_nodes: usize,
+    base_indices: usize,
     gathered: Vec<u32>,
     depth: u32,
     /// Subtrees flattened as parts: root node, then the part's nodes, indices, box.
     parts: Vec<(u32, (usize, usize, Aabb))>,
     holes: Vec<Hole>,
-    /// Nodes and indices in the holes so far: a position in `nodes` (`indices`) plus
-    /// these is a position in the output.
+    /// Nodes and indices in the holes so far of owned sinks: a position in `nodes`
+    /// (`indices`) plus these is a position in the output. (A slice sink steps over
+    /// the holes itself.)
     skipped_nodes: usize,
     skipped_indices: usize,
 }
 
-impl<'a, T: Nodes> Flattener<'a, T> {
-    fn new(bin: &'a T, refs: &'a PrimRefs, capacity: usize) -> Self {
+impl<'a, 'o, T: Nodes> Flattener<'a, 'o, T> {
+    fn new(bin: &'a T, refs: &'a PrimRefs, nodes: Sink<'o, GpuBvhNode>, indices: Sink<'o, u32>) -> Self {
         Flattener {
             bin,
             refs,
-            nodes: Vec::with_capacity(capacity),
-            indices: Vec::with_capacity(capacity),
+            nodes,
+            indices,
+            base_nodes: 0,
+            base_indices: 0,
             gathered: Vec::new(),
             depth: 0,
             parts: Vec::new(),
@@ -221,13 +343,26 @@ impl<'a, T: Nodes> Flattener<'a, T> {
 
     /// Output position of the next index.
     fn next_index(&self) -> u32 {
-        (self.indices.len() + self.skipped_indices) as u32
+        (self.base_indices + self.indices.len() + self.skipped_indices) as u32
+    }
+
+    /// Emits the root. It is always an inner node: a one-leaf tree gets an empty
+    /// sibling.
+    fn emit_root(&mut self) {
+        let (l, r) = match self.child(self.bin.root()) {
+            Child::Node(n) => {
+                let node = self.bin.node(n);
+                (self.child(node.left), self.child(node.right))
+            }
+            leaf => (leaf, Child::Owned(Vec::new())),
+        };
+        self.emit_inner(l, r, 1);
     }
 
     /// Writes a leaf of `list` (at most MAX_LEAF primitives); returns its reference.
     fn leaf(&mut self, list: &[u32]) -> u32 {
         let first = self.next_index();
-        self.indices.extend_from_slice(list);
+        self.indices.extend(list);
         LEAF_REF | (first << 3) | (list.len() as u32 - 1)
     }
 
@@ -238,7 +373,7 @@ impl<'a, T: Nodes> Flattener<'a, T> {
             Child::Range(start, len, b, gathered) if len <= MAX_LEAF => {
                 let first = self.next_index();
                 let src = if gathered { &self.gathered } else { self.bin.prims() };
-                self.indices.extend_from_slice(&src[start..start + len]);
+                self.indices.extend(&src[start..start + len]);
                 (LEAF_REF | (first << 3) | (len as u32 - 1), b)
             }
             Child::Range(start, len, _, gathered) => {
@@ -277,10 +412,18 @@ impl<'a, T: Nodes> Flattener<'a, T> {
     /// Leaves room for part `k`: its root's reference and its box.
     fn hole(&mut self, k: usize) -> (u32, Aabb) {
         let (nodes, indices, bounds) = self.parts[k].1;
-        let at = self.nodes.len() + self.skipped_nodes;
+        let at = self.base_nodes + self.nodes.len() + self.skipped_nodes;
         self.holes.push(Hole { part: k, nodes: self.nodes.len(), indices: self.indices.len() });
-        self.skipped_nodes += nodes;
-        self.skipped_indices += indices;
+        match (&mut self.nodes, &mut self.indices) {
+            (Sink::Slice(_, n), Sink::Slice(_, i)) => {
+                *n += nodes;
+                *i += indices;
+            }
+            _ => {
+                self.skipped_nodes += nodes;
+                self.skipped_indices += indices;
+            }
+        }
         (at as u32, bounds)
     }
 
@@ -288,13 +431,14 @@ impl<'a, T: Nodes> Flattener<'a, T> {
     fn emit_inner(&mut self, l: Child, r: Child, depth: u32) -> (u32, Aabb) {
         self.depth = self.depth.max(depth);
         let slot = self.nodes.len();
-        let me = slot + self.skipped_nodes;
+        let me = self.base_nodes + slot + self.skipped_nodes;
         self.nodes.push([[0; 4]; 4]);
         let (lref, lbox) = self.emit(l, depth);
         let (rref, rbox) = self.emit(r, depth);
         let bits = |v: Vec3, w: u32| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), w];
         let (lbox_g, rbox_g) = (gpu_box(&lbox), gpu_box(&rbox));
-        self.nodes[slot] = [bits(lbox_g.min, lref), bits(lbox_g.max, rref), bits(rbox_g.min, 0), bits(rbox_g.max, 0)];
+        self.nodes
+            .set(slot, [bits(lbox_g.min, lref), bits(lbox_g.max, rref), bits(rbox_g.min, 0), bits(rbox_g.max, 0)]);
         (me as u32, lbox.union(&rbox))
     }
 }
@@ -380,7 +524,15 @@ mod tests {
                 work.round(treelet::gamma(round));
             }
             let what = |name: &str| format!("{name}, {n} boxes, same centroids {same}");
-            same_in_parts(&lbvh::build(&refs, &mut phases, &mut t), &refs, &what("lbvh"));
+            let lbvh = lbvh::build(&refs, &mut phases, &mut t);
+            same_in_parts(&lbvh, &refs, &what("lbvh"));
+            // Written in place, the same again: the whole tree is n - 1 nodes and n
+            // indices.
+            let in_place = super::super::LbvhNodes(&lbvh);
+            if n >= 2 {
+                assert_eq!(in_place.emitted(lbvh.root), Some((n - 1, n)), "{}", what("lbvh"));
+            }
+            same_in_parts(&in_place, &refs, &what("lbvh in place"));
             same_in_parts(&binned::build(&refs, &costs), &refs, &what("bvh-sah"));
             same_in_parts(&work, &refs, &what("trbvh"));
             if n >= 3000 && same {

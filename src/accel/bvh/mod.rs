@@ -221,6 +221,12 @@ pub trait Nodes: Sync {
     fn collapsed(&self, _n: u32) -> bool {
         false
     }
+    /// For an inner node the flattener keeps: the nodes and indices it emits for the
+    /// subtree (the node included), where the tree knows them without a walk; the
+    /// flattener then writes its parts straight into their final place.
+    fn emitted(&self, _n: u32) -> Option<(usize, usize)> {
+        None
+    }
 
     /// Every primitive in the subtree of `n`, in depth-first order, for a small
     /// subtree (recursive: its depth is below its primitive count, at most
@@ -233,6 +239,42 @@ pub trait Nodes: Sync {
             self.gather_small(node.left, out);
             self.gather_small(node.right, out);
         }
+    }
+}
+
+/// The LBVH as the flattener reads it: a [`Binary`] whose leaves hold one primitive
+/// each, in key order (leaf j holds `prims[j]`, as [`lbvh::build`] makes it). A
+/// subtree over leaves lo..=hi then emits hi - lo inner nodes and hi - lo + 1
+/// indices, found from its leftmost and rightmost leaves without a walk.
+#[derive(Debug)]
+pub struct LbvhNodes<'a>(pub &'a Binary);
+
+impl Nodes for LbvhNodes<'_> {
+    fn root(&self) -> u32 {
+        self.0.root
+    }
+    #[inline]
+    fn node(&self, n: u32) -> BNode {
+        self.0.nodes[n as usize]
+    }
+    fn prims(&self) -> &[u32] {
+        &self.0.prims
+    }
+    fn emitted(&self, n: u32) -> Option<(usize, usize)> {
+        let edge = |left: bool| {
+            let mut x = n;
+            for _ in 0..self.0.nodes.len() {
+                let b = self.0.nodes[x as usize];
+                if b.is_leaf() {
+                    return Some(b.range());
+                }
+                x = if left { b.left } else { b.right };
+            }
+            None
+        };
+        let (lo, hi) = (edge(true)?.start, edge(false)?.end);
+        let count = hi.checked_sub(lo)?;
+        Some((count.checked_sub(1)?, count))
     }
 }
 
@@ -295,7 +337,9 @@ impl Bvh {
                 lap(&mut phases, "binned SAH", &mut t);
                 Bvh::flatten(&bin, &refs, bounds, builder)
             }
-            BvhBuilder::Lbvh => Bvh::flatten(&lbvh::build(&refs, &mut phases, &mut t), &refs, bounds, builder),
+            BvhBuilder::Lbvh => {
+                Bvh::flatten(&LbvhNodes(&lbvh::build(&refs, &mut phases, &mut t)), &refs, bounds, builder)
+            }
             BvhBuilder::Trbvh => {
                 // The LBVH goes straight into the restructuring's nodes, which are
                 // flattened where they are.
