@@ -100,8 +100,8 @@ impl PrimRefs {
     }
 
     /// The union of every primitive's box: the scene's box ([`Scene::bounds`], the
-    /// same bits, one sign of zero), from the boxes already made. At a million
-    /// triangles this takes about a third of the time of walking the vertices again.
+    /// same bits, one sign of zero), from the boxes already made instead of the
+    /// triangles' vertices again (5.2–5.4 against 8.0–8.4 ms at a million triangles).
     pub fn scene_box(&self) -> Aabb {
         use rayon::prelude::*;
         let b =
