@@ -364,9 +364,10 @@ impl Bvh {
         bvh
     }
 
-    /// Turns a canonical tree into the GPU layout. `collapse[n]` makes inner node `n`
-    /// a leaf of its subtree's primitives. Depth-first order, left child first (see
-    /// [`flatten`] for how the work is split between threads).
+    /// Turns a canonical tree into the GPU layout. An inner node `bin` says is
+    /// collapsed ([`Nodes::collapsed`]) becomes a leaf of its subtree's primitives.
+    /// Depth-first order, left child first (see [`flatten`] for how the work is split
+    /// between threads, and when parts are written in place).
     pub fn flatten(bin: &impl Nodes, refs: &PrimRefs, bounds: Aabb, builder: BvhBuilder) -> Bvh {
         let (nodes, indices, depth) = flatten::flatten(bin, refs);
         Bvh { bounds, nodes, indices, depth, prims: refs.len(), builder, build_ms: 0.0, phases: Vec::new() }
