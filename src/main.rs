@@ -52,7 +52,8 @@ spatial data structures. Scenes: a .toml scene file, a mesh (.obj/.ply/.off, cam
 automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N | builtin:stadium:N | builtin:inside:N.\n\n\
 Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error fails the run); \
 ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
-VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots."
+VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots; \
+MIMALLOC_PURGE_DELAY=MS lets the allocator give freed memory back to the OS after MS ms (default: arbor keeps it for reuse)."
 )]
 struct Cli {
     #[command(subcommand)]
