@@ -338,6 +338,7 @@ impl<'a, 'o, T: Nodes> Flattener<'a, 'o, T> {
             self.gathered = list;
             return Child::Range(start, self.gathered.len() - start, node.bounds, true);
         }
+        self.bin.read_ahead(n);
         Child::Node(n)
     }
 

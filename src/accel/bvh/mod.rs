@@ -227,6 +227,10 @@ pub trait Nodes: Sync {
     fn emitted(&self, _n: u32) -> Option<(usize, usize)> {
         None
     }
+    /// A hint: starts reading the children of inner node `n`, which the flattener
+    /// will descend into, so that their cache misses overlap with other work instead
+    /// of each level waiting on the one above.
+    fn read_ahead(&self, _n: u32) {}
 
     /// Every primitive in the subtree of `n`, in depth-first order, for a small
     /// subtree (recursive: its depth is below its primitive count, at most
