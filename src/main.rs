@@ -11,6 +11,7 @@ use arbor::gpu::{Context, ContextOptions};
 use arbor::render::{self, output, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
 use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 // The kd-tree builder allocates many short-lived vectors; mimalloc builds the 75k
 // benchmark tree about 25% faster than glibc malloc here. It is built with `no_thp` (it
@@ -27,20 +28,20 @@ const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
 /// Keep the memory arbor frees for its own reuse instead of returning it to the OS a
 /// second later (mimalloc's default). Builds then reuse pages the scene loading or an
 /// earlier structure freed instead of faulting in fresh ones: on the development VM a
-/// 1M-triangle LBVH built after other structures took 92-141 ms with purging and 59-69
-/// without, the same as a repeated build. `MIMALLOC_PURGE_DELAY`, when set, still wins.
+/// 1M-triangle LBVH built after other structures took 71-85 ms with purging and 60-66
+/// without, as long as a repeated build. `MIMALLOC_PURGE_DELAY`, when set, still wins.
 fn keep_freed_memory() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
-        // SAFETY: the one `unsafe` outside src/gpu (README, "Host memory"). `mi_option_set`
-        // stores an integer in mimalloc's option table; it is called before any thread is
-        // started, and -1 ("never purge") is a documented value of this option.
+        // SAFETY: the one `unsafe` outside src/gpu besides this file's test (README, "Host
+        // memory"). `mi_option_set` stores an integer in mimalloc's option table; it is
+        // called before any thread is started, and -1 ("never purge") is a documented
+        // value of this option.
         #[allow(unsafe_code)]
         unsafe {
             libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1)
         }
     }
 }
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 #[derive(Parser)]
 #[command(

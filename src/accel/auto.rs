@@ -71,8 +71,6 @@ mod tests {
     fn brute_force_for_a_handful_and_a_tree_for_many() {
         let (k, why) = choose(&scene(10), 640 * 480, 1);
         assert_eq!(k, AccelKind::None, "{why}");
-        let (k, why) = choose(&scene(100_000), 640 * 480, 1);
-        assert!(k != AccelKind::None, "{why}");
         // One sample: the fastest build; many: the fastest tracer's slower build pays off.
         let (k, why) = choose(&scene(100_000), 640 * 480, 1);
         assert_eq!(k, AccelKind::Lbvh, "{why}");
