@@ -164,7 +164,7 @@ fn bench_round(
     settings.accel = kind;
     let first = if timed {
         let accel = crate::accel::Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
-        Some(accel.stats(scene))
+        Some(accel.timing())
     } else {
         None
     };
@@ -175,11 +175,11 @@ fn bench_round(
     case.prims_p99 = quantile(&frame.tests, 0.99);
     case.nodes = frame.nodes;
     case.prims = frame.prim;
-    if let Some(first) = first {
+    if let Some((first_ms, first_phases)) = first {
         let ms = st.trace_ms.unwrap_or(st.wall_ms);
-        case.build_ms.push(first.build_ms);
+        case.build_ms.push(first_ms);
         case.rebuild_ms.push(st.build.build_ms);
-        case.phases.push(first.phases);
+        case.phases.push(first_phases);
         case.trace_ms.push(ms);
         case.rates.push(st.rays as f64 / (ms * 1e3));
     }

@@ -280,6 +280,11 @@ impl Grid {
         ((HEADER_WORDS + self.start.len() + self.indices.len()) * 4) as u64
     }
 
+    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
+    pub fn timing(&self) -> (f64, Vec<super::Phase>) {
+        (self.build_ms, self.phases.clone())
+    }
+
     /// Statistics for `arbor info` and the stats JSON; a cell counts as a leaf.
     pub fn stats(&self) -> BuildStats {
         let ncells = self.cell_count();

@@ -312,6 +312,18 @@ impl Accel {
         }
     }
 
+    /// Build time and phases alone, as [`Accel::stats`] reports them, without walking
+    /// the structure for the rest.
+    pub fn timing(&self) -> (f64, Vec<Phase>) {
+        match self {
+            Accel::None(b) => b.timing(),
+            Accel::Kd(t) => t.timing(),
+            Accel::Bvh(t) => t.timing(),
+            Accel::Grid(t) => t.timing(),
+            Accel::Octree(t) => t.timing(),
+        }
+    }
+
     /// The box rays are first clipped to.
     pub fn bounds(&self) -> crate::math::Aabb {
         match self {

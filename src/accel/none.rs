@@ -31,6 +31,11 @@ impl BruteForce {
         Ok(())
     }
 
+    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
+    pub fn timing(&self) -> (f64, Vec<super::Phase>) {
+        (self.build_ms, Vec::new())
+    }
+
     pub fn stats(&self, scene: &Scene) -> BuildStats {
         let n = scene.prim_count();
         BuildStats {

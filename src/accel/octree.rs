@@ -236,6 +236,11 @@ impl Octree {
         }
     }
 
+    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
+    pub fn timing(&self) -> (f64, Vec<super::Phase>) {
+        (self.build_ms, self.phases.clone())
+    }
+
     /// Statistics for `arbor info` and the stats JSON. Absent octants count as empty
     /// leaves (they are empty cells a ray steps through).
     pub fn stats(&self) -> BuildStats {

@@ -401,6 +401,11 @@ impl Bvh {
         }
     }
 
+    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
+    pub fn timing(&self) -> (f64, Vec<Phase>) {
+        (self.build_ms, self.phases.clone())
+    }
+
     /// Statistics, with the SAH cost computed like every other structure's.
     pub fn stats(&self) -> BuildStats {
         let costs = SahCosts::default();

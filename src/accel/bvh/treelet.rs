@@ -32,7 +32,7 @@
 //!
 //! A restructuring is applied only when it lowers the treelet root's cost, so the SAH
 //! cost (with collapse) never increases. The flattener then collapses the subtrees that
-//! are cheaper as one leaf ([`Restructure::collapses`]).
+//! are cheaper as one leaf (`Nodes::collapsed`).
 
 use std::sync::atomic::{
     AtomicU32,
@@ -1045,17 +1045,6 @@ impl Restructure {
         debug_assert_eq!(next, f.k - 1);
         (true, RoundStats { optimised: 1, rewritten: 1, skipped: 0 })
     }
-
-    /// Whether inner node `n`'s subtree is cheaper as one leaf (of at most
-    /// [`MAX_LEAF`] primitives): the collapse the flattener applies.
-    fn collapses(&self, n: u32) -> bool {
-        let s = &self.slots[n as usize];
-        if s.is_leaf() || s.count() as usize > MAX_LEAF {
-            return false;
-        }
-        let leaf = self.costs.intersect * area(&s.bounds()) * s.count() as f32;
-        leaf <= s.cost()
-    }
 }
 
 /// The tree being restructured, flattened where it is.
@@ -1070,8 +1059,15 @@ impl Nodes for Restructure {
     fn prims(&self) -> &[u32] {
         &self.prims
     }
+    /// Whether inner node `n`'s subtree is cheaper as one leaf (of at most
+    /// [`MAX_LEAF`] primitives).
     fn collapsed(&self, n: u32) -> bool {
-        self.collapses(n)
+        let s = &self.slots[n as usize];
+        if s.is_leaf() || s.count() as usize > MAX_LEAF {
+            return false;
+        }
+        let leaf = self.costs.intersect * area(&s.bounds()) * s.count() as f32;
+        leaf <= s.cost()
     }
     fn read_ahead(&self, n: u32) {
         let s = &self.slots[n as usize];

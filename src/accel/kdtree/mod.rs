@@ -232,6 +232,11 @@ impl KdTree {
         }
     }
 
+    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
+    pub fn timing(&self) -> (f64, Vec<super::Phase>) {
+        (self.build_ms, Vec::new())
+    }
+
     /// Statistics for `arbor info` and the stats JSON.
     pub fn stats(&self) -> BuildStats {
         let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
