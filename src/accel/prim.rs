@@ -15,6 +15,7 @@ pub enum PrimGeom {
 }
 
 /// Geometry of primitive `i` of `scene`.
+#[inline]
 pub fn geom(scene: &Scene, i: u32) -> PrimGeom {
     let nt = scene.triangles.len() as u32;
     if i < nt {
@@ -26,6 +27,7 @@ pub fn geom(scene: &Scene, i: u32) -> PrimGeom {
 }
 
 /// The bounding box of a primitive.
+#[inline]
 pub fn bounds(g: &PrimGeom) -> Aabb {
     match *g {
         PrimGeom::Triangle([a, b, c]) => Aabb { min: a.min(b).min(c), max: a.max(b).max(c) },

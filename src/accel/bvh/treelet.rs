@@ -21,8 +21,8 @@
 //! walk that prunes subtrees below γ primitives; the two subtrees of a large node are
 //! walked by parallel tasks, since their treelets are disjoint. Within one task's
 //! subtree the treelet roots are listed level by level, and a root is optimised once
-//! the roots below it are done: eight disjoint treelets at once, one per SIMD lane
-//! (AVX2 where the processor has it, else SSE), by a generated straight-line
+//! the roots below it are done: sixteen disjoint treelets at once, one per SIMD lane
+//! (AVX-512 where the processor has it, else AVX2 or SSE), by a generated straight-line
 //! programme (`dp_gen.rs`). The result does not
 //! depend on thread count or order: each treelet's solution reads only its own subtree
 //! (restructuring permutes nodes only within a treelet, so every node's subtree keeps
@@ -279,15 +279,16 @@ pub struct Restructure {
     prims: Vec<u32>,
 }
 
-/// Treelets optimised at once by the generated programme, one per SIMD lane.
-const LANES: usize = 8;
+/// Treelets optimised at once by the generated programme, one per SIMD lane: one
+/// AVX-512 register, or two AVX2 registers run one after the other.
+const LANES: usize = 16;
 /// One value per lane.
 type Lanes = [f32; LANES];
 
 /// The tables of [`LANES`] treelets of the same size, subset-major and lane-minor
 /// (`area[s][lane]`; subset bit i = treelet leaf i). On entry the leaves' entries
 /// (`1 << i`) are set; the generated programme fills the rest.
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 struct LaneTables {
     /// Box of each subset: min x, y, z, max x, y, z.
     bounds: [[Lanes; 6]; SUBSETS],
@@ -302,7 +303,24 @@ struct LaneTables {
     split: [Lanes; SUBSETS],
 }
 
+thread_local! {
+    /// Each thread's tables, kept between rounds and builds: 80 KiB that would
+    /// otherwise be allocated and cleared for every task and every large node.
+    static TABLES: std::cell::Cell<Option<Box<LaneTables>>> = const { std::cell::Cell::new(None) };
+}
+
 impl LaneTables {
+    /// Runs `f` with this thread's tables (new ones if a caller on this thread holds
+    /// them). Stale entries from earlier treelets are never read: every entry the
+    /// programme reads for a lane in use is written first (the leaves by
+    /// [`LaneTables::set_leaf`], the other subsets by the programme).
+    fn with<R>(f: impl FnOnce(&mut LaneTables) -> R) -> R {
+        let mut t = TABLES.take().unwrap_or_else(LaneTables::new);
+        let r = f(&mut t);
+        TABLES.set(Some(t));
+        r
+    }
+
     fn new() -> Box<LaneTables> {
         Box::new(LaneTables {
             bounds: [[[0.0; LANES]; 6]; SUBSETS],
@@ -447,20 +465,48 @@ impl LaneOps for PlainLanes {
     }
 }
 
-/// The steps in AVX2 registers, all [`LANES`] lanes in one (x86-64-v3; chosen at run
-/// time where the processor has it, see [`treelet_lanes`]). Compiled for the whole
-/// crate, LLVM turned the plain loops into scalar code under AVX2, so this writes
-/// the vector operations out (with `pulp`, whose wrappers are safe to call once its
-/// token proves the features).
+/// The steps in AVX2 registers on one half of the lanes (lanes 8h..8h+8 for half
+/// h), eight lanes in one register (x86-64-v3; chosen at run time where the processor
+/// has it and not AVX-512, see [`treelet_lanes`]). The programme runs once per half
+/// that holds a treelet, so each pass runs the instructions of an 8-lane batch, from
+/// one copy of the code. Compiled for the whole crate, LLVM turned the plain loops
+/// into scalar code under AVX2, so this writes the vector operations out (with
+/// `pulp`, whose wrappers are safe to call once its token proves the features).
 #[cfg(target_arch = "x86_64")]
 #[derive(Debug, Clone, Copy)]
-struct AvxLanes(pulp::x86::V3);
+struct AvxLanes {
+    v3: pulp::x86::V3,
+    /// First lane of the half: 0 or 8.
+    first: usize,
+}
 
 #[cfg(target_arch = "x86_64")]
 impl AvxLanes {
+    /// Half `half` (0 or 1) of the lanes.
     #[inline(always)]
-    fn load(x: &Lanes) -> pulp::f32x8 {
-        pulp::cast(*x)
+    fn new(v3: pulp::x86::V3, half: usize) -> AvxLanes {
+        AvxLanes { v3, first: 8 * (half & 1) }
+    }
+    /// This half of a row.
+    #[inline(always)]
+    fn part<T>(self, x: &[T; LANES]) -> &[T; 8] {
+        x[self.first..self.first + 8].try_into().expect("a row holds two halves")
+    }
+    #[inline(always)]
+    fn part_mut<T>(self, x: &mut [T; LANES]) -> &mut [T; 8] {
+        (&mut x[self.first..self.first + 8]).try_into().expect("a row holds two halves")
+    }
+    #[inline(always)]
+    fn load(self, x: &Lanes) -> pulp::f32x8 {
+        pulp::cast(*self.part(x))
+    }
+    #[inline(always)]
+    fn load_i(self, x: &[i32; LANES]) -> pulp::i32x8 {
+        pulp::cast(*self.part(x))
+    }
+    #[inline(always)]
+    fn store(self, dst: &mut Lanes, v: pulp::f32x8) {
+        *self.part_mut(dst) = pulp::cast(v);
     }
 }
 
@@ -470,46 +516,46 @@ impl LaneOps for AvxLanes {
 
     #[inline(always)]
     fn inf(self) -> pulp::f32x8 {
-        self.0.splat_f32x8(f32::INFINITY)
+        self.v3.splat_f32x8(f32::INFINITY)
     }
 
     #[inline(always)]
     fn fold(self, t: &mut LaneTables, s: usize, rest: usize, low: usize) {
-        let v = self.0;
+        let v = self.v3;
         let (r, o) = (&t.bounds[rest], &t.bounds[low]);
-        let lo = |a: usize| v.min_f32x8(Self::load(&r[a]), Self::load(&o[a]));
-        let hi = |a: usize| v.max_f32x8(Self::load(&r[a]), Self::load(&o[a]));
+        let lo = |a: usize| v.min_f32x8(self.load(&r[a]), self.load(&o[a]));
+        let hi = |a: usize| v.max_f32x8(self.load(&r[a]), self.load(&o[a]));
         let b = [lo(0), lo(1), lo(2), hi(3), hi(4), hi(5)];
         let (ex, ey, ez) = (v.sub_f32x8(b[3], b[0]), v.sub_f32x8(b[4], b[1]), v.sub_f32x8(b[5], b[2]));
         let empty =
             v.or_m32x8(v.or_m32x8(v.cmp_gt_f32x8(b[0], b[3]), v.cmp_gt_f32x8(b[1], b[4])), v.cmp_gt_f32x8(b[2], b[5]));
         let sum = v.add_f32x8(v.add_f32x8(v.mul_f32x8(ex, ey), v.mul_f32x8(ey, ez)), v.mul_f32x8(ez, ex));
         let a = v.mul_f32x8(v.splat_f32x8(2.0), sum);
-        t.area[s] = pulp::cast(v.select_f32x8(empty, v.splat_f32x8(0.0), a));
-        let n = v.wrapping_add_i32x8(pulp::cast(t.count[rest]), pulp::cast(t.count[low]));
-        t.count[s] = pulp::cast(n);
+        self.store(&mut t.area[s], v.select_f32x8(empty, v.splat_f32x8(0.0), a));
+        let n = v.wrapping_add_i32x8(self.load_i(&t.count[rest]), self.load_i(&t.count[low]));
+        *self.part_mut(&mut t.count[s]) = pulp::cast(n);
         for (dst, src) in t.bounds[s].iter_mut().zip(b) {
-            *dst = pulp::cast(src);
+            self.store(dst, src);
         }
     }
 
     #[inline(always)]
     fn step(self, b: pulp::f32x8, x: &Lanes, y: &Lanes) -> pulp::f32x8 {
         // MINPS(c, b): c where c < b, else b.
-        self.0.min_f32x8(self.0.add_f32x8(Self::load(x), Self::load(y)), b)
+        self.v3.min_f32x8(self.v3.add_f32x8(self.load(x), self.load(y)), b)
     }
 
     #[inline(always)]
     fn merge(self, b: pulp::f32x8, b1: pulp::f32x8) -> pulp::f32x8 {
-        self.0.min_f32x8(b1, b)
+        self.v3.min_f32x8(b1, b)
     }
 
     #[inline(always)]
     fn node(self, t: &mut LaneTables, s: usize, b: pulp::f32x8, traversal: f32, intersect: f32) {
-        let v = self.0;
-        t.split[s] = pulp::cast(b);
-        let a = Self::load(&t.area[s]);
-        let n: pulp::i32x8 = pulp::cast(t.count[s]);
+        let v = self.v3;
+        self.store(&mut t.split[s], b);
+        let a = self.load(&t.area[s]);
+        let n = self.load_i(&t.count[s]);
         let split = v.add_f32x8(v.mul_f32x8(v.splat_f32x8(traversal), a), b);
         let leaf = v.mul_f32x8(v.mul_f32x8(v.splat_f32x8(intersect), a), v.convert_i32x8_to_f32x8(n));
         let big = v.cmp_gt_i32x8(n, v.splat_i32x8(MAX_LEAF as i32));
@@ -518,7 +564,83 @@ impl LaneOps for AvxLanes {
         // gives leaf.
         let m = v.min_f32x8(leaf, split);
         let split_nan = v.is_nan_f32x8(split);
-        t.cost[s] = pulp::cast(v.select_f32x8(split_nan, leaf, m));
+        self.store(&mut t.cost[s], v.select_f32x8(split_nan, leaf, m));
+    }
+}
+
+/// The steps in AVX-512 registers, all [`LANES`] lanes in one (x86-64-v4; chosen at
+/// run time where the processor has it, see [`treelet_lanes`]). The generated
+/// programme is large (about 80 KiB of code for 7 leaves, where the first-level
+/// instruction cache holds 32), so fetching it bounds its speed: 16 lanes per
+/// instruction do twice the work of AVX2's 8 for the same fetch (README, "trbvh").
+#[cfg(target_arch = "x86_64")]
+#[derive(Debug, Clone, Copy)]
+struct Avx512Lanes(pulp::x86::V4);
+
+#[cfg(target_arch = "x86_64")]
+impl Avx512Lanes {
+    #[inline(always)]
+    fn load(x: &Lanes) -> pulp::f32x16 {
+        pulp::cast(*x)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl LaneOps for Avx512Lanes {
+    type V = pulp::f32x16;
+
+    #[inline(always)]
+    fn inf(self) -> pulp::f32x16 {
+        self.0.splat_f32x16(f32::INFINITY)
+    }
+
+    #[inline(always)]
+    fn fold(self, t: &mut LaneTables, s: usize, rest: usize, low: usize) {
+        let v = self.0;
+        let (r, o) = (&t.bounds[rest], &t.bounds[low]);
+        let lo = |a: usize| v.min_f32x16(Self::load(&r[a]), Self::load(&o[a]));
+        let hi = |a: usize| v.max_f32x16(Self::load(&r[a]), Self::load(&o[a]));
+        let b = [lo(0), lo(1), lo(2), hi(3), hi(4), hi(5)];
+        let (ex, ey, ez) = (v.sub_f32x16(b[3], b[0]), v.sub_f32x16(b[4], b[1]), v.sub_f32x16(b[5], b[2]));
+        // Mask registers: one bit per lane.
+        let e0 = v.cmp_gt_f32x16(b[0], b[3]);
+        let e1 = v.cmp_gt_f32x16(b[1], b[4]);
+        let e2 = v.cmp_gt_f32x16(b[2], b[5]);
+        let empty = pulp::b16(e0.0 | e1.0 | e2.0);
+        let sum = v.add_f32x16(v.add_f32x16(v.mul_f32x16(ex, ey), v.mul_f32x16(ey, ez)), v.mul_f32x16(ez, ex));
+        let a = v.mul_f32x16(v.splat_f32x16(2.0), sum);
+        t.area[s] = pulp::cast(v.select_f32x16(empty, v.splat_f32x16(0.0), a));
+        let n = v.wrapping_add_i32x16(pulp::cast(t.count[rest]), pulp::cast(t.count[low]));
+        t.count[s] = pulp::cast(n);
+        for (dst, src) in t.bounds[s].iter_mut().zip(b) {
+            *dst = pulp::cast(src);
+        }
+    }
+
+    #[inline(always)]
+    fn step(self, b: pulp::f32x16, x: &Lanes, y: &Lanes) -> pulp::f32x16 {
+        self.0.min_f32x16(self.0.add_f32x16(Self::load(x), Self::load(y)), b)
+    }
+
+    #[inline(always)]
+    fn merge(self, b: pulp::f32x16, b1: pulp::f32x16) -> pulp::f32x16 {
+        self.0.min_f32x16(b1, b)
+    }
+
+    #[inline(always)]
+    fn node(self, t: &mut LaneTables, s: usize, b: pulp::f32x16, traversal: f32, intersect: f32) {
+        let v = self.0;
+        t.split[s] = pulp::cast(b);
+        let a = Self::load(&t.area[s]);
+        let n: pulp::i32x16 = pulp::cast(t.count[s]);
+        let split = v.add_f32x16(v.mul_f32x16(v.splat_f32x16(traversal), a), b);
+        let leaf = v.mul_f32x16(v.mul_f32x16(v.splat_f32x16(intersect), a), v.convert_i32x16_to_f32x16(n));
+        let big = v.cmp_gt_i32x16(n, v.splat_i32x16(MAX_LEAF as i32));
+        let leaf = v.select_f32x16(big, v.splat_f32x16(f32::NAN), leaf);
+        // As AVX2's: VMINPS gives its second operand where either is NaN.
+        let m = v.min_f32x16(leaf, split);
+        let split_nan = v.is_nan_f32x16(split);
+        t.cost[s] = pulp::cast(v.select_f32x16(split_nan, leaf, m));
     }
 }
 
@@ -852,7 +974,6 @@ impl Restructure {
             (0..roots.len() as u32).rev().filter(|&i| waiting[i as usize] == 0).collect();
         let mut stats = RoundStats::default();
         let mut top_changed = false;
-        let mut tables = LaneTables::new();
         let mut batch: Vec<(u32, bool)> = Vec::with_capacity(LANES);
         let mut index: Vec<u32> = Vec::with_capacity(LANES);
         // Marks root `i` done with `changed` (whether its subtree changed).
@@ -884,7 +1005,7 @@ impl Restructure {
             if batch.is_empty() {
                 continue;
             }
-            let (c, sc) = self.settle_lanes(&batch, &mut tables);
+            let (c, sc) = LaneTables::with(|t| self.settle_lanes(&batch, t));
             stats = stats + sc;
             for (lane, &i) in index.iter().enumerate() {
                 done(i, c[lane], &mut below, &mut ready);
@@ -921,7 +1042,7 @@ impl Restructure {
         let mut stats = RoundStats::default();
         for k in (3..=TREELET_LEAVES).filter(|&k| sizes[k]) {
             // Lanes of other sizes compute junk from stale entries; nothing reads it.
-            treelet_lanes(k, t, self.costs.traversal, self.costs.intersect);
+            treelet_lanes(k, batch.len(), t, self.costs.traversal, self.costs.intersect);
             for (lane, &(root, below)) in batch.iter().enumerate() {
                 if formed[lane].k == k {
                     let (c, sc) = self.rewrite(root, &formed[lane], t, lane, below);
@@ -948,7 +1069,7 @@ impl Restructure {
         if !below && s.settled() {
             return (false, RoundStats { skipped: 1, ..Default::default() });
         }
-        let (changed, stats) = self.settle_lanes(&[(x, below)], &mut LaneTables::new());
+        let (changed, stats) = LaneTables::with(|t| self.settle_lanes(&[(x, below)], t));
         (changed[0], stats)
     }
 
@@ -1080,13 +1201,18 @@ impl Nodes for Restructure {
 // of `tests::reference`, and `treelet_lanes_with(ops, k, ...)`.
 include!(concat!(env!("OUT_DIR"), "/treelet_dp.rs"));
 
-/// Optimises [`LANES`] treelets of `k` leaves at once: in AVX2 registers where the
-/// processor has them (x86-64-v3), else in SSE registers; the same bits either way
-/// (tested).
-fn treelet_lanes(k: usize, t: &mut LaneTables, traversal: f32, intersect: f32) {
+/// Optimises [`LANES`] treelets of `k` leaves at once (the first `used` lanes hold
+/// treelets): in AVX-512 registers where the processor has them (x86-64-v4), else in
+/// AVX2 registers (x86-64-v3) one half of the lanes at a time, else in SSE registers;
+/// the same bits every way (tested).
+fn treelet_lanes(k: usize, used: usize, t: &mut LaneTables, traversal: f32, intersect: f32) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(v4) = pulp::x86::V4::try_new() {
+        return treelet_lanes_avx512(v4, k, t, traversal, intersect);
+    }
     #[cfg(target_arch = "x86_64")]
     if let Some(v3) = pulp::x86::V3::try_new() {
-        return treelet_lanes_avx(v3, k, t, traversal, intersect);
+        return treelet_lanes_avx(v3, k, used, t, traversal, intersect);
     }
     treelet_lanes_plain(k, t, traversal, intersect);
 }
@@ -1101,19 +1227,38 @@ fn treelet_lanes_plain(k: usize, t: &mut LaneTables, traversal: f32, intersect: 
 /// features `v3` proves.
 #[cfg(target_arch = "x86_64")]
 #[inline(never)]
-fn treelet_lanes_avx(v3: pulp::x86::V3, k: usize, t: &mut LaneTables, traversal: f32, intersect: f32) {
+fn treelet_lanes_avx(v3: pulp::x86::V3, k: usize, used: usize, t: &mut LaneTables, traversal: f32, intersect: f32) {
     /// The call `vectorize` compiles with the features (a closure's body would not
     /// be inlined into it, and every step would become a call).
-    struct Dp<'a>(pulp::x86::V3, usize, &'a mut LaneTables, f32, f32);
+    struct Dp<'a>(pulp::x86::V3, usize, usize, &'a mut LaneTables, f32, f32);
     impl pulp::NullaryFnOnce for Dp<'_> {
         type Output = ();
         #[inline(always)]
         fn call(self) {
-            let Dp(v3, k, t, traversal, intersect) = self;
-            treelet_lanes_with(AvxLanes(v3), k, t, traversal, intersect);
+            let Dp(v3, k, used, t, traversal, intersect) = self;
+            for half in 0..used.div_ceil(8).min(2) {
+                treelet_lanes_with(AvxLanes::new(v3, half), k, t, traversal, intersect);
+            }
         }
     }
-    v3.vectorize(Dp(v3, k, t, traversal, intersect));
+    v3.vectorize(Dp(v3, k, used, t, traversal, intersect));
+}
+
+/// [`treelet_lanes`] in AVX-512 registers: the generated code compiled with the
+/// features `v4` proves.
+#[cfg(target_arch = "x86_64")]
+#[inline(never)]
+fn treelet_lanes_avx512(v4: pulp::x86::V4, k: usize, t: &mut LaneTables, traversal: f32, intersect: f32) {
+    struct Dp<'a>(pulp::x86::V4, usize, &'a mut LaneTables, f32, f32);
+    impl pulp::NullaryFnOnce for Dp<'_> {
+        type Output = ();
+        #[inline(always)]
+        fn call(self) {
+            let Dp(v4, k, t, traversal, intersect) = self;
+            treelet_lanes_with(Avx512Lanes(v4), k, t, traversal, intersect);
+        }
+    }
+    v4.vectorize(Dp(v4, k, t, traversal, intersect));
 }
 
 /// Helper for tests: the collapsed SAH cost of a canonical tree.
@@ -1218,19 +1363,28 @@ mod tests {
                     }
                     lanes.push(leaves);
                 }
-                // Both instruction sets on the same tables (the same bits): SSE first,
-                // then AVX2 where the processor has it, over the SSE results.
+                // Every instruction set on the same tables (the same bits): SSE first,
+                // then AVX2 and AVX-512 where the processor has them, each over the
+                // results of the one before.
                 treelet_lanes_plain(k, &mut t, costs.traversal, costs.intersect);
                 let plain = (t.area, t.count, t.cost);
+                let same = |t: &LaneTables, what: &str| {
+                    for s in 1..(1usize << k) {
+                        let bits = |r: &[f32; LANES]| r.map(f32::to_bits);
+                        assert_eq!(bits(&t.area[s]), bits(&plain.0[s]), "{what} area, k {k}, subset {s}");
+                        assert_eq!(t.count[s], plain.1[s], "{what} count, k {k}, subset {s}");
+                        assert_eq!(bits(&t.cost[s]), bits(&plain.2[s]), "{what} cost, k {k}, subset {s}");
+                    }
+                };
                 #[cfg(target_arch = "x86_64")]
                 if let Some(v3) = pulp::x86::V3::try_new() {
-                    treelet_lanes_avx(v3, k, &mut t, costs.traversal, costs.intersect);
+                    treelet_lanes_avx(v3, k, LANES, &mut t, costs.traversal, costs.intersect);
+                    same(&t, "AVX2");
                 }
-                for s in 1..(1usize << k) {
-                    let bits = |r: &[f32; LANES]| r.map(f32::to_bits);
-                    assert_eq!(bits(&t.area[s]), bits(&plain.0[s]), "AVX2 area, k {k}, subset {s}");
-                    assert_eq!(t.count[s], plain.1[s], "AVX2 count, k {k}, subset {s}");
-                    assert_eq!(bits(&t.cost[s]), bits(&plain.2[s]), "AVX2 cost, k {k}, subset {s}");
+                #[cfg(target_arch = "x86_64")]
+                if let Some(v4) = pulp::x86::V4::try_new() {
+                    treelet_lanes_avx512(v4, k, &mut t, costs.traversal, costs.intersect);
+                    same(&t, "AVX-512");
                 }
                 for (lane, leaves) in lanes.iter().enumerate() {
                     let (areas, counts, cost, part) = reference(k, leaves, &costs);
