@@ -13,20 +13,21 @@ use crate::scene::Scene;
 /// (kind, build ns per primitive, trace ns per ray at 100k primitives), measured with
 /// `arbor bench --tris 100000,1000000 --size 1024x1024 --repeat 3 --accel
 /// none,kdtree,bvh-sah,lbvh,trbvh,grid,octree` on lavapipe (2 cores, 23 November 2026,
-/// commit 361ff6d): build as the mean of the first-build medians per primitive at 100k
-/// and 1M triangles, trace as the median per camera ray at 100k. The kd-tree traced
-/// no faster than trbvh there (190.5 against 187.3 ns) and builds 9x slower, so the
-/// model never picks it; trbvh is the choice once samples repay its build.
+/// after trbvh's AVX-512 rounds): build as the mean of the first-build medians per
+/// primitive at 100k and 1M triangles, trace as the median per camera ray at 100k.
+/// The kd-tree traced no faster than trbvh there (196.4 against 189.7 ns) and builds
+/// 10x slower, so the model never picks it; trbvh is the choice once samples repay
+/// its build.
 const TREES: &[(AccelKind, f64, f64)] = &[
-    (AccelKind::Kdtree, 1740.0, 190.5),
-    (AccelKind::BvhSah, 600.0, 199.5),
-    (AccelKind::Lbvh, 63.0, 199.3),
-    (AccelKind::Trbvh, 192.0, 187.3),
-    (AccelKind::Grid, 158.0, 239.4),
-    (AccelKind::Octree, 922.0, 230.1),
+    (AccelKind::Kdtree, 1660.0, 196.4),
+    (AccelKind::BvhSah, 602.0, 203.8),
+    (AccelKind::Lbvh, 56.0, 204.1),
+    (AccelKind::Trbvh, 168.0, 189.7),
+    (AccelKind::Grid, 136.0, 250.6),
+    (AccelKind::Octree, 916.0, 231.9),
 ];
 
-/// Brute force: ns per primitive test (1,254 ms for 63x63 rays over 99,224
+/// Brute force: ns per primitive test (1,276 ms for 63x63 rays over 99,224
 /// triangles in the same run).
 const BRUTE_TEST_NS: f64 = 3.2;
 
