@@ -14,7 +14,9 @@ pub enum PrimGeom {
     Sphere(Vec3, f32),
 }
 
-/// Geometry of primitive `i` of `scene`.
+/// Geometry of primitive `i` of `scene`. Inlined: the builders' bounds pass over a
+/// million triangles took 6.7–6.8 ms with it called, 1.9–2.0 inlined (README,
+/// "Release builds: one codegen unit").
 #[inline]
 pub fn geom(scene: &Scene, i: u32) -> PrimGeom {
     let nt = scene.triangles.len() as u32;

@@ -20,26 +20,21 @@ impl Aabb {
     pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
     /// Grows the box to contain `p`.
-    #[inline]
     pub fn grow(&mut self, p: Vec3) {
         self.min = self.min.min(p);
         self.max = self.max.max(p);
     }
     /// The smallest box containing both.
-    #[inline]
     pub fn union(&self, o: &Aabb) -> Aabb {
         Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
     /// True when min > max on some axis.
-    #[inline]
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
-    #[inline]
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5
     }
-    #[inline]
     pub fn extent(&self) -> Vec3 {
         self.max - self.min
     }
