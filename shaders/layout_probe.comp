@@ -19,8 +19,8 @@ void main() {
     f4(o, params.cam_eye); f4(o, params.cam_right); f4(o, params.cam_up); f4(o, params.cam_forward);
     f4(o, params.scene_min); f4(o, params.scene_max); w4(o, params.dims); w4(o, params.counts);
     f4(o, params.background);
-    // GpuDispatch
-    w4(o, dispatch_info.range); w4(o, dispatch_info.chunk);
+    // GpuDispatch (the pixel buffer's header)
+    w4(o, dispatch_range); w4(o, dispatch_chunk);
     // GpuVertex[0..2]
     for (uint k = 0u; k < 2u; k++) { f4(o, vertices[k].position); f4(o, vertices[k].normal); }
     // GpuTriangle[0..2]

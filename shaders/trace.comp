@@ -1,13 +1,14 @@
 #version 460
 // The trace kernel: camera rays, hard shadows, mirror and glass bounces; one thread
-// per pixel, samples [range.z, range.w) of pixels [range.x, range.x + range.y).
+// per pixel, samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
+// buffer's header).
 // Compiled once per (structure, geometry) variant by build.rs: exactly one
 // ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist.
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = WORKGROUP_SIZE) in;
 
-layout(constant_id = SPEC_SHADOWS) const bool USE_LIGHTS = true;
+layout(constant_id = SPEC_LIGHTS) const uint LIGHT_COUNT = 0u;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
 layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
@@ -138,12 +139,12 @@ vec4 mat_row(uint mat, uint row) { return shading[mat * MATERIAL_ROWS + row]; }
 // facing the viewer) toward view direction v.
 vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
     vec3 total = vec3(0.0);
-    if (!USE_LIGHTS) return total;
+    if (LIGHT_COUNT == 0u) return total;
     vec4 c = mat_row(mat, 0u);
     vec4 spec = mat_row(mat, 1u);
     uint kind = floatBitsToUint(c.w);
     uint base = params.counts.y * MATERIAL_ROWS;
-    for (uint l = 0u; l < params.counts.x; l++) {
+    for (uint l = 0u; l < LIGHT_COUNT; l++) {
         vec4 a = shading[base + l * LIGHT_ROWS];
         vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
         vec3 wi;
@@ -177,15 +178,15 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
 
 void main() {
     uint gid = gl_GlobalInvocationID.x;
-    if (gid >= dispatch_info.range.y) return;
-    uint pixel = dispatch_info.range.x + gid;
-    uint slot = pixel - dispatch_info.chunk.x;
+    if (gid >= dispatch_range.y) return;
+    uint pixel = dispatch_range.x + gid;
+    uint slot = pixel - dispatch_chunk.x;
     uint width = params.dims.x;
     uint i = pixel % width;
     uint j = pixel / width;
 
     Pixel out_px;
-    if (dispatch_info.range.z == 0u) {
+    if (dispatch_range.z == 0u) {
         out_px.radiance = vec4(0.0);
         out_px.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
         out_px.prim_cost = uvec4(NO_PRIM, 0u, 0u, 0u);
@@ -194,7 +195,7 @@ void main() {
     }
 
     g_rays = 0u;
-    for (uint s = dispatch_info.range.z; s < dispatch_info.range.w; s++) {
+    for (uint s = dispatch_range.z; s < dispatch_range.w; s++) {
         uint rng = rng_init(pixel, s, params.counts.z);
         // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
         float fx = 0.5, fy = 0.5;

@@ -64,9 +64,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
         BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_out" },
     ];
     let spv = spirv::get("layout_probe").expect("probe kernel compiled");
-    let mut k = ctx
-        .create_kernel("layout_probe", spv, &bindings, &[], std::mem::size_of::<GpuDispatch>() as u32)
-        .expect("kernel");
+    let mut k = ctx.create_kernel("layout_probe", spv, &bindings, &[], 0).expect("kernel");
     let u = ctx.upload_uniform("params", bytemuck::bytes_of(&params)).expect("u");
     let vb = ctx.upload_storage("vertices", bytemuck::cast_slice(&vertices)).expect("v");
     let tb = ctx.upload_storage("triangles", bytemuck::cast_slice(&triangles)).expect("t");
@@ -74,7 +72,10 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     let mut shading = bytemuck::bytes_of(&material).to_vec();
     shading.extend_from_slice(bytemuck::bytes_of(&light));
     let shb = ctx.upload_storage("shading", &shading).expect("sh");
-    let pb = ctx.upload_storage("pixels", bytemuck::cast_slice(&pixels)).expect("p");
+    // The pixel buffer opens with the dispatch header.
+    let mut pixel_bytes = bytemuck::bytes_of(&dispatch).to_vec();
+    pixel_bytes.extend_from_slice(bytemuck::cast_slice(&pixels));
+    let pb = ctx.upload_storage("pixels", &pixel_bytes).expect("p");
     let out = ctx.create_buffer("probe_out", (expected.len() * 4) as u64, BufferKind::Storage).expect("out");
     ctx.fill_zero(&out).expect("clear");
     ctx.bind(&mut k, BINDING_PARAMS, &u).expect("bind");
@@ -84,7 +85,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     ctx.bind(&mut k, BINDING_SHADING, &shb).expect("bind");
     ctx.bind(&mut k, BINDING_PIXELS, &pb).expect("bind");
     ctx.bind(&mut k, BINDING_ACCEL_NODES, &out).expect("bind");
-    ctx.dispatch(&k, bytemuck::bytes_of(&dispatch), [1, 1, 1], "layout probe").expect("dispatch");
+    ctx.dispatch(&k, &[], [1, 1, 1], "layout probe").expect("dispatch");
     let back = ctx.read_storage(&out, 0, (expected.len() * 4) as u64).expect("read");
     let got: &[u32] = bytemuck::cast_slice(&back);
     for (i, (g, e)) in got.iter().zip(&expected).enumerate() {

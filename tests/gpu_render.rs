@@ -175,6 +175,40 @@ fn every_pipeline_respects_the_storage_buffer_limit() {
     assert!(ctx.create_kernel("nine", spv, &nine, &[], 0).is_err());
 }
 
+/// Storage classes of the module-scope variables a SPIR-V module declares.
+fn variable_storage_classes(spv: &[u8]) -> Vec<u32> {
+    const OP_VARIABLE: u32 = 59;
+    let words: Vec<u32> = spv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    assert_eq!(words[0], 0x0723_0203, "not SPIR-V");
+    let (mut i, mut out) = (5, Vec::new());
+    while i < words.len() {
+        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        assert!(count > 0, "malformed instruction at word {i}");
+        if op == OP_VARIABLE {
+            out.push(words[i + 3]);
+        }
+        i += count;
+    }
+    out
+}
+
+#[test]
+fn trace_kernels_take_no_push_constants() {
+    // lavapipe compiles a kernel again at every dispatch for the push-constant values
+    // its branches and loops depend on (6-7 ms a dispatch, measured): the trace kernels
+    // read what changes per dispatch from the pixel buffer's header instead.
+    const PUSH_CONSTANT: u32 = 9;
+    let probe = arbor::gpu::spirv::get("math_probe").expect("kernel");
+    assert!(variable_storage_classes(probe).contains(&PUSH_CONSTANT), "the scan must see math_probe's push constants");
+    for kind in AccelKind::ALL {
+        for geometry in ["tris", "spheres", "all"] {
+            let name = format!("trace_{}_{geometry}", kind.kernel());
+            let spv = arbor::gpu::spirv::get(&name).expect("compiled");
+            assert!(!variable_storage_classes(spv).contains(&PUSH_CONSTANT), "{name} declares push constants");
+        }
+    }
+}
+
 #[test]
 fn storage_range_limit_names_the_buffer() {
     let Some(_) = common::gpu() else { return };
@@ -224,7 +258,7 @@ fn validation_errors_fail_the_operation() {
     let spv = arbor::gpu::spirv::get("trace_none_spheres").expect("kernel");
     let short: Vec<BindingDesc> =
         gpu::trace_bindings("none", "spheres").into_iter().filter(|d| d.name != "pixels").collect();
-    let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 32).expect_err("validation must fail this");
+    let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 0).expect_err("validation must fail this");
     let msg = err.to_string();
     assert!(msg.contains("validation") && msg.contains("missing_pixels"), "{msg}");
 }

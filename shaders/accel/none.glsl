@@ -41,12 +41,16 @@ bool scene_box(Ray r) {
     }
 
 // Every primitive of the scene; ANY_EXIT decides what a hit does besides recording it.
+// The counts are specialization constants, not `params.dims`: lavapipe compiles a
+// shader again at every dispatch for a uniform that bounds a loop.
+layout(constant_id = SPEC_TRIANGLE_COUNT) const uint TRIANGLE_COUNT = 0u;
+layout(constant_id = SPEC_SPHERE_COUNT) const uint SPHERE_COUNT = 0u;
 #if HAS_TRIANGLES && HAS_SPHERES
-#define BRUTE_ALL BRUTE_LOOP(params.dims.z, TEST_TRI) BRUTE_LOOP(params.dims.w, TEST_SPH)
+#define BRUTE_ALL BRUTE_LOOP(TRIANGLE_COUNT, TEST_TRI) BRUTE_LOOP(SPHERE_COUNT, TEST_SPH)
 #elif HAS_TRIANGLES
-#define BRUTE_ALL BRUTE_LOOP(params.dims.z, TEST_TRI)
+#define BRUTE_ALL BRUTE_LOOP(TRIANGLE_COUNT, TEST_TRI)
 #else
-#define BRUTE_ALL BRUTE_LOOP(params.dims.w, TEST_SPH)
+#define BRUTE_ALL BRUTE_LOOP(SPHERE_COUNT, TEST_SPH)
 #endif
 
 bool trace_closest(Ray r, inout Hit h) {

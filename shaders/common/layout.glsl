@@ -47,11 +47,6 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     vec4 background;   // 128 rgb, a ambient factor
 } params;
 
-layout(push_constant) uniform DispatchBlock {
-    uvec4 range;  // 0  first pixel, pixel count, first sample, end sample
-    uvec4 chunk;  // 16 x: first pixel held by the pixel buffer
-} dispatch_info;
-
 #if HAS_TRIANGLES
 layout(std430, set = 0, binding = BINDING_VERTICES) readonly buffer VertexBuffer { Vertex vertices[]; };
 layout(std430, set = 0, binding = BINDING_TRIANGLES) readonly buffer TriangleBuffer { uvec4 triangles[]; };
@@ -60,6 +55,15 @@ layout(std430, set = 0, binding = BINDING_TRIANGLES) readonly buffer TriangleBuf
 layout(std430, set = 0, binding = BINDING_SPHERES) readonly buffer SphereBuffer { Sphere spheres[]; };
 #endif
 layout(std430, set = 0, binding = BINDING_SHADING) readonly buffer ShadingBuffer { vec4 shading[]; };
-layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer { Pixel pixels[]; };
+// The pixel buffer opens with the dispatch header (`GpuDispatch`), which the host
+// writes before each dispatch (vkCmdUpdateBuffer). It is storage, not push constants,
+// because lavapipe compiles a shader again, at every dispatch, for the values of push
+// constants and uniforms that its branches and loops depend on (README, "Per-dispatch
+// values live in storage").
+layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
+    uvec4 dispatch_range;  // 0  first pixel, pixel count, first sample, end sample
+    uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer
+    Pixel pixels[];        // 32
+};
 
 #endif

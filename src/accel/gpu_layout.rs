@@ -102,7 +102,10 @@ pub struct GpuParams {
     pub background: [f32; 4],
 }
 
-/// Push constants of one trace dispatch.
+/// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,
+/// `dispatch_chunk` in shaders/common/layout.glsl), written by the host before each
+/// dispatch. Not push constants: lavapipe compiles the kernel again for every new value
+/// of a push constant its branches or loops depend on.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct GpuDispatch {
@@ -166,3 +169,6 @@ const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuPixel>() == 48);
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 32);
+
+/// Bytes before the first [`GpuPixel`] of the pixel buffer: one [`GpuDispatch`].
+pub const PIXEL_HEADER_BYTES: u64 = std::mem::size_of::<GpuDispatch>() as u64;

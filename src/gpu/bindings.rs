@@ -112,7 +112,10 @@ pub const LLVMPIPE_LOOP_BUDGET: u64 = 60_000;
 pub const MAX_STORAGE_BUFFERS_PER_STAGE: u32 = 8;
 
 /// Specialization constant ids.
-pub const SPEC_SHADOWS: u32 = 0;
+/// Lights the trace kernel shades with (0: no shadow rays). A constant, not the
+/// uniform `counts.x`: a loop bounded by a uniform makes lavapipe compile the kernel
+/// again at every dispatch (README, "Per-dispatch values live in storage").
+pub const SPEC_LIGHTS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
 /// Traversal stack entries (tree depth + 1).
 pub const SPEC_STACK_SIZE: u32 = 2;
@@ -131,6 +134,10 @@ pub const SPEC_FIT_GROUP: u32 = 7;
 /// Threads per workgroup of the radix sort's scatter (`build_sort_scatter.comp`): one
 /// subgroup, at most BUILD_SCATTER_MAX_GROUP.
 pub const SPEC_SCATTER_GROUP: u32 = 8;
+/// Triangles and spheres of the scene, the bounds of the brute-force loops (constants
+/// for the reason given at SPEC_LIGHTS).
+pub const SPEC_TRIANGLE_COUNT: u32 = 9;
+pub const SPEC_SPHERE_COUNT: u32 = 10;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -146,7 +153,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
-    ("SPEC_SHADOWS", SPEC_SHADOWS),
+    ("SPEC_LIGHTS", SPEC_LIGHTS),
     ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
     ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
     ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
@@ -155,6 +162,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("SPEC_FIT_GROUP", SPEC_FIT_GROUP),
     ("SPEC_SCATTER_GROUP", SPEC_SCATTER_GROUP),
+    ("SPEC_TRIANGLE_COUNT", SPEC_TRIANGLE_COUNT),
+    ("SPEC_SPHERE_COUNT", SPEC_SPHERE_COUNT),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("BINDING_BUILD_HEADER", BINDING_BUILD_HEADER),
     ("BINDING_BUILD_PRIM_BOUNDS", BINDING_BUILD_PRIM_BOUNDS),

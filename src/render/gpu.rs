@@ -268,16 +268,17 @@ pub fn render_with(
     };
     let stack = accel.stack_size();
     let spec = [
-        (SPEC_SHADOWS, u32::from(use_lights)),
+        (SPEC_LIGHTS, if use_lights { scene.lights.len() as u32 } else { 0 }),
         (SPEC_MAX_DEPTH, max_depth),
         (SPEC_STACK_SIZE, stack),
         (SPEC_TREE_STEPS, tree_steps as u32),
         (SPEC_BRUTE_UNROLL, unroll),
         (SPEC_INTERSECT, scene.intersect.spec()),
         (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
+        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
+        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
     ];
-    let mut kernel =
-        ctx.create_kernel(&kernel_name, spv, &bindings, &spec, std::mem::size_of::<GpuDispatch>() as u32)?;
+    let mut kernel = ctx.create_kernel(&kernel_name, spv, &bindings, &spec, 0)?;
 
     let start = Instant::now();
     let gs = GpuScene::new(scene);
@@ -300,9 +301,9 @@ pub fn render_with(
         background: [scene.background.x, scene.background.y, scene.background.z, scene.ambient],
     };
     let total_pixels = u64::from(w) * u64::from(h);
-    let chunk_pixels = total_pixels
-        .min(MAX_CHUNK_PIXELS)
-        .min((ctx.max_storage_range() / std::mem::size_of::<GpuPixel>() as u64).max(1));
+    let chunk_pixels = total_pixels.min(MAX_CHUNK_PIXELS).min(
+        (ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64).max(1),
+    );
 
     // Buffers: only those the kernel declares are created and bound.
     let uniform = ctx.upload_uniform("params", bytemuck::bytes_of(&params))?;
@@ -328,7 +329,7 @@ pub fn render_with(
                 None => return Err(Error::Usage("brute force has no indices".into())),
             },
             BINDING_PIXELS => {
-                let size = chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
+                let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
                 check_range(ctx, "pixels", size)?;
                 ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?
             }
@@ -386,7 +387,8 @@ pub fn render_with(
                 };
                 let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
                 let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
-                let ms = ctx.dispatch(&kernel, bytemuck::bytes_of(&push), [groups, 1, 1], &label)?;
+                let ms =
+                    ctx.dispatch_after_write(&kernel, pixel_buf, 0, bytemuck::bytes_of(&push), [groups, 1, 1], &label)?;
                 gpu_ms = match (gpu_ms, ms) {
                     (Some(a), Some(b)) => Some(a + b),
                     _ => None,
@@ -398,7 +400,8 @@ pub fn render_with(
             }
             p += n;
         }
-        let bytes = ctx.read_storage(pixel_buf, 0, chunk_len * std::mem::size_of::<GpuPixel>() as u64)?;
+        let bytes =
+            ctx.read_storage(pixel_buf, PIXEL_HEADER_BYTES, chunk_len * std::mem::size_of::<GpuPixel>() as u64)?;
         let px: Vec<GpuPixel> =
             bytes.chunks_exact(std::mem::size_of::<GpuPixel>()).map(bytemuck::pod_read_unaligned::<GpuPixel>).collect();
         for (k, g) in px.iter().enumerate() {
