@@ -43,7 +43,7 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     vec4 scene_min;    // 64
     vec4 scene_max;    // 80
     uvec4 dims;        // 96  width, height, triangles, spheres
-    uvec4 counts;      // 112 lights, materials, seed, flags
+    uvec4 counts;      // 112 lights (the trace loop uses SPEC_LIGHTS), materials, seed, flags
     vec4 background;   // 128 rgb, a ambient factor
 } params;
 

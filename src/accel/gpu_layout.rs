@@ -96,7 +96,8 @@ pub struct GpuParams {
     pub scene_max: [f32; 4],
     /// bytes 96..112: width, height, triangles, spheres
     pub dims: [u32; 4],
-    /// bytes 112..128: lights, materials, seed, flags (unused, 0)
+    /// bytes 112..128: lights, materials, seed, flags (unused, 0). The trace kernel's
+    /// light loop takes its count from the constant SPEC_LIGHTS, not from `counts[0]`.
     pub counts: [u32; 4],
     /// bytes 128..140 background radiance, 140..144 ambient factor
     pub background: [f32; 4],

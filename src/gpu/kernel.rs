@@ -286,7 +286,8 @@ impl Context {
         self.check_dispatch(kernel, &[], groups)?;
         let len = data.len() as u64;
         // vkCmdUpdateBuffer: offset and size multiples of 4, size at most 65536.
-        if offset % 4 != 0 || len % 4 != 0 || len == 0 || len > 65_536 || offset + len > buffer.size() {
+        let in_range = offset.checked_add(len).is_some_and(|end| end <= buffer.size());
+        if offset % 4 != 0 || len % 4 != 0 || len == 0 || len > 65_536 || !in_range {
             return Err(Error::Vulkan {
                 what: format!("write before dispatch '{}'", kernel.name),
                 result: format!(
