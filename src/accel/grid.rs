@@ -75,7 +75,12 @@ impl Default for GridParams {
 impl GridParams {
     /// Parses `lambda=X,cells=N` pairs (either optional) over the default.
     pub fn parse(spec: &str) -> Result<GridParams, String> {
-        let mut p = GridParams::default();
+        Self::parse_onto(GridParams::default(), spec)
+    }
+
+    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
+    pub fn parse_onto(base: GridParams, spec: &str) -> Result<GridParams, String> {
+        let mut p = base;
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if item == "default" {
                 p = GridParams::default();

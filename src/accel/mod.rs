@@ -76,6 +76,28 @@ impl AccelKind {
         }
     }
 
+    /// Whether this is brute force, the baseline every structure is measured against.
+    pub fn is_brute_force(self) -> bool {
+        self == AccelKind::None
+    }
+
+    /// Whether `--build gpu` can build this structure ([`bvh::gpu_build`]).
+    pub fn builds_on_gpu(self) -> bool {
+        matches!(self, AccelKind::Lbvh | AccelKind::Trbvh)
+    }
+
+    /// The command-line flag (without `--`) whose parameters this structure's builder
+    /// reads, if it has any: `kd`, `grid`, `octree` or `trbvh`.
+    pub fn param_flag(self) -> Option<&'static str> {
+        match self {
+            AccelKind::Kdtree => Some("kd"),
+            AccelKind::Trbvh => Some("trbvh"),
+            AccelKind::Grid => Some("grid"),
+            AccelKind::Octree => Some("octree"),
+            AccelKind::None | AccelKind::BspCourse | AccelKind::BvhSah | AccelKind::Lbvh => None,
+        }
+    }
+
     /// The kernel family (`trace_<kernel>_<geometry>`) that traverses this structure.
     pub fn kernel(self) -> &'static str {
         match self {
@@ -218,6 +240,32 @@ pub struct AccelParams {
     pub octree: octree::OctreeParams,
     /// trbvh's treelet restructuring.
     pub treelet: bvh::treelet::TreeletParams,
+}
+
+impl AccelParams {
+    /// Every structure's parameter flag (see [`AccelKind::param_flag`]).
+    pub const FLAGS: &'static [&'static str] = &["kd", "grid", "octree", "trbvh"];
+
+    /// Applies `spec` (a preset and/or KEY=VALUE pairs) to the parameters that
+    /// `--<flag>` sets, on top of their current values.
+    pub fn set_flag(&mut self, flag: &str, spec: &str) -> Result<(), String> {
+        match flag {
+            "kd" => self.kd = kdtree::KdParams::parse_onto(self.kd, spec)?,
+            "grid" => self.grid = grid::GridParams::parse_onto(self.grid, spec)?,
+            "octree" => self.octree = octree::OctreeParams::parse_onto(self.octree, spec)?,
+            "trbvh" => self.treelet = bvh::treelet::TreeletParams::parse_onto(self.treelet, spec)?,
+            _ => return Err(format!("no structure takes --{flag}")),
+        }
+        Ok(())
+    }
+
+    /// Applies `spec` to the parameters of `kind`'s builder; an error if it has none.
+    pub fn apply(&mut self, kind: AccelKind, spec: &str) -> Result<(), String> {
+        match kind.param_flag() {
+            Some(flag) => self.set_flag(flag, spec),
+            None => Err(format!("{kind} takes no parameters")),
+        }
+    }
 }
 
 /// A built structure of any kind, with the common surface.

@@ -66,7 +66,12 @@ impl Default for OctreeParams {
 impl OctreeParams {
     /// Parses `leaf=N,depth=N` pairs (either optional) over the default.
     pub fn parse(spec: &str) -> Result<OctreeParams, String> {
-        let mut p = OctreeParams::default();
+        Self::parse_onto(OctreeParams::default(), spec)
+    }
+
+    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
+    pub fn parse_onto(base: OctreeParams, spec: &str) -> Result<OctreeParams, String> {
+        let mut p = base;
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             if item == "default" {
                 p = OctreeParams::default();

@@ -119,7 +119,12 @@ impl TreeletParams {
     /// `gamma=A/B/...` (γ of each round as multiples of the treelet size; it sets the
     /// rounds too) over the default.
     pub fn parse(spec: &str) -> Result<TreeletParams, String> {
-        let mut p = TreeletParams::default();
+        Self::parse_onto(TreeletParams::default(), spec)
+    }
+
+    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
+    pub fn parse_onto(base: TreeletParams, spec: &str) -> Result<TreeletParams, String> {
+        let mut p = base;
         let keys = "leaves=3..7, rounds=0..8, gamma=A/B/... (multiples of leaves, one per round)";
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             match item {

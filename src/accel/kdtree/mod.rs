@@ -72,7 +72,12 @@ impl KdParams {
     /// commas, applied over the default: `kt`, `ki`, `bonus`, `leaf`, `perfect`
     /// (true/false), `depth` (a number or `auto`).
     pub fn parse(spec: &str) -> Result<KdParams, String> {
-        let mut p = KdParams::default();
+        Self::parse_onto(KdParams::default(), spec)
+    }
+
+    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
+    pub fn parse_onto(base: KdParams, spec: &str) -> Result<KdParams, String> {
+        let mut p = base;
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
             match item {
                 "default" => p = KdParams::default(),
