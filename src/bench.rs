@@ -153,7 +153,7 @@ fn bench_round(
     ctx: &Context,
     scene: &Scene,
     (kind, params): (AccelKind, &crate::accel::AccelParams),
-    rays: RayKind,
+    (rays, mode): (RayKind, IntersectMode),
     timed: bool,
     case: &mut Case,
     pipelines: &mut Option<crate::accel::bvh::gpu_build::GpuBuilder>,
@@ -162,6 +162,7 @@ fn bench_round(
     settings.primary_only = rays == RayKind::Primary;
     settings.diffuse_probe = rays == RayKind::Diffuse;
     settings.accel = kind;
+    settings.intersect = mode;
     let first = if timed {
         let accel = crate::accel::Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
         Some(accel.timing())
@@ -443,13 +444,12 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                 let what = if round == 0 { "warm-up".to_string() } else { format!("round {round} of {repeat}") };
                 for run in runs.iter_mut().filter(|r| r.error.is_none()) {
                     progress.message(format!("{short}, {}, {what}", run.label));
-                    scene.intersect = run.mode;
                     let timed = round > 0;
                     let done = bench_round(
                         ctx,
                         &scene,
                         (run.kind, run.params),
-                        kind_of_rays,
+                        (kind_of_rays, run.mode),
                         timed,
                         &mut run.case,
                         &mut run.pipelines,
@@ -473,7 +473,6 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
             }
             for run in runs {
                 let Run { kind, params: p, label, mi, mode, case: c, error, .. } = run;
-                scene.intersect = mode;
                 let size = c.size;
                 let mut row = Row {
                     scene: name.clone(),
@@ -521,7 +520,7 @@ pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()>
                 let aimed = if name.starts_with("builtin:inside:") && kind != AccelKind::None {
                     let accel = crate::accel::Accel::build_with(kind, &scene, p);
                     let rays = crate::render::cracks::aimed_rays(&scene, glam::Vec3::ZERO, 0.3, AIMED_RAYS, 11);
-                    Some(crate::render::cracks::escapes(&scene, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
+                    Some(crate::render::cracks::escapes(&scene, mode, &accel, &rays) as f64 * 1e6 / AIMED_RAYS as f64)
                 } else {
                     None
                 };

@@ -389,8 +389,7 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--spp must be 1..=1048576, got {spp}");
             }
             let size = size.as_deref().map(parse_size).transpose()?;
-            let mut scene = Scene::load(&scene)?;
-            scene.intersect = intersect;
+            let scene = Scene::load(&scene)?;
             let (w, h) = size.unwrap_or((scene.width, scene.height));
             let (accel, why) = resolve_accel(&accel, &scene, u64::from(w) * u64::from(h), spp)?;
             if let (Some(why), false) = (&why, quiet) {
@@ -400,6 +399,7 @@ fn run(cli: Cli) -> Result<()> {
             let mut settings = RenderSettings::for_size(w, h);
             settings.spp = spp;
             settings.seed = seed;
+            settings.intersect = intersect;
             settings.accel = accel;
             settings.params = params;
             settings.dispatch_budget = dispatch_budget.max(1);

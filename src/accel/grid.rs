@@ -36,6 +36,7 @@
 //! cell's exit (by the kd-tree's relative margin); a hit further on is kept as the best
 //! so far, which is correct because it is a real hit, and cells after it are skipped.
 
+use super::validate::ValidateError;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -46,7 +47,7 @@ use super::prim::{self, PrimGeom};
 use super::sah::{self, SahCosts};
 use super::BuildStats;
 use crate::math::aabb::FLAT_RCP;
-use crate::math::intersect::intersect_prim;
+use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -325,29 +326,29 @@ impl Grid {
     /// Checks the invariants: prefix sums ascending and complete, indices valid and
     /// ascending per cell, and every primitive listed in every cell whose box (shrunk
     /// by a relative 1e-5, so touching a face does not count) it overlaps.
-    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+    pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
         let ncells = self.cell_count();
         if self.res.iter().any(|&r| r == 0 || r > MAX_RES) {
-            return Err(format!("resolution {:?} outside 1..={MAX_RES}", self.res));
+            return Err(ValidateError::whole(format!("resolution {:?} outside 1..={MAX_RES}", self.res)));
         }
         if self.start.len() != ncells + 1 || self.start[0] != 0 {
-            return Err(format!("{} cell starts for {ncells} cells", self.start.len()));
+            return Err(ValidateError::whole(format!("{} cell starts for {ncells} cells", self.start.len())));
         }
         if self.start.windows(2).any(|w| w[0] > w[1]) || self.start[ncells] as usize != self.indices.len() {
-            return Err("cell starts are not ascending prefix sums of the index array".into());
+            return Err(ValidateError::whole("cell starts are not ascending prefix sums of the index array"));
         }
         let np = scene.prim_count() as u32;
         for c in 0..ncells {
             let list = &self.indices[self.start[c] as usize..self.start[c + 1] as usize];
             if let Some(bad) = list.iter().find(|&&p| p >= np) {
-                return Err(format!("cell {c} references primitive {bad} of {np}"));
+                return Err(ValidateError::cell(c, format!("references primitive {bad} of {np}")));
             }
             if list.windows(2).any(|w| w[0] >= w[1]) {
-                return Err(format!("cell {c}: primitive list not strictly ascending"));
+                return Err(ValidateError::cell(c, "primitive list not strictly ascending"));
             }
         }
         if np > 0 && (self.bounds.is_empty() || !self.bounds.min.is_finite() || !self.bounds.max.is_finite()) {
-            return Err(format!("grid box {:?} is empty or not finite", self.bounds));
+            return Err(ValidateError::whole(format!("grid box {:?} is empty or not finite", self.bounds)));
         }
         let missing = (0..np).into_par_iter().find_map_first(|p| {
             let g = prim::geom(scene, p);
@@ -368,7 +369,7 @@ impl Grid {
                         let c = self.cell_index([x, y, z]);
                         let list = &self.indices[self.start[c] as usize..self.start[c + 1] as usize];
                         if list.binary_search(&p).is_err() {
-                            return Some(format!("primitive {p} overlaps cell {c} ({cb:?}) but is not in it"));
+                            return Some(ValidateError::prim(p, format!("overlaps cell {c} ({cb:?}) but is not in it")));
                         }
                     }
                 }
@@ -382,7 +383,7 @@ impl Grid {
     }
 
     /// 3D-DDA in ray parameter t; see the module doc. Twin of `grid_traverse`.
-    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         if self.prims == 0 {
             return false;
         }
@@ -426,7 +427,7 @@ impl Grid {
         loop {
             let c = self.cell_index(idx);
             for &p in &self.indices[self.start[c] as usize..self.start[c + 1] as usize] {
-                if intersect_prim(scene, p, ray, best) {
+                if intersect_prim(prims, p, ray, best) {
                     found = true;
                     if any {
                         return true;
@@ -475,8 +476,34 @@ impl Grid {
 }
 
 impl super::Traverse for Grid {
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(scene, ray, best, any)
+    fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(prims, ray, best, any)
+    }
+}
+
+impl super::Structure for Grid {
+    fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
+        Grid::validate(self, scene)
+    }
+    fn stats(&self, _scene: &Scene) -> BuildStats {
+        Grid::stats(self)
+    }
+    fn timing(&self) -> (f64, Vec<super::Phase>) {
+        Grid::timing(self)
+    }
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+    fn gpu_image(&self, _scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
+        let (words, indices) = self.to_gpu();
+        Ok(super::GpuImage {
+            family: "grid",
+            buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
+            stack_size: 1,
+            // About half the cells along the diagonal, a few primitives each.
+            cost_per_ray: self.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,
+            trace_loop: super::TraceLoop::StepBudget,
+        })
     }
 }
 

@@ -22,6 +22,10 @@ pub mod none;
 pub mod octree;
 pub mod prim;
 pub mod sah;
+pub mod validate;
+
+pub use prim::Prims;
+pub use validate::{Site, ValidateError};
 
 use std::fmt;
 use std::str::FromStr;
@@ -121,7 +125,7 @@ impl FromStr for AccelKind {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "none" | "brute-force" => Ok(AccelKind::None),
-            "kdtree" | "kd" | "bsp" => Ok(AccelKind::Kdtree),
+            "kdtree" | "kd" => Ok(AccelKind::Kdtree),
             "bsp-course" => Ok(AccelKind::BspCourse),
             "bvh-sah" | "bvh" => Ok(AccelKind::BvhSah),
             "lbvh" => Ok(AccelKind::Lbvh),
@@ -136,7 +140,9 @@ impl FromStr for AccelKind {
     }
 }
 
-/// What building a structure cost and produced.
+/// What building a structure cost and produced. Every field means the same for every
+/// structure: a grid cell counts as a leaf, an absent octant or an empty BVH child as an
+/// empty leaf, and brute force as one leaf holding everything.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct BuildStats {
     pub kind: String,
@@ -144,10 +150,15 @@ pub struct BuildStats {
     pub build_ms: f64,
     /// Bytes of the structure as uploaded (nodes + indices).
     pub bytes: u64,
+    /// Inner nodes plus leaves (as counted in `leaves`).
     pub nodes: u64,
+    /// Deepest leaf; the root is depth 0 for trees, and grids and brute force are 0.
     pub max_depth: u32,
+    /// Every leaf, empty ones included.
     pub leaves: u64,
+    /// Leaves that hold no primitive (a subset of `leaves`).
     pub empty_leaves: u64,
+    /// Mean depth over every leaf, empty ones included.
     pub mean_leaf_depth: f64,
     /// Primitive references in leaves per primitive.
     pub refs_per_prim: f64,
@@ -178,26 +189,85 @@ pub struct Phase {
 pub trait Traverse {
     /// Front-to-back traversal that records hits in `best` (whose t bounds the ray);
     /// with `any`, stops at the first hit. Returns whether it hit.
-    fn traverse(
-        &self,
-        scene: &crate::scene::Scene,
-        ray: &crate::math::Ray,
-        best: &mut crate::math::Hit,
-        any: bool,
-    ) -> bool;
+    fn traverse(&self, prims: &Prims, ray: &crate::math::Ray, best: &mut crate::math::Hit, any: bool) -> bool;
 
-    /// Nearest hit.
+    /// Nearest hit with the watertight ray/triangle test.
     fn intersect(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> Option<crate::math::Hit> {
+        self.intersect_with(&Prims::new(scene), ray)
+    }
+
+    /// Nearest hit with the ray/triangle test of `prims`.
+    fn intersect_with(&self, prims: &Prims, ray: &crate::math::Ray) -> Option<crate::math::Hit> {
         let mut best = crate::math::Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, false);
+        self.traverse(prims, ray, &mut best, false);
         (best.prim != u32::MAX).then_some(best)
     }
 
-    /// Whether anything lies in (tmin, tmax].
+    /// Whether anything lies in (tmin, tmax], with the watertight test.
     fn occluded(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> bool {
-        let mut best = crate::math::Hit::none(ray.tmax);
-        self.traverse(scene, ray, &mut best, true)
+        self.occluded_with(&Prims::new(scene), ray)
     }
+
+    /// Whether anything lies in (tmin, tmax], with the test of `prims`.
+    fn occluded_with(&self, prims: &Prims, ray: &crate::math::Ray) -> bool {
+        let mut best = crate::math::Hit::none(ray.tmax);
+        self.traverse(prims, ray, &mut best, true)
+    }
+}
+
+/// The one surface of every structure (brute force included): invariants, statistics,
+/// the image the GPU kernel reads, and CPU traversal ([`Traverse`]). Builders are
+/// reached through [`Accel::build_with`], each with its documented parameters.
+pub trait Structure: Traverse + Send + Sync {
+    /// Checks the structure's invariants against the scene it was built for.
+    fn validate(&self, scene: &crate::scene::Scene) -> Result<(), ValidateError>;
+    /// Statistics with the meanings [`BuildStats`] documents.
+    fn stats(&self, scene: &crate::scene::Scene) -> BuildStats;
+    /// Build time and phases alone, as `stats` reports them, without walking the
+    /// structure for the rest.
+    fn timing(&self) -> (f64, Vec<Phase>);
+    /// The box rays are first clipped to.
+    fn bounds(&self) -> crate::math::Aabb;
+    /// What the kernel needs: buffers, stack size, loop bounds, checked against the
+    /// kernel's limits (an error names the limit crossed).
+    fn gpu_image(&self, scene: &crate::scene::Scene) -> Result<GpuImage<'_>, ValidateError>;
+}
+
+/// How a structure's kernel bounds its loops (llvmpipe, which has no watchdog, needs
+/// every loop bounded; see docs/kernels.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TraceLoop {
+    /// Loops over primitive lists of these lengths, unrolled by `SPEC_BRUTE_UNROLL`.
+    Unrolled { lengths: [u64; 2] },
+    /// A traversal loop the kernel stops after `SPEC_TREE_STEPS` steps, flagging the
+    /// pixel.
+    StepBudget,
+}
+
+impl TraceLoop {
+    /// Loop iterations of one trace: with `unroll` for unrolled loops, or `budget`.
+    pub fn iterations(self, unroll: u32, budget: u64) -> u64 {
+        match self {
+            TraceLoop::Unrolled { lengths } => {
+                lengths.iter().map(|&n| n.div_ceil(u64::from(unroll.max(1)))).sum::<u64>() + 2
+            }
+            TraceLoop::StepBudget => budget,
+        }
+    }
+}
+
+/// A structure as the trace kernel reads it.
+#[derive(Debug, Clone)]
+pub struct GpuImage<'a> {
+    /// Kernel family: `shaders/accel/<family>.glsl`, kernels `trace_<family>_<geometry>`.
+    pub family: &'static str,
+    /// Node words and index words; `None` binds neither buffer.
+    pub buffers: Option<(std::borrow::Cow<'a, [u8]>, &'a [u32])>,
+    /// Entries of the kernel's traversal stack (`SPEC_STACK_SIZE`).
+    pub stack_size: u32,
+    /// Estimated work (primitive tests or traversal steps) of one ray, to size dispatches.
+    pub cost_per_ray: u64,
+    pub trace_loop: TraceLoop,
 }
 
 /// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh and
@@ -339,96 +409,44 @@ impl Accel {
         }
     }
 
-    /// Checks the structure's invariants against the scene.
-    pub fn validate(&self, scene: &crate::scene::Scene) -> Result<(), String> {
+    /// The structure behind its one surface.
+    pub fn surface(&self) -> &dyn Structure {
         match self {
-            Accel::None(b) => b.validate(),
-            Accel::Kd(t) => t.validate(scene),
-            Accel::Bvh(t) => t.validate(scene),
-            Accel::Grid(t) => t.validate(scene),
-            Accel::Octree(t) => t.validate(scene),
+            Accel::None(t) => t,
+            Accel::Kd(t) => t,
+            Accel::Bvh(t) => t,
+            Accel::Grid(t) => t,
+            Accel::Octree(t) => t,
         }
+    }
+
+    /// Checks the structure's invariants against the scene.
+    pub fn validate(&self, scene: &crate::scene::Scene) -> Result<(), ValidateError> {
+        self.surface().validate(scene)
     }
 
     pub fn stats(&self, scene: &crate::scene::Scene) -> BuildStats {
-        match self {
-            Accel::None(b) => b.stats(scene),
-            Accel::Kd(t) => t.stats(),
-            Accel::Bvh(t) => t.stats(),
-            Accel::Grid(t) => t.stats(),
-            Accel::Octree(t) => t.stats(),
-        }
+        self.surface().stats(scene)
     }
 
-    /// Build time and phases alone, as [`Accel::stats`] reports them, without walking
-    /// the structure for the rest.
+    /// Build time and phases alone, as [`Accel::stats`] reports them.
     pub fn timing(&self) -> (f64, Vec<Phase>) {
-        match self {
-            Accel::None(b) => b.timing(),
-            Accel::Kd(t) => t.timing(),
-            Accel::Bvh(t) => t.timing(),
-            Accel::Grid(t) => t.timing(),
-            Accel::Octree(t) => t.timing(),
-        }
+        self.surface().timing()
     }
 
     /// The box rays are first clipped to.
     pub fn bounds(&self) -> crate::math::Aabb {
-        match self {
-            Accel::None(b) => b.bounds,
-            Accel::Kd(t) => t.bounds,
-            Accel::Bvh(t) => t.bounds,
-            Accel::Grid(t) => t.bounds,
-            Accel::Octree(t) => t.bounds,
-        }
+        self.surface().bounds()
     }
 
-    /// Nearest hit (CPU traversal, the test oracle).
-    pub fn intersect(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> Option<crate::math::Hit> {
-        match self {
-            Accel::None(b) => b.intersect(scene, ray),
-            Accel::Kd(t) => t.intersect(scene, ray),
-            Accel::Bvh(t) => t.intersect(scene, ray),
-            Accel::Grid(t) => t.intersect(scene, ray),
-            Accel::Octree(t) => t.intersect(scene, ray),
-        }
+    /// What the trace kernel reads, checked against its limits.
+    pub fn gpu_image(&self, scene: &crate::scene::Scene) -> Result<GpuImage<'_>, ValidateError> {
+        self.surface().gpu_image(scene)
     }
+}
 
-    /// Any hit (CPU traversal).
-    pub fn occluded(&self, scene: &crate::scene::Scene, ray: &crate::math::Ray) -> bool {
-        match self {
-            Accel::None(b) => b.occluded(scene, ray),
-            Accel::Kd(t) => t.occluded(scene, ray),
-            Accel::Bvh(t) => t.occluded(scene, ray),
-            Accel::Grid(t) => t.occluded(scene, ray),
-            Accel::Octree(t) => t.occluded(scene, ray),
-        }
-    }
-
-    /// Node and index words as the kernel reads them (None for brute force).
-    pub fn gpu_buffers(&self) -> Option<(std::borrow::Cow<'_, [u8]>, &[u32])> {
-        use std::borrow::Cow;
-        match self {
-            Accel::None(_) => None,
-            Accel::Kd(t) => Some((Cow::Borrowed(bytemuck::cast_slice(t.to_gpu().0)), t.to_gpu().1)),
-            Accel::Bvh(t) => Some((Cow::Borrowed(bytemuck::cast_slice(t.to_gpu().0)), t.to_gpu().1)),
-            Accel::Grid(t) => {
-                let (w, i) = t.to_gpu();
-                Some((Cow::Owned(bytemuck::cast_slice(&w).to_vec()), i))
-            }
-            Accel::Octree(t) => {
-                let (w, i) = t.to_gpu();
-                Some((Cow::Owned(bytemuck::cast_slice(&w).to_vec()), i))
-            }
-        }
-    }
-
-    /// Entries the traversal kernel's stack needs (1 for structures without a stack).
-    pub fn stack_size(&self) -> u32 {
-        match self {
-            Accel::Kd(t) => t.depth + 1,
-            Accel::Bvh(t) => t.depth + 1,
-            Accel::None(_) | Accel::Grid(_) | Accel::Octree(_) => 1,
-        }
+impl Traverse for Accel {
+    fn traverse(&self, prims: &Prims, ray: &crate::math::Ray, best: &mut crate::math::Hit, any: bool) -> bool {
+        self.surface().traverse(prims, ray, best, any)
     }
 }

@@ -6,6 +6,8 @@ use std::time::Instant;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
+use super::prim::{intersect_prim, Prims};
+use super::validate::ValidateError;
 use super::BuildStats;
 
 /// The scene box, the only state brute force needs.
@@ -24,52 +26,72 @@ impl BruteForce {
     }
 
     /// The box is non-empty and finite.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ValidateError> {
         if self.bounds.is_empty() || !self.bounds.min.is_finite() || !self.bounds.max.is_finite() {
-            return Err(format!("scene box {:?} is empty or not finite", self.bounds));
+            return Err(ValidateError::whole(format!("scene box {:?} is empty or not finite", self.bounds)));
         }
         Ok(())
     }
+}
 
-    /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
-    pub fn timing(&self) -> (f64, Vec<super::Phase>) {
+impl super::Structure for BruteForce {
+    fn validate(&self, _scene: &Scene) -> Result<(), ValidateError> {
+        BruteForce::validate(self)
+    }
+
+    fn timing(&self) -> (f64, Vec<super::Phase>) {
         (self.build_ms, Vec::new())
     }
 
-    pub fn stats(&self, scene: &Scene) -> BuildStats {
+    /// One leaf holding every primitive.
+    fn stats(&self, scene: &Scene) -> BuildStats {
         let n = scene.prim_count();
         BuildStats {
             kind: "none".into(),
             build_ms: self.build_ms,
+            nodes: 1,
             leaves: 1,
+            empty_leaves: u64::from(n == 0),
             refs_per_prim: 1.0,
+            prims_per_leaf: n as f64,
             mean_leaf_depth: 0.0,
             sah_cost: f64::from(super::sah::SahCosts::default().leaf(n)),
             ..Default::default()
         }
     }
 
-    /// Nearest hit in (tmin, tmax]; at equal t the lower primitive index wins, exactly
-    /// like the GPU loop.
-    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let inv = Aabb::inv_dir(ray.dir);
-        self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax)?;
-        let mut best = Hit::none(ray.tmax);
-        for p in 0..scene.prim_count() as u32 {
-            crate::math::intersect::intersect_prim(scene, p, ray, &mut best);
-        }
-        (best.prim != u32::MAX).then_some(best)
+    fn bounds(&self) -> Aabb {
+        self.bounds
     }
 
-    /// Whether anything lies in (tmin, tmax).
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
+    fn gpu_image(&self, scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
+        Ok(super::GpuImage {
+            family: "none",
+            buffers: None,
+            stack_size: 1,
+            cost_per_ray: scene.prim_count().max(1) as u64,
+            trace_loop: super::TraceLoop::Unrolled {
+                lengths: [scene.triangles.len() as u64, scene.spheres.len() as u64],
+            },
+        })
+    }
+}
+
+/// Every primitive in index order after the scene-box test; at equal t the lower
+/// primitive index wins, exactly like the GPU loop.
+impl super::Traverse for BruteForce {
+    fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
             return false;
         }
-        scene.triangles.iter().any(|t| {
-            let [a, b, c] = t.map(|k| scene.positions[k as usize]);
-            crate::math::intersect::ray_triangle(ray, a, b, c, scene.intersect).is_some()
-        }) || scene.spheres.iter().any(|s| crate::math::intersect::ray_sphere(ray, s.center, s.radius).is_some())
+        let mut hit = false;
+        for p in 0..prims.scene.prim_count() as u32 {
+            hit |= intersect_prim(prims, p, ray, best);
+            if hit && any {
+                return true;
+            }
+        }
+        hit
     }
 }

@@ -26,6 +26,7 @@
 //! the nodes. A node's centre is `0.5 min + 0.5 max` of its box, computed the same way
 //! here and in the kernel, so a child's faces are bit for bit its ancestors' centres.
 
+use super::validate::ValidateError;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -36,7 +37,7 @@ use super::prim::{self, PrimGeom};
 use super::sah::{self, SahCosts};
 use super::BuildStats;
 use crate::math::aabb::FLAT_RCP;
-use crate::math::intersect::intersect_prim;
+use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -279,7 +280,8 @@ impl Octree {
             kind: "octree".into(),
             build_ms: self.build_ms,
             bytes: self.bytes(),
-            nodes: self.nodes.len() as u64,
+            // Stored records (inner nodes and leaves) plus the absent octants.
+            nodes: self.nodes.len() as u64 + absent.0,
             max_depth: self.depth,
             leaves: leaves + absent.0,
             empty_leaves: empty + absent.0,
@@ -297,9 +299,9 @@ impl Octree {
     /// limit, indices valid and ascending per leaf, and every primitive listed in every
     /// leaf whose box (shrunk by a relative 1e-5) it overlaps and present in no absent
     /// octant it overlaps.
-    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+    pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
         if self.depth > MAX_OCTREE_DEPTH {
-            return Err(format!("depth {} exceeds {MAX_OCTREE_DEPTH}", self.depth));
+            return Err(ValidateError::whole(format!("depth {} exceeds {MAX_OCTREE_DEPTH}", self.depth)));
         }
         let n = self.nodes.len();
         let np = scene.prim_count() as u32;
@@ -307,18 +309,18 @@ impl Octree {
             if w0 & LEAF != 0 {
                 let (first, count) = (w1 as usize, (w0 & !LEAF) as usize);
                 let Some(list) = self.indices.get(first..first + count) else {
-                    return Err(format!("leaf {i} indexes past the index array"));
+                    return Err(ValidateError::node(i, "leaf indexes past the index array"));
                 };
                 if let Some(bad) = list.iter().find(|&&p| p >= np) {
-                    return Err(format!("leaf {i} references primitive {bad} of {np}"));
+                    return Err(ValidateError::node(i, format!("leaf references primitive {bad} of {np}")));
                 }
                 if list.windows(2).any(|w| w[0] >= w[1]) {
-                    return Err(format!("leaf {i}: primitive list not strictly ascending"));
+                    return Err(ValidateError::node(i, "leaf primitive list not strictly ascending"));
                 }
             } else {
                 let kids = (w0 & 0xff).count_ones() as usize;
                 if w0 & !0xff != 0 || kids == 0 || w1 as usize <= i || w1 as usize + kids > n {
-                    return Err(format!("inner node {i}: mask {w0:#x} / first child {w1} invalid"));
+                    return Err(ValidateError::node(i, format!("inner node mask {w0:#x} / first child {w1} invalid")));
                 }
             }
         }
@@ -334,7 +336,7 @@ impl Octree {
                     }
                     let first = w1 as usize;
                     if self.indices[first..first + (w0 & !LEAF) as usize].binary_search(&p).is_err() {
-                        return Some(format!("primitive {p} overlaps leaf {node} ({b:?}) but is not in it"));
+                        return Some(ValidateError::prim(p, format!("overlaps leaf {node} ({b:?}) but is not in it")));
                     }
                     continue;
                 }
@@ -349,7 +351,7 @@ impl Octree {
                         } else {
                             let inner = shrink(&ob);
                             if !inner.is_empty() && prim::overlaps(&g, &inner) {
-                                return Some(format!("primitive {p} overlaps absent octant {k} of node {node}"));
+                                return Some(ValidateError::prim(p, format!("overlaps absent octant {k} of node {node}")));
                             }
                         }
                     }
@@ -376,7 +378,7 @@ impl Octree {
     /// A cell inside the previous cell's parent is found from that parent; otherwise
     /// the descent starts at the root. That costs node reads but needs no stack: on
     /// llvmpipe, stack arrays live in scratch memory and cost more than the reads.
-    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         if self.prims == 0 {
             return false;
         }
@@ -431,7 +433,7 @@ impl Octree {
             };
             if let Some((first, count)) = leaf {
                 for &p in &self.indices[first..first + count] {
-                    if intersect_prim(scene, p, ray, best) {
+                    if intersect_prim(prims, p, ray, best) {
                         found = true;
                         if any {
                             return true;
@@ -590,7 +592,39 @@ fn fill(node: BuildNode, slot: &mut [u32; 2], below: &mut [[u32; 2]], base: usiz
 }
 
 impl super::Traverse for Octree {
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(scene, ray, best, any)
+    fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(prims, ray, best, any)
+    }
+}
+
+impl super::Structure for Octree {
+    fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
+        Octree::validate(self, scene)
+    }
+    fn stats(&self, _scene: &Scene) -> BuildStats {
+        Octree::stats(self)
+    }
+    fn timing(&self) -> (f64, Vec<super::Phase>) {
+        Octree::timing(self)
+    }
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+    fn gpu_image(&self, _scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
+        if self.depth > MAX_OCTREE_DEPTH {
+            return Err(ValidateError::whole(format!(
+                "octree depth {} exceeds the kernel's limit of {MAX_OCTREE_DEPTH}",
+                self.depth
+            )));
+        }
+        let (words, indices) = self.to_gpu();
+        Ok(super::GpuImage {
+            family: "octree",
+            buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
+            stack_size: 1,
+            // A descent from the root per cell visited.
+            cost_per_ray: 8 * (u64::from(self.depth) + 4),
+            trace_loop: super::TraceLoop::StepBudget,
+        })
     }
 }

@@ -4,8 +4,57 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::math::Aabb;
+use crate::math::intersect::{ray_sphere, ray_triangle, IntersectMode};
+use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
+
+/// What CPU traversal tests rays against: the scene's primitives (triangles first, then
+/// spheres) with the ray/triangle test the render uses. The intersection mode is a
+/// render setting, not part of the scene.
+#[derive(Debug, Clone, Copy)]
+pub struct Prims<'a> {
+    pub scene: &'a Scene,
+    pub mode: IntersectMode,
+}
+
+impl<'a> Prims<'a> {
+    /// The scene's primitives with the watertight ray/triangle test (the default).
+    pub fn new(scene: &'a Scene) -> Prims<'a> {
+        Prims { scene, mode: IntersectMode::Watertight }
+    }
+
+    /// The scene's primitives with the ray/triangle test `mode`.
+    pub fn with_mode(scene: &'a Scene, mode: IntersectMode) -> Prims<'a> {
+        Prims { scene, mode }
+    }
+}
+
+/// Tests primitive `prim` against `ray` clipped to the best hit so far, and records it
+/// if it wins. Twin of `intersect_triangle` / `intersect_sphere` in trace.comp.
+#[inline]
+pub fn intersect_prim(prims: &Prims, prim: u32, ray: &Ray, best: &mut Hit) -> bool {
+    let scene = prims.scene;
+    let nt = scene.triangles.len() as u32;
+    let r = Ray { tmax: best.t, ..*ray };
+    if prim < nt {
+        let [a, b, c] = scene.triangles[prim as usize].map(|k| scene.positions[k as usize]);
+        if let Some((t, u, v)) = ray_triangle(&r, a, b, c, prims.mode) {
+            if best.closer(t, prim) {
+                *best = Hit { t, prim, u, v };
+                return true;
+            }
+        }
+    } else {
+        let s = &scene.spheres[(prim - nt) as usize];
+        if let Some(t) = ray_sphere(&r, s.center, s.radius) {
+            if best.closer(t, prim) {
+                *best = Hit { t, prim, u: 0.0, v: 0.0 };
+                return true;
+            }
+        }
+    }
+    false
+}
 
 /// The geometry of primitive `i` (triangles first, then spheres).
 #[derive(Debug, Clone, Copy)]

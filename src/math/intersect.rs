@@ -39,33 +39,6 @@ impl Hit {
     }
 }
 
-/// Tests primitive `prim` of `scene` (triangles first, then spheres) against `ray`
-/// clipped to the best hit so far, and records it if it wins. Twin of
-/// `intersect_triangle` / `intersect_sphere` in trace.comp.
-#[inline]
-pub fn intersect_prim(scene: &crate::scene::Scene, prim: u32, ray: &Ray, best: &mut Hit) -> bool {
-    let nt = scene.triangles.len() as u32;
-    let r = Ray { tmax: best.t, ..*ray };
-    if prim < nt {
-        let [a, b, c] = scene.triangles[prim as usize].map(|k| scene.positions[k as usize]);
-        if let Some((t, u, v)) = ray_triangle(&r, a, b, c, scene.intersect) {
-            if best.closer(t, prim) {
-                *best = Hit { t, prim, u, v };
-                return true;
-            }
-        }
-    } else {
-        let s = &scene.spheres[(prim - nt) as usize];
-        if let Some(t) = ray_sphere(&r, s.center, s.radius) {
-            if best.closer(t, prim) {
-                *best = Hit { t, prim, u: 0.0, v: 0.0 };
-                return true;
-            }
-        }
-    }
-    false
-}
-
 #[inline]
 fn dot3(a: Vec3, b: Vec3) -> f32 {
     a.x * b.x + a.y * b.y + a.z * b.z

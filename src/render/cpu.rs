@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::Frame;
 use crate::accel::none::BruteForce;
+use crate::accel::Traverse;
 use crate::math::{Hit, Ray};
 use crate::scene::Scene;
 
@@ -89,8 +90,6 @@ pub fn reference_prims(
     height: u32,
     stride: usize,
 ) -> Vec<(usize, u32)> {
-    let mut sc = scene.clone();
-    sc.intersect = crate::math::intersect::IntersectMode::Watertight;
     let basis = scene.camera.basis(width, height);
     let pixels: Vec<usize> = (0..(width as usize * height as usize)).step_by(stride.max(1)).collect();
     pixels
@@ -103,7 +102,7 @@ pub fn reference_prims(
                 tmin: 0.0,
                 tmax: f32::INFINITY,
             };
-            (k, accel.intersect(&sc, &ray).map_or(u32::MAX, |h| h.prim))
+            (k, accel.intersect(scene, &ray).map_or(u32::MAX, |h| h.prim))
         })
         .collect()
 }

@@ -5,7 +5,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::Accel;
+use crate::accel::{Accel, Prims, Traverse};
+use crate::math::intersect::IntersectMode;
 use crate::math::Ray;
 use crate::scene::Scene;
 
@@ -56,6 +57,7 @@ pub fn aimed_rays(scene: &Scene, centre: Vec3, radius: f32, n: usize, seed: u64)
 }
 
 /// Rays that hit nothing (CPU traversal of `accel`, in the scene's intersection mode).
-pub fn escapes(scene: &Scene, accel: &Accel, rays: &[Ray]) -> usize {
-    rays.par_iter().filter(|r| accel.intersect(scene, r).is_none()).count()
+pub fn escapes(scene: &Scene, mode: IntersectMode, accel: &Accel, rays: &[Ray]) -> usize {
+    let prims = Prims::with_mode(scene, mode);
+    rays.par_iter().filter(|r| accel.intersect_with(&prims, r).is_none()).count()
 }

@@ -5,13 +5,20 @@
 
 pub mod cpu;
 pub mod cracks;
+pub mod dispatch;
 pub mod gpu;
+pub mod kernel;
 pub mod output;
 pub mod plots;
+pub mod readback;
+pub mod upload;
+pub mod whitted;
 
 use serde::Serialize;
 
 use crate::accel::AccelKind;
+use crate::error::{Error, Result};
+use crate::math::intersect::IntersectMode;
 
 /// Which kernel variant to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -25,9 +32,32 @@ pub enum KernelChoice {
     General,
 }
 
+/// Which light transport algorithm renders the image; each has its own kernel and
+/// module, and shares the render loop's parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// Direct light from point and directional lights, hard shadows, mirror and glass
+    /// ([`whitted`]).
+    #[default]
+    Whitted,
+}
+
+impl Integrator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Whitted => "whitted",
+        }
+    }
+}
+
 /// How to render.
 #[derive(Debug, Clone)]
 pub struct RenderSettings {
+    /// The light transport algorithm.
+    pub integrator: Integrator,
+    /// Ray/triangle test: watertight (default) or fast.
+    pub intersect: IntersectMode,
     pub width: u32,
     pub height: u32,
     /// Samples per pixel; sample 0 goes through the pixel centre.
@@ -51,6 +81,8 @@ impl RenderSettings {
     /// Default settings for an image of the scene's own size.
     pub fn for_size(width: u32, height: u32) -> Self {
         RenderSettings {
+            integrator: Integrator::Whitted,
+            intersect: IntersectMode::Watertight,
             width,
             height,
             spp: 1,
@@ -62,6 +94,20 @@ impl RenderSettings {
             diffuse_probe: false,
             dispatch_budget: DEFAULT_DISPATCH_BUDGET,
         }
+    }
+}
+
+impl RenderSettings {
+    /// Rejects an image size or sample count no render accepts.
+    pub fn check(&self) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 || w > crate::scene::MAX_FILM_SIDE || h > crate::scene::MAX_FILM_SIDE {
+            return Err(Error::Usage(format!("image size {w}x{h} is invalid")));
+        }
+        if self.spp == 0 || self.spp > 1 << 20 {
+            return Err(Error::Usage(format!("--spp must be 1..=1048576, got {}", self.spp)));
+        }
+        Ok(())
     }
 }
 
@@ -120,4 +166,46 @@ pub struct RenderStats {
     pub mean_prims_tested: f64,
     /// Mean nodes (or boxes) visited by the pixel-centre camera ray.
     pub mean_nodes_visited: f64,
+}
+
+impl RenderStats {
+    /// The figures of a finished render.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        ctx: &crate::gpu::Context,
+        scene: &crate::scene::Scene,
+        settings: &RenderSettings,
+        frame: &Frame,
+        build: crate::accel::BuildStats,
+        kernel: String,
+        bindings: Vec<String>,
+        totals: dispatch::DispatchTotals,
+        wall_ms: f64,
+    ) -> RenderStats {
+        let total_pixels = frame.depth.len().max(1) as f64;
+        let rays: u64 = frame.rays.iter().map(|&r| u64::from(r)).sum();
+        let mrays = totals.gpu_ms.filter(|&ms| ms > 0.0).map(|ms| rays as f64 / (ms * 1e3));
+        RenderStats {
+            device: ctx.info().name.clone(),
+            scene: scene.name.clone(),
+            triangles: scene.triangles.len(),
+            spheres: scene.spheres.len(),
+            width: settings.width,
+            height: settings.height,
+            spp: settings.spp,
+            accel: settings.accel.name().to_string(),
+            build_ms: build.build_ms,
+            accel_bytes: build.bytes,
+            build,
+            kernel,
+            bindings,
+            trace_ms: totals.gpu_ms,
+            wall_ms,
+            dispatches: totals.dispatches,
+            rays,
+            mrays_per_s: mrays,
+            mean_prims_tested: frame.tests.iter().map(|&t| t as f64).sum::<f64>() / total_pixels,
+            mean_nodes_visited: frame.nodes.iter().map(|&t| t as f64).sum::<f64>() / total_pixels,
+        }
+    }
 }

@@ -72,8 +72,6 @@ pub struct Scene {
     pub max_depth: u32,
     /// Zero-area triangles (kept; never hit).
     pub degenerate_triangles: usize,
-    /// How rays meet triangles (CPU oracles and GPU kernel alike).
-    pub intersect: crate::math::intersect::IntersectMode,
 }
 
 /// Builds a scene piece by piece; `finish` validates.
@@ -102,7 +100,6 @@ impl SceneBuilder {
                 ambient: 0.05,
                 max_depth: 8,
                 degenerate_triangles: 0,
-                intersect: Default::default(),
             },
         }
     }

@@ -1,5 +1,6 @@
 //! Scenes and ray sets shared by the structure tests.
 
+use arbor::accel::Traverse;
 use arbor::accel::none::BruteForce;
 use arbor::accel::Accel;
 use arbor::gpu::Context;

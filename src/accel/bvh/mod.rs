@@ -24,11 +24,12 @@
 //! example: a leaf of 3 primitives at index entry 40 -> 0x80000000 | 40 << 3 | 2 = 0x80000142
 //! ```
 
+use crate::accel::validate::ValidateError;
 use std::time::Instant;
 
 use glam::Vec3;
 
-use super::prim;
+use super::prim::{self, Prims};
 use super::sah::{self, SahCosts};
 use super::{BuildStats, Phase};
 use crate::math::{Aabb, Hit, Ray};
@@ -417,7 +418,10 @@ impl Bvh {
         self.walk(|r, b, d| {
             let a = f64::from(sah::area(b));
             if r == EMPTY_REF {
+                // An empty child slot is an empty leaf, as in every other structure.
+                leaves += 1;
                 empty += 1;
+                depth_sum += u64::from(d);
             } else if r & LEAF_REF != 0 {
                 let (_, count) = leaf_range(r);
                 leaves += 1;
@@ -432,13 +436,14 @@ impl Bvh {
             kind: self.builder.name().into(),
             build_ms: self.build_ms,
             bytes: self.bytes(),
-            nodes: self.nodes.len() as u64,
+            // Each record is an inner node; its leaves are stored in its child slots.
+            nodes: self.nodes.len() as u64 + leaves,
             max_depth: self.depth,
             leaves,
             empty_leaves: empty,
             mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
             refs_per_prim: refs as f64 / self.prims.max(1) as f64,
-            prims_per_leaf: refs as f64 / leaves.max(1) as f64,
+            prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
             sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
             phases: self.phases.clone(),
             resolution: None,
@@ -449,12 +454,12 @@ impl Bvh {
     /// reached exactly once; every child box contains its subtree (the boxes of an
     /// inner child, the bounds of a leaf's primitives); every primitive in exactly
     /// one leaf.
-    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+    pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
         if self.depth > MAX_BVH_DEPTH {
-            return Err(format!("depth {} exceeds {MAX_BVH_DEPTH}", self.depth));
+            return Err(ValidateError::whole(format!("depth {} exceeds {MAX_BVH_DEPTH}", self.depth)));
         }
         if self.nodes.is_empty() {
-            return Err("no root node".into());
+            return Err(ValidateError::whole("no root node"));
         }
         let np = scene.prim_count();
         let mut seen_node = vec![false; self.nodes.len()];
@@ -471,32 +476,32 @@ impl Bvh {
                 if r & LEAF_REF != 0 {
                     let (first, count) = leaf_range(r);
                     if first + count > self.indices.len() {
-                        return Err(format!("node {n}: leaf indexes past the index array"));
+                        return Err(ValidateError::node(n, "leaf indexes past the index array"));
                     }
                     for &p in &self.indices[first..first + count] {
                         let p = p as usize;
                         if p >= np {
-                            return Err(format!("node {n}: primitive {p} of {np}"));
+                            return Err(ValidateError::node(n, format!("leaf references primitive {p} of {np}")));
                         }
                         if std::mem::replace(&mut seen_prim[p], true) {
-                            return Err(format!("primitive {p} is in more than one leaf"));
+                            return Err(ValidateError::prim(p, "in more than one leaf"));
                         }
                         let pb = prim::bounds(&prim::geom(scene, p as u32));
                         if !contains(&b, &pb) {
-                            return Err(format!("node {n}: leaf box {b:?} does not contain primitive {p} {pb:?}"));
+                            return Err(ValidateError::node(n, format!("leaf box {b:?} does not contain primitive {p} {pb:?}")));
                         }
                     }
                 } else {
                     let c = r as usize;
                     if c >= self.nodes.len() {
-                        return Err(format!("node {n}: child {c} out of range"));
+                        return Err(ValidateError::node(n, format!("child {c} out of range")));
                     }
                     if std::mem::replace(&mut seen_node[c], true) {
-                        return Err(format!("node {c} is reached twice"));
+                        return Err(ValidateError::node(c, "reached twice"));
                     }
                     for (cr, cb) in self.children(c) {
                         if cr != EMPTY_REF && !contains(&b, &cb) {
-                            return Err(format!("node {n}: child box {b:?} does not contain its child's box {cb:?}"));
+                            return Err(ValidateError::node(n, format!("child box {b:?} does not contain its child's box {cb:?}")));
                         }
                     }
                     stack.push((c, d + 1));
@@ -504,13 +509,13 @@ impl Bvh {
             }
         }
         if max_depth != self.depth {
-            return Err(format!("recorded depth {} but the tree is {max_depth} deep", self.depth));
+            return Err(ValidateError::whole(format!("recorded depth {} but the tree is {max_depth} deep", self.depth)));
         }
         if let Some(n) = seen_node.iter().position(|s| !s) {
-            return Err(format!("node {n} is unreachable"));
+            return Err(ValidateError::node(n, "unreachable"));
         }
         if let Some(p) = seen_prim.iter().position(|s| !s) {
-            return Err(format!("primitive {p} is in no leaf"));
+            return Err(ValidateError::prim(p, "in no leaf"));
         }
         Ok(())
     }
@@ -518,7 +523,7 @@ impl Bvh {
     /// Front-to-back traversal with a stack of child references: at each inner node
     /// both child boxes are tested against [tmin, best t (1 + T_MARGIN)], the nearer
     /// hit child is visited first and the other pushed.
-    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
             return false;
@@ -548,7 +553,7 @@ impl Bvh {
             }
             let (first, count) = leaf_range(cur);
             for &p in &self.indices[first..first + count] {
-                if crate::math::intersect::intersect_prim(scene, p, ray, best) {
+                if super::prim::intersect_prim(prims, p, ray, best) {
                     found = true;
                     if any {
                         return true;
@@ -579,7 +584,44 @@ pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut Instant) {
 }
 
 impl super::Traverse for Bvh {
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(scene, ray, best, any)
+    fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(prims, ray, best, any)
+    }
+}
+
+impl super::Structure for Bvh {
+    fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
+        Bvh::validate(self, scene)
+    }
+    fn stats(&self, _scene: &Scene) -> BuildStats {
+        Bvh::stats(self)
+    }
+    fn timing(&self) -> (f64, Vec<Phase>) {
+        Bvh::timing(self)
+    }
+    fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+    fn gpu_image(&self, _scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
+        if self.depth > MAX_BVH_DEPTH {
+            return Err(ValidateError::whole(format!(
+                "BVH depth {} exceeds the kernel's stack of {MAX_BVH_DEPTH}",
+                self.depth
+            )));
+        }
+        if self.prims > MAX_BVH_PRIMS {
+            return Err(ValidateError::whole(format!(
+                "{} primitives exceed the BVH layout's {MAX_BVH_PRIMS}",
+                self.prims
+            )));
+        }
+        let (nodes, indices) = self.to_gpu();
+        Ok(super::GpuImage {
+            family: "bvh",
+            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
+            stack_size: self.depth + 1,
+            cost_per_ray: 4 * (u64::from(self.depth) + 8),
+            trace_loop: super::TraceLoop::StepBudget,
+        })
     }
 }

@@ -19,6 +19,7 @@
 mod course;
 mod sah_build;
 
+use crate::accel::validate::ValidateError;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -26,7 +27,7 @@ use glam::Vec3;
 use super::prim;
 use super::sah::{self, SahCosts};
 use super::BuildStats;
-use crate::math::intersect::intersect_prim;
+use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -287,9 +288,9 @@ impl KdTree {
     /// depth within the kernel's limit, every index valid, and every primitive present
     /// in every leaf whose box its geometry overlaps (tested by clipping it to the leaf
     /// box shrunk by a relative 1e-5, so touching a face does not count).
-    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+    pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
         if self.depth > MAX_KD_DEPTH {
-            return Err(format!("depth {} exceeds {MAX_KD_DEPTH}", self.depth));
+            return Err(ValidateError::whole(format!("depth {} exceeds {MAX_KD_DEPTH}", self.depth)));
         }
         let n = self.nodes.len();
         let mut errors = Vec::new();
@@ -299,7 +300,7 @@ impl KdTree {
             if w1 & 3 == LEAF {
                 let (first, count) = ((w1 >> 2) as usize, w0 as usize);
                 if first + count > self.indices.len() {
-                    errors.push(format!("leaf {i} indexes past the index array"));
+                    errors.push(ValidateError::node(i, "leaf indexes past the index array"));
                     return;
                 }
                 leaves.push((i, &self.indices[first..first + count]));
@@ -307,13 +308,13 @@ impl KdTree {
                 let axis = (w1 & 3) as usize;
                 let split = f32::from_bits(w0);
                 if !(split >= b.min[axis] && split <= b.max[axis]) {
-                    errors.push(format!(
-                        "node {i}: split {split} on axis {axis} outside [{}, {}]",
-                        b.min[axis], b.max[axis]
+                    errors.push(ValidateError::node(
+                        i,
+                        format!("split {split} on axis {axis} outside [{}, {}]", b.min[axis], b.max[axis]),
                     ));
                 }
                 if (w1 >> 2) as usize >= n || i + 1 >= n {
-                    errors.push(format!("node {i}: child out of range"));
+                    errors.push(ValidateError::node(i, "child out of range"));
                 }
             }
         });
@@ -323,10 +324,10 @@ impl KdTree {
         let np = scene.prim_count() as u32;
         for (i, list) in &leaves {
             if let Some(bad) = list.iter().find(|&&p| p >= np) {
-                return Err(format!("leaf {i} references primitive {bad} of {np}"));
+                return Err(ValidateError::node(*i, format!("leaf references primitive {bad} of {np}")));
             }
             if list.windows(2).any(|w| w[0] >= w[1]) {
-                return Err(format!("leaf {i}: primitive list not strictly ascending"));
+                return Err(ValidateError::node(*i, "leaf primitive list not strictly ascending"));
             }
         }
         // Per primitive: descend into every child its geometry reaches and check it is
@@ -344,7 +345,7 @@ impl KdTree {
                     }
                     let first = (w1 >> 2) as usize;
                     if self.indices[first..first + w0 as usize].binary_search(&p).is_err() {
-                        return Some(format!("primitive {p} overlaps leaf {n} ({b:?}) but is not in it"));
+                        return Some(ValidateError::prim(p, format!("overlaps leaf {n} ({b:?}) but is not in it")));
                     }
                     continue;
                 }
@@ -375,7 +376,7 @@ impl KdTree {
     /// primitive tests' t, so every comparison against a boundary keeps a relative
     /// margin of [`T_MARGIN`]: a hit within it of a boundary visits both sides, which
     /// makes ties at shared edges resolve exactly as brute force does.
-    fn traverse_impl(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         let Some((mut tmin, mut tmax)) = self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax) else {
             return false;
@@ -395,7 +396,7 @@ impl KdTree {
             if w1 & 3 == LEAF {
                 let first = (w1 >> 2) as usize;
                 for &p in &self.indices[first..first + w0 as usize] {
-                    if intersect_prim(scene, p, ray, best) {
+                    if intersect_prim(prims, p, ray, best) {
                         found = true;
                         if any {
                             return true;
@@ -447,7 +448,39 @@ impl KdTree {
 }
 
 impl super::Traverse for KdTree {
-    fn traverse(&self, scene: &Scene, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(scene, ray, best, any)
+    fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.traverse_impl(prims, ray, best, any)
+    }
+}
+
+impl super::Structure for KdTree {
+    fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
+        KdTree::validate(self, scene)
+    }
+    fn stats(&self, _scene: &Scene) -> BuildStats {
+        KdTree::stats(self)
+    }
+    fn timing(&self) -> (f64, Vec<super::Phase>) {
+        KdTree::timing(self)
+    }
+    fn bounds(&self) -> crate::math::Aabb {
+        self.bounds
+    }
+    fn gpu_image(&self, _scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
+        if self.depth > MAX_KD_DEPTH {
+            return Err(ValidateError::whole(format!(
+                "kd-tree depth {} exceeds the kernel's stack of {MAX_KD_DEPTH}",
+                self.depth
+            )));
+        }
+        let (nodes, indices) = self.to_gpu();
+        Ok(super::GpuImage {
+            family: "kdtree",
+            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
+            stack_size: self.depth + 1,
+            // A few steps per level: about one step per level plus a few tests.
+            cost_per_ray: 4 * (u64::from(self.depth) + 8),
+            trace_loop: super::TraceLoop::StepBudget,
+        })
     }
 }

@@ -1,0 +1,94 @@
+//! The dispatch loop: the image in chunks of pixels held on the device, each chunk in
+//! dispatches of pixel ranges x sample waves sized to a work budget, with progress
+//! after every dispatch and a callback when a chunk is complete. Any integrator's
+//! kernel runs through it: the per-dispatch values travel in the pixel buffer's
+//! header (`GpuDispatch`), never in push constants (docs/kernels.md).
+
+use crate::accel::gpu_layout::GpuDispatch;
+use crate::error::Result;
+use crate::gpu::bindings::WORKGROUP_SIZE;
+use crate::gpu::{Buffer, Context, Kernel};
+
+/// Splits `pixels` x `spp` into dispatches of about `budget` units of work: returns
+/// (pixels per dispatch, samples per dispatch).
+pub fn dispatch_shape(pixels: u64, spp: u32, cost_per_sample: u64, budget: u64) -> (u64, u32) {
+    let per_pixel_all = cost_per_sample.saturating_mul(u64::from(spp)).max(1);
+    if pixels.saturating_mul(per_pixel_all) <= budget {
+        return (pixels, spp);
+    }
+    let px = (budget / cost_per_sample.max(1)).max(u64::from(WORKGROUP_SIZE));
+    if px >= pixels {
+        let samples = (budget / (pixels.max(1) * cost_per_sample.max(1))).clamp(1, u64::from(spp)) as u32;
+        return (pixels, samples);
+    }
+    (px / u64::from(WORKGROUP_SIZE) * u64::from(WORKGROUP_SIZE), 1)
+}
+
+/// How an image is cut into dispatches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Waves {
+    pub total_pixels: u64,
+    /// Pixels held on the device at once.
+    pub chunk_pixels: u64,
+    /// Pixels per dispatch.
+    pub pixels_per_dispatch: u64,
+    pub spp: u32,
+    /// Samples per dispatch.
+    pub samples_per_dispatch: u32,
+}
+
+/// What the dispatches cost.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DispatchTotals {
+    /// Sum of the dispatches' GPU time; `None` without timestamps.
+    pub gpu_ms: Option<f64>,
+    pub dispatches: u32,
+}
+
+/// Runs `kernel` over every pixel and sample of `waves`. After each dispatch,
+/// `progress(done, total)` counts pixel-samples; after each chunk,
+/// `chunk_done(first_pixel, pixels)` reads it back.
+pub fn run(
+    ctx: &Context,
+    kernel: &Kernel,
+    pixel_buf: &Buffer,
+    waves: &Waves,
+    mut progress: impl FnMut(u64, u64),
+    mut chunk_done: impl FnMut(u64, u64) -> Result<()>,
+) -> Result<DispatchTotals> {
+    let total_work = waves.total_pixels * u64::from(waves.spp);
+    let mut done = 0u64;
+    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
+    let mut chunk_start = 0u64;
+    while chunk_start < waves.total_pixels {
+        let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
+        let mut p = 0u64;
+        while p < chunk_len {
+            let n = waves.pixels_per_dispatch.min(chunk_len - p);
+            let mut s = 0u32;
+            while s < waves.spp {
+                let s_end = (s + waves.samples_per_dispatch).min(waves.spp);
+                let header = GpuDispatch {
+                    range: [(chunk_start + p) as u32, n as u32, s, s_end],
+                    chunk: [chunk_start as u32, 0, 0, 0],
+                };
+                let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
+                let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
+                let ms =
+                    ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&header), [groups, 1, 1], &label)?;
+                totals.gpu_ms = match (totals.gpu_ms, ms) {
+                    (Some(a), Some(b)) => Some(a + b),
+                    _ => None,
+                };
+                totals.dispatches += 1;
+                done += n * u64::from(s_end - s);
+                progress(done, total_work);
+                s = s_end;
+            }
+            p += n;
+        }
+        chunk_done(chunk_start, chunk_len)?;
+        chunk_start += chunk_len;
+    }
+    Ok(totals)
+}

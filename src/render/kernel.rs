@@ -1,0 +1,134 @@
+//! Kernel choice and specialization: which trace kernel variant runs (structure
+//! family x geometry), which buffers it binds, and the loop bounds that keep every
+//! invocation inside the driver's limits.
+
+use super::{KernelChoice, RenderSettings};
+use crate::accel::{GpuImage, TraceLoop};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{BindingDesc, BindingKind, Context};
+use crate::scene::Scene;
+
+/// Which geometry a kernel variant handles.
+pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
+    match (choice, scene.triangles.is_empty(), scene.spheres.is_empty()) {
+        (KernelChoice::General, _, _) => "all",
+        (_, false, true) => "tris",
+        (_, true, false) => "spheres",
+        _ => "all",
+    }
+}
+
+/// The descriptor bindings of a trace variant: structure kernel family (`none`,
+/// `kdtree`) and geometry (`tris`, `spheres` or `all`). A family whose structure has
+/// no buffers (`GpuImage::buffers` is `None`) binds no node or index buffer.
+pub fn trace_bindings(family: &str, geometry: &str) -> Vec<BindingDesc> {
+    let mut b = vec![BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" }];
+    if geometry != "spheres" {
+        b.push(BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Storage, name: "vertices" });
+        b.push(BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Storage, name: "triangles" });
+    }
+    if geometry != "tris" {
+        b.push(BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Storage, name: "spheres" });
+    }
+    b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" });
+    b.push(BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" });
+    if family != "none" {
+        b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "accel_nodes" });
+        b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "accel_indices" });
+    }
+    b
+}
+
+/// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
+const MIN_TREE_STEPS: u64 = 256;
+/// Per-trace step budget of tree traversal where the driver sets no loop limit.
+const TREE_STEPS_UNLIMITED: u64 = 1 << 22;
+
+/// Upper bound on the loop iterations one invocation runs for one sample of `traces`
+/// traces of at most `per_trace` iterations each, plus the path and light loops.
+pub fn loop_iterations_per_sample(traces: u64, per_trace: u64) -> u64 {
+    traces * (per_trace + 1) + 1
+}
+
+/// The loop bounds of one kernel: what each trace may iterate and how.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoopBounds {
+    /// Unroll factor of unrolled primitive loops (`SPEC_BRUTE_UNROLL`; 1 otherwise).
+    pub unroll: u32,
+    /// Iterations of one trace.
+    pub per_trace: u64,
+    /// The step budget the kernel enforces per trace (`SPEC_TREE_STEPS`; 0 for
+    /// unrolled loops, which need none).
+    pub steps: u64,
+}
+
+impl LoopBounds {
+    /// Bounds for `traces` traces per sample of a structure traversed as `image` says,
+    /// within `ctx`'s loop limit.
+    pub fn new(ctx: &Context, scene: &Scene, image: &GpuImage, traces: u64) -> Result<LoopBounds> {
+        match image.trace_loop {
+            TraceLoop::Unrolled { .. } => {
+                // The smallest unroll factor whose loops fit the driver's limit for one sample.
+                let fits = |u: u32| match ctx.loop_budget() {
+                    None => true,
+                    Some(budget) => loop_iterations_per_sample(traces, image.trace_loop.iterations(u, 0)) <= budget,
+                };
+                let unroll = BRUTE_UNROLL_FACTORS
+                    .into_iter()
+                    .find(|&u| fits(u))
+                    .unwrap_or(BRUTE_UNROLL_FACTORS[BRUTE_UNROLL_FACTORS.len() - 1]);
+                Ok(LoopBounds { unroll, per_trace: image.trace_loop.iterations(unroll, 0), steps: 0 })
+            }
+            TraceLoop::StepBudget => {
+                let steps = match ctx.loop_budget() {
+                    Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
+                    None => TREE_STEPS_UNLIMITED,
+                };
+                if steps < MIN_TREE_STEPS {
+                    return Err(Error::Usage(format!(
+                        "{}: {traces} traces per sample leave only {steps} traversal steps each within {}'s loop limit; lower [render] max_depth",
+                        scene.name,
+                        ctx.info().name
+                    )));
+                }
+                Ok(LoopBounds { unroll: 1, per_trace: steps, steps })
+            }
+        }
+    }
+
+    /// The most samples one dispatch may run per pixel within `ctx`'s loop limit, or an
+    /// error when even one sample crosses it.
+    pub fn samples_within_limit(&self, ctx: &Context, scene: &Scene, traces: u64) -> Result<Option<u32>> {
+        let Some(budget) = ctx.loop_budget() else { return Ok(None) };
+        let per_sample = loop_iterations_per_sample(traces, self.per_trace);
+        if per_sample > budget {
+            return Err(Error::Usage(format!(
+                "{}: one sample needs up to {per_sample} loop iterations per pixel, more than the {budget} that {} runs per invocation; use fewer primitives, a lower [render] max_depth, or an acceleration structure",
+                scene.name,
+                ctx.info().name
+            )));
+        }
+        Ok(Some((budget / per_sample) as u32))
+    }
+}
+
+/// A trace kernel variant with its SPIR-V and bindings, before specialization.
+#[derive(Debug)]
+pub struct Variant {
+    pub name: String,
+    pub spirv: &'static [u8],
+    pub bindings: Vec<BindingDesc>,
+}
+
+impl Variant {
+    /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
+    /// geometry (or every buffer with [`KernelChoice::General`]).
+    pub fn new(prefix: &str, scene: &Scene, settings: &RenderSettings, image: &GpuImage) -> Result<Variant> {
+        let geometry = geometry_suffix(scene, settings.kernel);
+        let name = format!("{prefix}_{}_{geometry}", image.family);
+        let spirv = crate::gpu::spirv::get(&name)
+            .ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
+        Ok(Variant { bindings: trace_bindings(image.family, geometry), name, spirv })
+    }
+}

@@ -1,0 +1,162 @@
+//! Uploads: the scene in GPU layout, the uniform parameters, and every buffer the
+//! kernel declares (and only those), checked against the device's buffer range.
+
+use crate::accel::gpu_layout::*;
+use crate::accel::GpuImage;
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
+use crate::scene::{Light, Scene};
+
+/// Scene data in GPU layout.
+#[derive(Debug, Clone)]
+pub struct GpuScene {
+    pub vertices: Vec<GpuVertex>,
+    pub triangles: Vec<GpuTriangle>,
+    pub spheres: Vec<GpuSphere>,
+    /// Materials (4 rows each) then lights (2 rows each).
+    pub shading: Vec<[f32; 4]>,
+}
+
+impl GpuScene {
+    /// Converts a validated scene.
+    pub fn new(scene: &Scene) -> GpuScene {
+        let vertices = scene
+            .positions
+            .iter()
+            .zip(&scene.normals)
+            .map(|(p, n)| GpuVertex {
+                position: [p.x, p.y, p.z, 0.0],
+                normal: [n.x, n.y, n.z, if *n == glam::Vec3::ZERO { 0.0 } else { 1.0 }],
+            })
+            .collect();
+        let triangles = scene
+            .triangles
+            .iter()
+            .zip(&scene.tri_material)
+            .map(|(t, m)| GpuTriangle { v: [t[0], t[1], t[2], *m] })
+            .collect();
+        let spheres = scene
+            .spheres
+            .iter()
+            .map(|s| GpuSphere {
+                center_radius: [s.center.x, s.center.y, s.center.z, s.radius],
+                material: [s.material, 0, 0, 0],
+            })
+            .collect();
+        GpuScene { vertices, triangles, spheres, shading: shading_rows(scene) }
+    }
+}
+
+/// Materials (4 rows each) then lights (2 rows each).
+fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
+    let mut shading = Vec::with_capacity(scene.materials.len() * 4 + scene.lights.len() * 2);
+    for m in &scene.materials {
+        let g = GpuMaterial {
+            color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(m.kind as u32)],
+            specular: [m.specular.x, m.specular.y, m.specular.z, m.shininess],
+            emission_ior: [m.emission.x, m.emission.y, m.emission.z, m.ior],
+            pad: [0.0; 4],
+        };
+        shading.extend([g.color_kind, g.specular, g.emission_ior, g.pad]);
+    }
+    for l in &scene.lights {
+        let g = match *l {
+            Light::Directional { direction: d, radiance: r } => {
+                GpuLight { position_or_direction: [d.x, d.y, d.z, 0.0], radiance: [r.x, r.y, r.z, 0.0] }
+            }
+            Light::Point { position: p, intensity: i } => {
+                GpuLight { position_or_direction: [p.x, p.y, p.z, 1.0], radiance: [i.x, i.y, i.z, 0.0] }
+            }
+        };
+        shading.extend([g.position_or_direction, g.radiance]);
+    }
+    shading
+}
+
+/// The buffers bound to one kernel, kept alive while it runs.
+pub struct Bound {
+    /// The uniform parameters.
+    pub uniform: Buffer,
+    /// Storage buffers in binding order.
+    pub storage: Vec<Buffer>,
+    /// Names of every bound buffer, uniform first (for the stats).
+    pub names: Vec<String>,
+    /// Index in `storage` of the pixel buffer.
+    pixels: usize,
+}
+
+impl std::fmt::Debug for Bound {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bound").field("names", &self.names).finish_non_exhaustive()
+    }
+}
+
+impl Bound {
+    /// The pixel buffer (dispatch header, then one `GpuPixel` per pixel of a chunk).
+    pub fn pixels(&self) -> &Buffer {
+        &self.storage[self.pixels]
+    }
+}
+
+/// Creates and binds every buffer `bindings` declares: the uniform `params`, the
+/// scene, the structure's `image` and a pixel buffer for `chunk_pixels` pixels.
+pub fn bind_all(
+    ctx: &Context,
+    kernel: &mut Kernel,
+    bindings: &[BindingDesc],
+    params: &GpuParams,
+    scene: &GpuScene,
+    image: &GpuImage,
+    chunk_pixels: u64,
+) -> Result<Bound> {
+    let uniform = ctx.upload_uniform("params", bytemuck::bytes_of(params))?;
+    let mut storage: Vec<Buffer> = Vec::new();
+    let mut names = Vec::new();
+    let mut pixels = None;
+    for b in bindings {
+        if b.kind == BindingKind::Uniform && b.binding == BINDING_PARAMS {
+            ctx.bind(kernel, b.binding, &uniform)?;
+            names.push("params".to_string());
+            continue;
+        }
+        let buf = match b.binding {
+            BINDING_VERTICES => upload_checked(ctx, "vertices", bytemuck::cast_slice(&scene.vertices))?,
+            BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&scene.triangles))?,
+            BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&scene.spheres))?,
+            BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&scene.shading))?,
+            BINDING_ACCEL_NODES => match &image.buffers {
+                Some((nodes, _)) => upload_checked(ctx, "accel_nodes", nodes)?,
+                None => return Err(Error::Usage(format!("the {} structure has no nodes", image.family))),
+            },
+            BINDING_ACCEL_INDICES => match &image.buffers {
+                Some((_, indices)) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?,
+                None => return Err(Error::Usage(format!("the {} structure has no indices", image.family))),
+            },
+            BINDING_PIXELS => {
+                let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
+                check_range(ctx, "pixels", size)?;
+                pixels = Some(storage.len());
+                ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?
+            }
+            other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
+        };
+        ctx.bind(kernel, b.binding, &buf)?;
+        names.push(b.name.to_string());
+        storage.push(buf);
+    }
+    let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
+    Ok(Bound { uniform, storage, names, pixels })
+}
+
+fn check_range(ctx: &Context, name: &str, size: u64) -> Result<()> {
+    if size > ctx.max_storage_range() {
+        return Err(Error::BufferTooLarge { name: name.to_string(), size, limit: ctx.max_storage_range() });
+    }
+    Ok(())
+}
+
+fn upload_checked(ctx: &Context, name: &str, data: &[u8]) -> Result<Buffer> {
+    check_range(ctx, name, data.len() as u64)?;
+    ctx.upload_storage(name, data)
+}

@@ -1,0 +1,152 @@
+//! The Whitted integrator (`trace.comp`): camera rays, shadow rays toward point and
+//! directional lights, mirror and glass, plus the benchmark's probe modes (camera
+//! rays only; one cosine bounce). Its settings become specialization constants; the
+//! shared parts do the rest: [`super::kernel`] (variant and loop bounds),
+//! [`super::upload`], [`super::dispatch`] and [`super::readback`].
+
+use std::time::Instant;
+
+use super::dispatch::{self, Waves};
+use super::kernel::{LoopBounds, Variant};
+use super::upload::{self, GpuScene};
+use super::{Frame, RenderSettings, RenderStats};
+use crate::accel::gpu_layout::{GpuParams, GpuPixel, PIXEL_HEADER_BYTES};
+use crate::accel::{Accel, GpuImage};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::Context;
+use crate::scene::Scene;
+
+/// Most pixels held on the device at once (48 bytes each).
+const MAX_CHUNK_PIXELS: u64 = 1 << 20;
+
+/// Traces one sample may run: at most `max_depth` closest-hit rays and one shadow
+/// ray per light.
+pub fn traces_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
+    if settings.diffuse_probe {
+        2
+    } else if settings.primary_only {
+        1
+    } else {
+        u64::from(scene.max_depth) + scene.lights.len() as u64
+    }
+}
+
+/// Rays one sample costs when sizing dispatches: the camera ray, a shadow ray per
+/// light and a bounce.
+fn rays_per_sample(scene: &Scene, settings: &RenderSettings) -> u64 {
+    if settings.diffuse_probe {
+        2
+    } else if settings.primary_only {
+        1
+    } else {
+        1 + scene.lights.len() as u64 + 1
+    }
+}
+
+/// Whether shadow rays are traced (not in the probe modes, and only with lights).
+fn lights_used(scene: &Scene, settings: &RenderSettings) -> u32 {
+    let probe = settings.primary_only || settings.diffuse_probe;
+    if !probe && !scene.lights.is_empty() {
+        scene.lights.len() as u32
+    } else {
+        0
+    }
+}
+
+/// The kernel's specialization constants.
+fn specialization(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
+    let probe = settings.primary_only || settings.diffuse_probe;
+    vec![
+        (SPEC_LIGHTS, lights_used(scene, settings)),
+        (SPEC_MAX_DEPTH, if probe { 1 } else { scene.max_depth }),
+        (SPEC_STACK_SIZE, image.stack_size),
+        (SPEC_TREE_STEPS, bounds.steps as u32),
+        (SPEC_BRUTE_UNROLL, bounds.unroll),
+        (SPEC_INTERSECT, settings.intersect.spec()),
+        (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
+        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
+        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
+    ]
+}
+
+/// The uniform parameters: camera, scene box, counts, background.
+fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams {
+    let (w, h) = (settings.width, settings.height);
+    let basis = scene.camera.basis(w, h);
+    let bounds = accel.bounds();
+    GpuParams {
+        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
+        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
+        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
+        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
+        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
+        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
+        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
+        counts: [lights_used(scene, settings), scene.materials.len() as u32, settings.seed, 0],
+        background: [scene.background.x, scene.background.y, scene.background.z, scene.ambient],
+    }
+}
+
+/// How the image is cut into dispatches on `ctx`.
+fn waves(ctx: &Context, scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Result<Waves> {
+    let total_pixels = u64::from(settings.width) * u64::from(settings.height);
+    let chunk_pixels = total_pixels.min(MAX_CHUNK_PIXELS).min(
+        (ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64).max(1),
+    );
+    let cost = image.cost_per_ray * rays_per_sample(scene, settings);
+    let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
+    if let Some(most) = bounds.samples_within_limit(ctx, scene, traces_per_sample(scene, settings))? {
+        spp_per = spp_per.min(most).max(1);
+    }
+    Ok(Waves {
+        total_pixels,
+        chunk_pixels,
+        pixels_per_dispatch: px_per,
+        spp: settings.spp,
+        samples_per_dispatch: spp_per,
+    })
+}
+
+/// Renders `scene` with an already built structure.
+pub fn render_with(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    accel: &Accel,
+    progress: impl FnMut(u64, u64),
+) -> Result<(Frame, RenderStats)> {
+    settings.check()?;
+    let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
+    let variant = Variant::new("trace", scene, settings, &image)?;
+    let bounds = LoopBounds::new(ctx, scene, &image, traces_per_sample(scene, settings))?;
+    let spec = specialization(scene, settings, &image, &bounds);
+    let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+
+    let start = Instant::now();
+    let waves = waves(ctx, scene, settings, &image, &bounds)?;
+    let gs = GpuScene::new(scene);
+    let p = params(scene, settings, accel);
+    let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
+    let mut frame = Frame::new(settings.width, settings.height);
+    let mut overflow = 0u64;
+    let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, progress, |first, len| {
+        overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len, settings.spp)?;
+        Ok(())
+    })?;
+    ctx.check_validation()?;
+    if overflow > 0 {
+        return Err(Error::scene(
+            scene.name.clone(),
+            format!(
+                "{overflow} pixels needed more than {} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
+                bounds.steps,
+                ctx.info().name
+            ),
+        ));
+    }
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let build = accel.stats(scene);
+    let stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
+    Ok((frame, stats))
+}
