@@ -113,13 +113,12 @@ impl StructureArgs {
     }
 
     fn params(&self) -> Result<arbor::accel::AccelParams> {
-        Ok(arbor::accel::AccelParams {
-            build: self.build.first().copied().unwrap_or_default(),
-            kd: arbor::accel::kdtree::KdParams::parse(&self.kd).map_err(anyhow::Error::msg)?,
-            grid: arbor::accel::grid::GridParams::parse(&self.grid).map_err(anyhow::Error::msg)?,
-            octree: arbor::accel::octree::OctreeParams::parse(&self.octree).map_err(anyhow::Error::msg)?,
-            treelet: arbor::accel::bvh::treelet::TreeletParams::parse(&self.trbvh).map_err(anyhow::Error::msg)?,
-        })
+        let mut p =
+            arbor::accel::AccelParams { build: self.build.first().copied().unwrap_or_default(), ..Default::default() };
+        for (flag, spec) in [("kd", &self.kd), ("grid", &self.grid), ("octree", &self.octree), ("trbvh", &self.trbvh)] {
+            p.set_flag(flag, spec)?;
+        }
+        Ok(p)
     }
 }
 

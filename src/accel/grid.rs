@@ -43,11 +43,12 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::kdtree::{before, shrink};
+use super::params::{number, Key};
 use super::prim::{self, PrimGeom};
+use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
 use super::BuildStats;
 use crate::math::aabb::FLAT_RCP;
-use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -67,47 +68,25 @@ pub struct GridParams {
 
 impl Default for GridParams {
     /// lambda = 2: on lavapipe (100k-triangle blob, 1024x1024 primary rays) it traced
-    /// fastest of 0.5, 1, 2, 4 and 8; see README "Grid and octree".
+    /// fastest of 0.5, 1, 2, 4 and 8; see docs/grid-octree.md.
     fn default() -> Self {
         GridParams { lambda: 2.0, max_cells: 1 << 24 }
     }
 }
 
-impl GridParams {
-    /// Parses `lambda=X,cells=N` pairs (either optional) over the default.
-    pub fn parse(spec: &str) -> Result<GridParams, String> {
-        Self::parse_onto(GridParams::default(), spec)
-    }
-
-    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
-    pub fn parse_onto(base: GridParams, spec: &str) -> Result<GridParams, String> {
-        let mut p = base;
-        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            if item == "default" {
-                p = GridParams::default();
-                continue;
-            }
-            let (k, v) = item.split_once('=').ok_or_else(|| format!("--grid {item:?}: expected KEY=VALUE"))?;
-            match k {
-                "lambda" => {
-                    p.lambda = v
-                        .parse::<f32>()
-                        .ok()
-                        .filter(|x| x.is_finite() && *x > 0.0 && *x <= 1e4)
-                        .ok_or_else(|| format!("--grid lambda={v}: expected a number in (0, 10000]"))?
-                }
-                "cells" => {
-                    p.max_cells = v
-                        .parse::<u64>()
-                        .ok()
-                        .filter(|&x| (1..=1 << 25).contains(&x))
-                        .ok_or_else(|| format!("--grid cells={v}: expected 1..={}", 1u64 << 25))?
-                }
-                _ => return Err(format!("--grid: unknown key '{k}' (lambda, cells)")),
-            }
-        }
-        Ok(p)
-    }
+/// `--grid`: preset `default`; keys `lambda` (cells per primitive) and `cells` (most
+/// cells in all).
+impl super::params::Params for GridParams {
+    const FLAG: &'static str = "grid";
+    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[("default", GridParams::default)];
+    const KEYS: &'static [Key<Self>] = &[
+        Key {
+            name: "lambda",
+            expects: "a number in (0, 10000]",
+            set: |p, v| Some(p.lambda = number(v, f32::MIN_POSITIVE, 1e4)?),
+        },
+        Key { name: "cells", expects: "1..=33554432", set: |p, v| Some(p.max_cells = number(v, 1, 1 << 25)?) },
+    ];
 }
 
 /// A built uniform grid.
@@ -369,7 +348,10 @@ impl Grid {
                         let c = self.cell_index([x, y, z]);
                         let list = &self.indices[self.start[c] as usize..self.start[c + 1] as usize];
                         if list.binary_search(&p).is_err() {
-                            return Some(ValidateError::prim(p, format!("overlaps cell {c} ({cb:?}) but is not in it")));
+                            return Some(ValidateError::prim(
+                                p,
+                                format!("overlaps cell {c} ({cb:?}) but is not in it"),
+                            ));
                         }
                     }
                 }

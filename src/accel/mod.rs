@@ -20,6 +20,7 @@ pub mod grid;
 pub mod kdtree;
 pub mod none;
 pub mod octree;
+pub mod params;
 pub mod prim;
 pub mod sah;
 pub mod validate;
@@ -318,22 +319,36 @@ impl AccelParams {
 
     /// Applies `spec` (a preset and/or KEY=VALUE pairs) to the parameters that
     /// `--<flag>` sets, on top of their current values.
-    pub fn set_flag(&mut self, flag: &str, spec: &str) -> Result<(), String> {
+    pub fn set_flag(&mut self, flag: &str, spec: &str) -> Result<(), params::ParamError> {
+        use params::Params;
         match flag {
-            "kd" => self.kd = kdtree::KdParams::parse_onto(self.kd, spec)?,
-            "grid" => self.grid = grid::GridParams::parse_onto(self.grid, spec)?,
-            "octree" => self.octree = octree::OctreeParams::parse_onto(self.octree, spec)?,
-            "trbvh" => self.treelet = bvh::treelet::TreeletParams::parse_onto(self.treelet, spec)?,
-            _ => return Err(format!("no structure takes --{flag}")),
+            "kd" => self.kd = self.kd.parse_onto(spec)?,
+            "grid" => self.grid = self.grid.parse_onto(spec)?,
+            "octree" => self.octree = self.octree.parse_onto(spec)?,
+            "trbvh" => {
+                self.treelet = bvh::treelet::TreeletParams::parse_onto(self.treelet, spec)
+                    .map_err(|what| params::ParamError { flag: "trbvh", item: spec.to_string(), what })?
+            }
+            _ => {
+                return Err(params::ParamError {
+                    flag: "accel",
+                    item: flag.to_string(),
+                    what: "no structure takes this flag".into(),
+                })
+            }
         }
         Ok(())
     }
 
     /// Applies `spec` to the parameters of `kind`'s builder; an error if it has none.
-    pub fn apply(&mut self, kind: AccelKind, spec: &str) -> Result<(), String> {
+    pub fn apply(&mut self, kind: AccelKind, spec: &str) -> Result<(), params::ParamError> {
         match kind.param_flag() {
             Some(flag) => self.set_flag(flag, spec),
-            None => Err(format!("{kind} takes no parameters")),
+            None => Err(params::ParamError {
+                flag: "accel",
+                item: kind.name().to_string(),
+                what: "takes no parameters".into(),
+            }),
         }
     }
 }

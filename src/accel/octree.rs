@@ -33,11 +33,12 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::kdtree::{before, shrink};
+use super::params::{number, Key};
 use super::prim::{self, PrimGeom};
+use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
 use super::BuildStats;
 use crate::math::aabb::FLAT_RCP;
-use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -64,32 +65,15 @@ impl Default for OctreeParams {
     }
 }
 
-impl OctreeParams {
-    /// Parses `leaf=N,depth=N` pairs (either optional) over the default.
-    pub fn parse(spec: &str) -> Result<OctreeParams, String> {
-        Self::parse_onto(OctreeParams::default(), spec)
-    }
-
-    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
-    pub fn parse_onto(base: OctreeParams, spec: &str) -> Result<OctreeParams, String> {
-        let mut p = base;
-        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            if item == "default" {
-                p = OctreeParams::default();
-                continue;
-            }
-            let (k, v) = item.split_once('=').ok_or_else(|| format!("--octree {item:?}: expected KEY=VALUE"))?;
-            let num = v.parse::<u32>().map_err(|_| format!("--octree {k}={v}: expected a whole number"))?;
-            match k {
-                "leaf" if (1..=1 << 20).contains(&num) => p.leaf_size = num as usize,
-                "leaf" => return Err(format!("--octree leaf={v}: expected 1..=1048576")),
-                "depth" if num <= MAX_OCTREE_DEPTH => p.max_depth = num,
-                "depth" => return Err(format!("--octree depth={v}: expected 0..={MAX_OCTREE_DEPTH}")),
-                _ => return Err(format!("--octree: unknown key '{k}' (leaf, depth)")),
-            }
-        }
-        Ok(p)
-    }
+/// `--octree`: preset `default`; keys `leaf` (most primitives a node keeps without
+/// splitting) and `depth` (deepest level).
+impl super::params::Params for OctreeParams {
+    const FLAG: &'static str = "octree";
+    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[("default", OctreeParams::default)];
+    const KEYS: &'static [Key<Self>] = &[
+        Key { name: "leaf", expects: "1..=1048576", set: |p, v| Some(p.leaf_size = number(v, 1, 1 << 20)?) },
+        Key { name: "depth", expects: "0..=24", set: |p, v| Some(p.max_depth = number(v, 0, MAX_OCTREE_DEPTH)?) },
+    ];
 }
 
 /// The tree as the builder produces it.
@@ -351,7 +335,10 @@ impl Octree {
                         } else {
                             let inner = shrink(&ob);
                             if !inner.is_empty() && prim::overlaps(&g, &inner) {
-                                return Some(ValidateError::prim(p, format!("overlaps absent octant {k} of node {node}")));
+                                return Some(ValidateError::prim(
+                                    p,
+                                    format!("overlaps absent octant {k} of node {node}"),
+                                ));
                             }
                         }
                     }

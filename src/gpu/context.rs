@@ -480,8 +480,7 @@ impl Context {
                 )
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
-            let ticks = ts[1].wrapping_sub(ts[0]) as f64;
-            Ok(Some(ticks * f64::from(self.info.timestamp_period_ns) * 1e-6))
+            timestamp_ms(ts[0], ts[1], self.info.timestamp_period_ns).map(Some)
         })();
         // SAFETY: the fence was waited on (or the submission failed); nothing uses them now.
         unsafe {
@@ -493,6 +492,15 @@ impl Context {
         self.check_validation()?;
         Ok(r)
     }
+}
+
+/// Milliseconds between two timestamp query values, scaled by the device's
+/// `timestampPeriod` (nanoseconds per tick); an error if they are out of order.
+pub fn timestamp_ms(begin: u64, end: u64, period_ns: f32) -> Result<f64> {
+    if end < begin {
+        return Err(Error::Usage(format!("GPU timestamps out of order: {begin} then {end}")));
+    }
+    Ok((end - begin) as f64 * f64::from(period_ns) * 1e-6)
 }
 
 impl std::fmt::Debug for Context {
@@ -509,5 +517,17 @@ impl Drop for Context {
             self.shared.device.destroy_query_pool(self.query_pool, None);
             self.shared.device.destroy_command_pool(self.command_pool, None);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn timestamps_are_scaled_by_the_period_and_ordered() {
+        let ms = |a, b, p| super::timestamp_ms(a, b, p).expect("ordered");
+        assert!((ms(1_000, 3_000, 1.0) - 0.002).abs() < 1e-12);
+        assert!((ms(1_000, 3_000, 40.0) - 0.08).abs() < 1e-12);
+        assert_eq!(ms(7, 7, 1.0), 0.0);
+        assert!(super::timestamp_ms(3_000, 1_000, 1.0).is_err());
     }
 }

@@ -74,8 +74,14 @@ pub fn run(
                 };
                 let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
                 let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
-                let ms =
-                    ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&header), [groups, 1, 1], &label)?;
+                let ms = ctx.dispatch_after_write(
+                    kernel,
+                    pixel_buf,
+                    0,
+                    bytemuck::bytes_of(&header),
+                    [groups, 1, 1],
+                    &label,
+                )?;
                 totals.gpu_ms = match (totals.gpu_ms, ms) {
                     (Some(a), Some(b)) => Some(a + b),
                     _ => None,

@@ -127,8 +127,8 @@ impl Variant {
     pub fn new(prefix: &str, scene: &Scene, settings: &RenderSettings, image: &GpuImage) -> Result<Variant> {
         let geometry = geometry_suffix(scene, settings.kernel);
         let name = format!("{prefix}_{}_{geometry}", image.family);
-        let spirv = crate::gpu::spirv::get(&name)
-            .ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
+        let spirv =
+            crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
         Ok(Variant { bindings: trace_bindings(image.family, geometry), name, spirv })
     }
 }

@@ -89,7 +89,13 @@ fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams 
 }
 
 /// How the image is cut into dispatches on `ctx`.
-fn waves(ctx: &Context, scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Result<Waves> {
+fn waves(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    image: &GpuImage,
+    bounds: &LoopBounds,
+) -> Result<Waves> {
     let total_pixels = u64::from(settings.width) * u64::from(settings.height);
     let chunk_pixels = total_pixels.min(MAX_CHUNK_PIXELS).min(
         (ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64).max(1),

@@ -1,8 +1,8 @@
 //! Scenes and ray sets shared by the structure tests.
 
-use arbor::accel::Traverse;
 use arbor::accel::none::BruteForce;
 use arbor::accel::Accel;
+use arbor::accel::Traverse;
 use arbor::gpu::Context;
 use arbor::math::{Aabb, Ray};
 use arbor::render::{gpu, Frame, RenderSettings, RenderStats};

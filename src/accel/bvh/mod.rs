@@ -488,7 +488,10 @@ impl Bvh {
                         }
                         let pb = prim::bounds(&prim::geom(scene, p as u32));
                         if !contains(&b, &pb) {
-                            return Err(ValidateError::node(n, format!("leaf box {b:?} does not contain primitive {p} {pb:?}")));
+                            return Err(ValidateError::node(
+                                n,
+                                format!("leaf box {b:?} does not contain primitive {p} {pb:?}"),
+                            ));
                         }
                     }
                 } else {
@@ -501,7 +504,10 @@ impl Bvh {
                     }
                     for (cr, cb) in self.children(c) {
                         if cr != EMPTY_REF && !contains(&b, &cb) {
-                            return Err(ValidateError::node(n, format!("child box {b:?} does not contain its child's box {cb:?}")));
+                            return Err(ValidateError::node(
+                                n,
+                                format!("child box {b:?} does not contain its child's box {cb:?}"),
+                            ));
                         }
                     }
                     stack.push((c, d + 1));
@@ -509,7 +515,10 @@ impl Bvh {
             }
         }
         if max_depth != self.depth {
-            return Err(ValidateError::whole(format!("recorded depth {} but the tree is {max_depth} deep", self.depth)));
+            return Err(ValidateError::whole(format!(
+                "recorded depth {} but the tree is {max_depth} deep",
+                self.depth
+            )));
         }
         if let Some(n) = seen_node.iter().position(|s| !s) {
             return Err(ValidateError::node(n, "unreachable"));

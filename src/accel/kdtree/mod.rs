@@ -24,10 +24,11 @@ use std::time::Instant;
 
 use glam::Vec3;
 
+use super::params::{number, Key};
 use super::prim;
+use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
 use super::BuildStats;
-use super::prim::{intersect_prim, Prims};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -69,55 +70,40 @@ impl KdParams {
         KdParams { perfect_splits: false, ..Self::default() }
     }
 
-    /// Parses a preset name (`default`, `quality`, `fast`) or `key=value` pairs separated by
-    /// commas, applied over the default: `kt`, `ki`, `bonus`, `leaf`, `perfect`
-    /// (true/false), `depth` (a number or `auto`).
-    pub fn parse(spec: &str) -> Result<KdParams, String> {
-        Self::parse_onto(KdParams::default(), spec)
-    }
-
-    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
-    pub fn parse_onto(base: KdParams, spec: &str) -> Result<KdParams, String> {
-        let mut p = base;
-        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            match item {
-                "default" => p = KdParams::default(),
-                "fast" => p = KdParams::fast(),
-                "quality" => p = KdParams::quality(),
-                _ => {
-                    let (k, v) = item.split_once('=').ok_or_else(|| {
-                        format!("--kd {item:?}: expected a preset (default, quality, fast) or KEY=VALUE")
-                    })?;
-                    let num = |v: &str| -> Result<f32, String> {
-                        v.parse::<f32>()
-                            .ok()
-                            .filter(|x| x.is_finite() && *x >= 0.0)
-                            .ok_or_else(|| format!("--kd {k}={v}: expected a non-negative number"))
-                    };
-                    match k {
-                        "kt" => p.costs.traversal = num(v)?,
-                        "ki" => p.costs.intersect = num(v)?,
-                        "bonus" => p.costs.empty_bonus = num(v)?,
-                        "leaf" => p.leaf_size = num(v)? as usize,
-                        "perfect" => {
-                            p.perfect_splits =
-                                v.parse().map_err(|_| format!("--kd perfect={v}: expected true or false"))?
-                        }
-                        "depth" if v == "auto" => p.max_depth = None,
-                        "depth" => p.max_depth = Some((num(v)? as u32).min(MAX_KD_DEPTH)),
-                        _ => return Err(format!("--kd: unknown key '{k}' (kt, ki, bonus, leaf, perfect, depth)")),
-                    }
-                }
-            }
-        }
-        Ok(p)
-    }
-
     /// The depth limit for `n` primitives.
     pub fn depth_limit(&self, n: usize) -> u32 {
         let auto = (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32;
         self.max_depth.unwrap_or(auto).min(MAX_KD_DEPTH)
     }
+}
+
+/// `--kd`: presets `default`, `quality`, `fast`; keys `kt`, `ki` (SAH traversal and
+/// intersection cost), `bonus` (empty-space factor), `leaf` (most primitives a node
+/// keeps without trying to split), `perfect` (true/false), `depth` (auto or a number).
+impl super::params::Params for KdParams {
+    const FLAG: &'static str = "kd";
+    const PRESETS: &'static [(&'static str, fn() -> Self)] =
+        &[("default", KdParams::default), ("quality", KdParams::quality), ("fast", KdParams::fast)];
+    const KEYS: &'static [Key<Self>] = &[
+        Key { name: "kt", expects: "a non-negative number", set: |p, v| Some(p.costs.traversal = cost(v)?) },
+        Key { name: "ki", expects: "a non-negative number", set: |p, v| Some(p.costs.intersect = cost(v)?) },
+        Key { name: "bonus", expects: "a non-negative number", set: |p, v| Some(p.costs.empty_bonus = cost(v)?) },
+        Key { name: "leaf", expects: "0..=1048576", set: |p, v| Some(p.leaf_size = number(v, 0, 1 << 20)?) },
+        Key { name: "perfect", expects: "true or false", set: |p, v| Some(p.perfect_splits = v.parse().ok()?) },
+        Key {
+            name: "depth",
+            expects: "auto or 0..=64",
+            set: |p, v| {
+                p.max_depth = if v == "auto" { None } else { Some(number(v, 0, MAX_KD_DEPTH)?) };
+                Some(())
+            },
+        },
+    ];
+}
+
+/// An SAH cost constant: finite and non-negative.
+fn cost(v: &str) -> Option<f32> {
+    number(v, 0.0, f32::MAX)
 }
 
 /// The tree as builders produce it, before flattening.
