@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what arbor needs on Debian 12: Vulkan loader and lavapipe (software
 # Vulkan), the Khronos validation layer, shaderc/glslang/SPIRV-Tools static libraries
-# (linked into build.rs, see README), and the assimp test models used by the tests.
+# (linked into build.rs, see docs/build-notes.md), and the assimp test models used by the tests.
 set -euo pipefail
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi

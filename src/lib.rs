@@ -14,7 +14,7 @@
 //!
 //! Lint policy: `unsafe` is denied everywhere and allowed only in [`gpu`]; the other
 //! modules forbid it outright. (The binary's `main.rs` has one more block, setting an
-//! allocator option: README, "Host memory".)
+//! allocator option: docs/build-notes.md, "Host memory".)
 
 #![deny(unsafe_code)]
 #![warn(missing_debug_implementations)]

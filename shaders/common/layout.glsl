@@ -58,7 +58,7 @@ layout(std430, set = 0, binding = BINDING_SHADING) readonly buffer ShadingBuffer
 // The pixel buffer opens with the dispatch header (`GpuDispatch`), which the host
 // writes before each dispatch (vkCmdUpdateBuffer). It is storage, not push constants,
 // because lavapipe compiles a shader again, at every dispatch, for the values of push
-// constants and uniforms that its branches and loops depend on (README, "Per-dispatch
+// constants and uniforms that its branches and loops depend on (docs/kernels.md, "Per-dispatch
 // values live in storage").
 layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_range;  // 0  first pixel, pixel count, first sample, end sample

@@ -1,6 +1,6 @@
 //! `--accel auto`: the structure with the lowest expected build plus trace time for a
 //! scene, an image size and a sample count, from a cost model whose constants were
-//! measured with `arbor bench` on lavapipe (README "Choosing a structure").
+//! measured with `arbor bench` on lavapipe (docs/auto.md).
 //!
 //! Model, per structure: `time = build_ns · N + rays · (trace_ns · (1 + 0.1 log2(N / 1e5)))`
 //! for trees, and `rays · test_ns · N` for brute force; `rays` is pixels x samples x

@@ -64,7 +64,7 @@ pub enum PrimGeom {
 }
 
 /// Geometry of primitive `i` of `scene`. Inlined: the builders' bounds pass over a
-/// million triangles took 6.7–6.8 ms with it called, 1.9–2.0 inlined (README,
+/// million triangles took 6.7–6.8 ms with it called, 1.9–2.0 inlined (docs/build-notes.md,
 /// "Release builds: one codegen unit").
 #[inline]
 pub fn geom(scene: &Scene, i: u32) -> PrimGeom {

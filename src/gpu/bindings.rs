@@ -114,7 +114,7 @@ pub const MAX_STORAGE_BUFFERS_PER_STAGE: u32 = 8;
 /// Specialization constant ids.
 /// Lights the trace kernel shades with (0: no shadow rays). A constant, not the
 /// uniform `counts.x`: a loop bounded by a uniform makes lavapipe compile the kernel
-/// again at every dispatch (README, "Per-dispatch values live in storage").
+/// again at every dispatch (docs/kernels.md, "Per-dispatch values live in storage").
 pub const SPEC_LIGHTS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
 /// Traversal stack entries (tree depth + 1).

@@ -112,7 +112,7 @@ impl RenderSettings {
 }
 
 /// Primitive tests per dispatch: on lavapipe (2 cores) this keeps a dispatch near a
-/// quarter of a second; see README "Dispatch splitting".
+/// quarter of a second; see docs/kernels.md, "Dispatch splitting".
 pub const DEFAULT_DISPATCH_BUDGET: u64 = 60_000_000;
 
 /// A rendered frame: linear radiance (averaged over samples) and the AOVs of the
