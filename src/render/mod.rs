@@ -7,7 +7,6 @@ pub mod cpu;
 pub mod cracks;
 pub mod gpu;
 pub mod output;
-pub mod plots;
 
 use serde::Serialize;
 
