@@ -24,6 +24,7 @@ pub mod bench;
 pub mod error;
 #[allow(unsafe_code)]
 pub mod gpu;
+pub mod info;
 pub mod math;
 pub mod render;
 pub mod scene;

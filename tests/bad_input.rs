@@ -740,3 +740,42 @@ fn info_fails_the_same_way() {
     let off = fx.write("bad.off", "OFF\n3 x\n");
     info_fails(&off, &[&at(&off, 2), "face count"]);
 }
+
+// --- the command line itself --------------------------------------------------------------
+
+/// `arbor` alone prints the usage (not the description as an error).
+#[test]
+fn no_arguments_print_the_usage() {
+    let o = arbor(&[], Device::Absent, &[]);
+    assert_eq!(o.code, Some(2), "{o:?}");
+    assert!(o.stderr.contains("Usage: arbor <COMMAND>") && o.stderr.contains("render"), "{o:?}");
+    assert!(!o.stderr.contains("error"), "{o:?}");
+}
+
+/// Each clap error is one line that says what is wrong and where to read more.
+#[test]
+fn command_line_errors_name_what_is_wrong() {
+    let o = arbor(&["info".into()], Device::Absent, &[]);
+    expect_failure(&o, &["missing <SCENE>", "arbor info --help"]);
+    let o = arbor(&["render".into(), "--bogus".into()], Device::Absent, &[]);
+    expect_failure(&o, &["--bogus", "arbor render --help"]);
+    let o = arbor(&["rendr".into()], Device::Absent, &[]);
+    expect_failure(&o, &["rendr", "arbor --help"]);
+    let o = arbor(&["render".into(), "--spp".into(), "many".into()], Device::Absent, &[]);
+    expect_failure(&o, &["--spp", "many"]);
+}
+
+/// `bsp` is not an alias of `kdtree` (it reads as `bsp-course`); the kept aliases work.
+#[test]
+fn accel_bsp_is_rejected() {
+    let fx = Fixture::new();
+    let obj = fx.triangle_obj();
+    let o = arbor(&["info".into(), obj.clone(), "--accel".into(), "bsp".into()], Device::Absent, &[]);
+    expect_failure(&o, &["--accel", "bsp"]);
+    let o = arbor(&["bench".into(), "--accel".into(), "bsp".into()], Device::Absent, &[]);
+    expect_failure(&o, &["--accel", "bsp"]);
+    for alias in ["brute-force", "kd", "bvh"] {
+        let o = arbor(&["info".into(), obj.clone(), "--accel".into(), alias.into()], Device::Absent, &[]);
+        assert_eq!(o.code, Some(0), "--accel {alias}: {o:?}");
+    }
+}

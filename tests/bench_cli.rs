@@ -1,5 +1,5 @@
-//! `arbor bench` as CI runs it (`--quick`): CSV and JSON with the columns the README
-//! documents, plots of the expected size; GPU timestamps behind the trace times; and
+//! `arbor bench` as CI runs it (`--quick`): CSV and JSON with the columns of
+//! `bench::CSV_COLUMNS` (docs/bench.md documents them), plots of the expected size; GPU timestamps behind the trace times; and
 //! `--accel auto` choosing brute force for a handful of triangles and a tree for many.
 
 mod common;
@@ -8,7 +8,8 @@ use std::path::Path;
 use std::process::Command;
 
 use arbor::accel::AccelKind;
-use arbor::render::{gpu, plots, RenderSettings};
+use arbor::bench::{plots, CSV_COLUMNS};
+use arbor::render::{gpu, RenderSettings};
 use arbor::scene::Scene;
 
 fn run(args: &[&str]) -> std::process::Output {
@@ -30,19 +31,11 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
     let d = dir.to_string_lossy().to_string();
     run(&["bench", "--quick", "--tris", "1000", "--accel", "none,kdtree,grid", "--out", &d]);
 
-    // CSV: the header is exactly the columns the README documents, in its order.
-    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).expect("README");
-    let section = readme.split("<!-- bench.csv columns -->").nth(1).expect("README documents the CSV columns");
-    let documented: Vec<&str> = section
-        .lines()
-        .skip_while(|l| !l.starts_with("| `"))
-        .take_while(|l| l.starts_with("| `"))
-        .map(|l| l.trim_start_matches("| `").split('`').next().unwrap_or(""))
-        .collect();
+    // CSV: the header is exactly `bench::CSV_COLUMNS`, in its order.
     let csv = std::fs::read_to_string(dir.join("bench.csv")).expect("bench.csv");
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().expect("header").split(',').collect();
-    assert_eq!(header, documented, "bench.csv columns differ from the README's list");
+    assert_eq!(header, CSV_COLUMNS, "bench.csv header");
     // 1 scene x 2 ray kinds (primary, diffuse) x 3 structures.
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 6, "{csv}");
@@ -94,6 +87,47 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
     // Mrays/s and time to image for 2 ray kinds, and 2 cost heatmaps (kdtree, grid).
     assert_eq!(pngs, 2 + 2 + 2, "PNG plots");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// docs/bench.md lists the columns of `bench::CSV_COLUMNS`, in order, under its
+/// `<!-- bench.csv columns -->` marker (when the page exists).
+#[test]
+fn docs_list_the_csv_columns() {
+    let page = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/bench.md");
+    let Ok(text) = std::fs::read_to_string(&page) else {
+        eprintln!("skipped: no {}", page.display());
+        return;
+    };
+    let section = text.split("<!-- bench.csv columns -->").nth(1).expect("docs/bench.md marks the CSV columns");
+    let documented: Vec<&str> = section
+        .lines()
+        .skip_while(|l| !l.starts_with("| `"))
+        .take_while(|l| l.starts_with("| `"))
+        .map(|l| l.trim_start_matches("| `").split('`').next().unwrap_or(""))
+        .collect();
+    assert_eq!(documented, CSV_COLUMNS, "docs/bench.md and bench::CSV_COLUMNS differ");
+}
+
+/// `arbor bench | head -1`: once the reader has gone, the benchmark ends quietly (exit
+/// 0, no panic) instead of failing on the broken pipe.
+#[test]
+fn bench_ends_quietly_when_stdout_closes() {
+    let Some(_ctx) = common::gpu() else { return };
+    let mut child = Command::new(env!("CARGO_BIN_EXE_arbor"))
+        .args(["bench", "--quick", "--tris", "1000", "--size", "16x16", "--accel", "none,kdtree"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run arbor");
+    let mut stdout = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut first).expect("first line");
+    assert!(first.contains("scene triangles"), "{first}");
+    drop(stdout);
+    let out = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("Broken pipe"), "{stderr}");
 }
 
 #[test]

@@ -81,6 +81,13 @@ impl AccelKind {
         }
     }
 
+    /// The structure `render` and `info` build unless told otherwise.
+    pub const DEFAULT: AccelKind = AccelKind::Kdtree;
+
+    /// The structure CPU reference images are traced with: exact like every structure,
+    /// and the quickest to build with a good tree.
+    pub const CPU_REFERENCE: AccelKind = AccelKind::BvhSah;
+
     /// Whether this is brute force, the baseline every structure is measured against.
     pub fn is_brute_force(self) -> bool {
         self == AccelKind::None

@@ -9,7 +9,6 @@ pub mod dispatch;
 pub mod gpu;
 pub mod kernel;
 pub mod output;
-pub mod plots;
 pub mod readback;
 pub mod upload;
 pub mod whitted;

@@ -1,4 +1,5 @@
-//! Writers for images (PNG 8-bit sRGB, EXR linear float) and AOVs (PFM, EXR). Every
+//! Writers for images (PNG 8-bit sRGB, EXR linear float), AOVs (PFM, EXR; [`aov_channels`]
+//! turns a frame into them) and the statistics JSON (with its [`Provenance`]). Every
 //! file is written whole to a temporary file beside the target, then renamed, so a
 //! failed run never leaves a truncated file or clobbers an existing one.
 
@@ -6,6 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::render::{Frame, RenderStats};
 
 /// Output formats by extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,6 +113,82 @@ pub fn write_aov(path: &Path, width: u32, height: u32, channels: usize, data: &[
         }
     };
     write_atomic(path, &bytes)
+}
+
+/// The AOVs `render --aov` writes, by name.
+pub const AOV_NAMES: [&str; 4] = ["depth", "normal", "prim", "cost"];
+
+/// Parses `--aov` values (NAME=PATH pairs, comma-separated or repeated): each name one
+/// of [`AOV_NAMES`] and given once, each path a .pfm or .exr.
+pub fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
+    let mut out: Vec<(String, PathBuf)> = Vec::new();
+    for item in args.iter().flat_map(|a| a.split(',')).filter(|s| !s.is_empty()) {
+        let (name, path) =
+            item.split_once('=').ok_or_else(|| Error::Usage(format!("--aov {item:?}: expected NAME=PATH")))?;
+        if !AOV_NAMES.contains(&name) {
+            return Err(Error::Usage(format!(
+                "--aov {item:?}: unknown AOV '{name}' (known: {})",
+                AOV_NAMES.join(", ")
+            )));
+        }
+        if out.iter().any(|(n, _)| n == name) {
+            return Err(Error::Usage(format!("--aov: '{name}' given twice")));
+        }
+        let path = PathBuf::from(path);
+        format_of(&path, "aov")?;
+        out.push((name.to_string(), path));
+    }
+    Ok(out)
+}
+
+/// The AOV `name` of `frame` as (channels, row-major values): depth (1), normal (3),
+/// prim (1; -1 where the ray missed), cost (3: nodes visited, primitives tested, 0).
+pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
+    Ok(match name {
+        "depth" => (1, frame.depth.clone()),
+        "normal" => (3, frame.normal.iter().flatten().copied().collect()),
+        "prim" => (1, frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect()),
+        "cost" => (3, frame.nodes.iter().zip(&frame.tests).flat_map(|(&n, &t)| [n as f32, t as f32, 0.0]).collect()),
+        _ => return Err(Error::Usage(format!("unknown AOV '{name}' (known: {})", AOV_NAMES.join(", ")))),
+    })
+}
+
+/// Writes each (name, path) of `aovs` from `frame` (`width` x `height`).
+pub fn write_aovs(aovs: &[(String, PathBuf)], frame: &Frame, width: u32, height: u32) -> Result<()> {
+    for (name, path) in aovs {
+        let (channels, data) = aov_channels(frame, name)?;
+        write_aov(path, width, height, channels, &data)?;
+    }
+    Ok(())
+}
+
+/// The statistics JSON of a render: the [`RenderStats`] fields, then `provenance`.
+#[derive(Debug, serde::Serialize)]
+pub struct StatsFile<'a> {
+    #[serde(flatten)]
+    pub stats: &'a RenderStats,
+    pub provenance: Provenance,
+}
+
+/// What a stats JSON needs to rerun its result.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Provenance {
+    /// arbor's version (`CARGO_PKG_VERSION`).
+    pub version: String,
+    pub seed: u32,
+    pub spp: u32,
+    pub width: u32,
+    pub height: u32,
+    pub integrator: String,
+    /// The command line, program name first.
+    pub command_line: Vec<String>,
+}
+
+/// Writes the statistics JSON (`stats` and `provenance`) to `path`.
+pub fn write_stats(path: &Path, stats: &RenderStats, provenance: Provenance) -> Result<()> {
+    let json = serde_json::to_vec_pretty(&StatsFile { stats, provenance })
+        .map_err(|e| Error::Usage(format!("stats JSON: {e}")))?;
+    write_atomic(path, &json)
 }
 
 /// Reads a PFM written by [`encode_pfm`] (or any standard PFM): (width, height,

@@ -3,7 +3,8 @@
 //! and per-pixel cost heatmaps with a colour legend.
 //!
 //! Text needs a TrueType font: `ARBOR_FONT=path.ttf`, else DejaVu Sans from Debian's
-//! `fonts-dejavu-core` (installed by scripts/setup.sh).
+//! `fonts-dejavu-core` (installed by scripts/setup.sh). [`bench_plots`] draws every chart
+//! of a run.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -240,4 +241,61 @@ fn ramp(t: f64) -> RGBColor {
     let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
     let mix = |i: usize| ((a.1[i] + (b.1[i] - a.1[i]) * f) * 255.0).round() as u8;
     RGBColor(mix(0), mix(1), mix(2))
+}
+
+/// Draws the benchmark plots into `dir`; returns the files written. Charts use the rows
+/// of the first intersection mode, `first_mode`.
+pub(super) fn bench_plots(
+    dir: &Path,
+    rows: &[super::rows::Row],
+    heatmaps: &[super::rows::Heatmap],
+    first_mode: &str,
+) -> Result<Vec<PathBuf>> {
+    use super::files::file_part;
+    std::fs::create_dir_all(dir).map_err(|cause| Error::Io { path: dir.to_path_buf(), cause })?;
+    let mut files = Vec::new();
+    let ok: Vec<&super::rows::Row> = rows.iter().filter(|r| r.error.is_none() && r.intersect == first_mode).collect();
+    // Per scene and ray kind: Mrays/s bars and time-to-image curves.
+    let mut groups: Vec<(&str, &str)> = ok.iter().map(|r| (r.scene.as_str(), r.rays.as_str())).collect();
+    groups.dedup();
+    for (scene, rays) in groups {
+        let g: Vec<&&super::rows::Row> = ok.iter().filter(|r| r.scene == scene && r.rays == rays).collect();
+        let short = scene.strip_prefix("builtin:").unwrap_or(scene);
+        let bars: Vec<(String, f64)> = g.iter().map(|r| (r.label.clone(), r.mrays_per_s)).collect();
+        let stem = dir.join(format!("mrays_{}_{rays}", file_part(short)));
+        files.extend(mrays_bars(&stem, &format!("Mrays/s, {short}, {rays} rays"), &bars)?);
+        let spp: Vec<f64> = (0..=10).map(|k| f64::from(1u32 << k)).collect();
+        let series: Vec<(String, Vec<(f64, f64)>)> = g
+            .iter()
+            .filter(|r| !r.brute_force)
+            .map(|r| (r.label.clone(), spp.iter().map(|&s| (s, r.build_ms + s * r.trace_ms)).collect()))
+            .collect();
+        let stem = dir.join(format!("time_to_image_{}_{rays}", file_part(short)));
+        let title = format!("time to image, {short}, {rays} rays");
+        files.extend(loglog(&stem, &title, "samples per pixel", "build + trace ms", &series)?);
+    }
+    // Build time against triangle count over the blobs, per structure.
+    let blobs: Vec<&&super::rows::Row> =
+        ok.iter().filter(|r| r.scene.starts_with("builtin:blob:") && !r.brute_force).collect();
+    let mut labels: Vec<&str> = blobs.iter().map(|r| r.accel.as_str()).collect();
+    labels.sort_unstable();
+    labels.dedup();
+    let series: Vec<(String, Vec<(f64, f64)>)> = labels
+        .iter()
+        .map(|l| {
+            let mut pts: Vec<(f64, f64)> =
+                blobs.iter().filter(|r| r.accel == *l).map(|r| (r.triangles as f64, r.build_ms)).collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            pts.dedup_by(|a, b| a.0 == b.0);
+            (l.to_string(), pts)
+        })
+        .collect();
+    if series.iter().any(|s| s.1.len() > 1) {
+        let stem = dir.join("build_vs_triangles");
+        files.extend(loglog(&stem, "build time", "triangles", "build ms", &series)?);
+    }
+    for m in heatmaps {
+        files.push(heatmap(&dir.join(format!("{}.png", m.stem)), &m.title, m.width, m.height, &m.nodes)?);
+    }
+    Ok(files)
 }

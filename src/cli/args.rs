@@ -1,0 +1,233 @@
+//! The `arbor` binary's command line, as clap reads it (included by main.rs only): the
+//! subcommands and their arguments, with the help texts.
+
+use anyhow::{bail, Result};
+use arbor::accel::{AccelKind, AccelParams};
+use arbor::bench::RayKind;
+use arbor::render;
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "arbor",
+    version,
+    about = "Headless Vulkan compute ray tracer for triangle meshes and spheres",
+    long_about = "Headless Vulkan compute ray tracer for triangle meshes and spheres, built around \
+spatial data structures. Scenes: a .toml scene file, a mesh (.obj/.ply/.off, camera framed \
+automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N | builtin:stadium:N | builtin:inside:N.\n\n\
+Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error fails the run); \
+ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
+VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots; \
+MIMALLOC_PURGE_DELAY=MS lets the allocator give freed memory back to the OS after MS ms (default: arbor keeps it for reuse)."
+)]
+pub(crate) struct Cli {
+    #[command(subcommand)]
+    pub(crate) command: Command,
+}
+
+#[derive(clap::Args, Clone)]
+pub(crate) struct DeviceArgs {
+    /// Vulkan device: an index from `arbor devices` or a substring of its name
+    /// (default: a discrete GPU if present, else the first device).
+    #[arg(long, value_name = "INDEX|NAME")]
+    pub(crate) device: Option<String>,
+    /// Enable the Khronos validation layer; any validation error fails the run.
+    #[arg(long)]
+    pub(crate) validation: bool,
+}
+
+/// Builder parameters of the structures, shared by render, info and bench.
+#[derive(clap::Args, Clone)]
+pub(crate) struct StructureArgs {
+    /// kd-tree builder parameters: a preset (default, quality, fast) or KEY=VALUE pairs:
+    /// kt, ki (SAH traversal / intersection cost), bonus (empty-space factor),
+    /// leaf (most primitives a node keeps without trying to split), perfect
+    /// (true/false), depth (number or auto).
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    pub(crate) kd: String,
+    /// Grid parameters as KEY=VALUE pairs: lambda (cells per primitive, default 2),
+    /// cells (most cells in all, default 16777216).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    pub(crate) grid: String,
+    /// Octree parameters as KEY=VALUE pairs: leaf (most primitives a node keeps
+    /// without splitting, default 8), depth (deepest level, default 20, at most 24).
+    #[arg(long, default_value = "default", value_name = "KEY=VALUE,...")]
+    pub(crate) octree: String,
+    /// trbvh restructuring: a preset (default: 7-leaf treelets, 3 rounds with minimum
+    /// subtree sizes 7, 7, 28; paper: 7, 14, 28 as Karras & Aila; fast: 5-leaf
+    /// treelets, faster build, higher SAH; quality: every round at 7, lower SAH, longer
+    /// build) and/or leaves=3..7, rounds=0..8, gamma=A/B/... (each round's minimum
+    /// subtree size as a multiple of leaves; sets the rounds), e.g. leaves=6,gamma=1/2/4.
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    pub(crate) trbvh: String,
+    /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute
+    /// kernels; the same tree as the CPU builder's, word for word). `bench` takes a
+    /// list (cpu,gpu): one row per structure and build device.
+    #[arg(long, value_delimiter = ',', default_value = "cpu", value_name = "cpu|gpu")]
+    pub(crate) build: Vec<arbor::accel::BuildOn>,
+}
+
+impl StructureArgs {
+    /// The parameters of a command that builds once (render, info).
+    pub(crate) fn single(&self) -> Result<AccelParams> {
+        if self.build.len() > 1 {
+            bail!("--build takes one of cpu, gpu here (a list only in bench)");
+        }
+        self.params()
+    }
+
+    /// Every structure's parameters: each flag's spec applied over the defaults.
+    pub(crate) fn params(&self) -> Result<AccelParams> {
+        let mut p = AccelParams { build: self.build.first().copied().unwrap_or_default(), ..Default::default() };
+        for (flag, spec) in [("kd", &self.kd), ("grid", &self.grid), ("octree", &self.octree), ("trbvh", &self.trbvh)] {
+            p.set_flag(flag, spec).map_err(anyhow::Error::msg)?;
+        }
+        Ok(p)
+    }
+}
+
+#[derive(clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Triangle counts of the procedural meshes (builtin:blob:N); default 1000,10000,100000
+    /// unless --scene is given.
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) tris: Vec<usize>,
+    /// Structures to compare (default: all; names as `render --accel`, aliases
+    /// brute-force, kd, bvh too); `none` (brute force) is traced on a smaller image of
+    /// the same view and gives the speedup column.
+    #[arg(long, value_delimiter = ',', default_values_t = AccelKind::ALL.to_vec())]
+    pub(crate) accel: Vec<AccelKind>,
+    /// Image size WIDTHxHEIGHT of the camera rays (128x128 with --quick unless given).
+    #[arg(long, default_value = "256x256", value_name = "WxH")]
+    pub(crate) size: String,
+    /// Timed rounds (after one warm-up round); in each, every structure builds and
+    /// traces once, in turn; medians are reported.
+    #[arg(long, default_value_t = 5)]
+    pub(crate) repeat: usize,
+    /// Write all figures as JSON here.
+    #[arg(long, value_name = "PATH")]
+    pub(crate) json: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) structure: StructureArgs,
+    /// Grid densities to sweep: one grid row per value (cells = lambda x primitives);
+    /// default: the one from --grid. Swept in every structure whose parameters take a
+    /// lambda.
+    #[arg(long, value_delimiter = ',', value_name = "LAMBDA,...")]
+    pub(crate) lambda: Vec<f32>,
+    /// Extra scenes: builtin:stadium:N (a dense mesh of N triangles inside a huge
+    /// sparse one) or any scene argument; traced beside the blobs of --tris.
+    #[arg(long, value_delimiter = ',', value_name = "SCENE,...")]
+    pub(crate) scene: Vec<String>,
+    /// Ray/triangle tests to compare (watertight, fast): one row per structure and mode.
+    /// On builtin:inside:N (a closed mesh around the camera) every miss is a ray that
+    /// escaped through the mesh: the miss/M column counts them per million rays.
+    #[arg(long, value_delimiter = ',', default_value = "watertight", value_name = "MODE,...")]
+    pub(crate) intersect: Vec<arbor::math::intersect::IntersectMode>,
+    /// Ray kinds, one set of rows each: primary (camera rays), shadow (camera rays plus
+    /// a shadow ray toward each light from every hit), diffuse (camera rays plus one
+    /// cosine-distributed ray from every hit, seeded: incoherent). Mrays/s counts all.
+    /// Default: primary (primary,diffuse with --quick).
+    #[arg(long, value_delimiter = ',', value_name = "KIND,...")]
+    pub(crate) rays: Vec<RayKind>,
+    /// Same as --rays shadow (kept for older command lines).
+    #[arg(long, hide = true)]
+    pub(crate) shadow: bool,
+    /// Write bench.csv, bench.json (every figure; columns in docs/bench.md) and plots/
+    /// (PNG and SVG charts, cost heatmaps) here; the directory is created if missing.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) out: Option<PathBuf>,
+    /// A small run for CI and a first look: blobs of 1000 and 10000 triangles (unless
+    /// --tris or --scene), 128x128, one repeat, primary and diffuse rays (unless --rays
+    /// is given explicitly).
+    #[arg(long)]
+    pub(crate) quick: bool,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct RenderArgs {
+    /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
+    #[arg(default_value = "builtin:default")]
+    pub(crate) scene: String,
+    /// Output image; the extension picks the format (.png or .exr).
+    #[arg(short, long, default_value = "render.png")]
+    pub(crate) output: PathBuf,
+    /// Image size WIDTHxHEIGHT (default: the scene's film size).
+    #[arg(long, value_name = "WxH")]
+    pub(crate) size: Option<String>,
+    /// Samples per pixel (jittered; sample 0 goes through the pixel centre).
+    #[arg(long, default_value_t = 1)]
+    pub(crate) spp: u32,
+    /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
+    /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
+    /// (LBVH + treelet restructuring), grid (uniform grid), octree, none (brute
+    /// force), or auto: the one a cost model expects to build and trace this scene,
+    /// image size and sample count fastest (`arbor info --accel auto` says why).
+    /// Aliases: brute-force (= none), kd (= kdtree), bvh (= bvh-sah).
+    #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+    pub(crate) accel: String,
+    #[command(flatten)]
+    pub(crate) structure: StructureArgs,
+    /// Ray/triangle test: watertight (Woop, Benthin & Wald 2013: no ray slips
+    /// between triangles sharing an edge) or fast (Moller-Trumbore: fewer operations,
+    /// rays can escape through shared edges and vertices).
+    #[arg(long, default_value = "watertight", value_name = "MODE")]
+    pub(crate) intersect: arbor::math::intersect::IntersectMode,
+    /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
+    /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
+    #[arg(long, value_name = "NAME=PATH,...")]
+    pub(crate) aov: Vec<String>,
+    /// Write statistics JSON here.
+    #[arg(long, value_name = "PATH")]
+    pub(crate) stats: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
+    /// Random seed for sample jitter and glass.
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u32,
+    /// Kernel variant: `specialized` (only what the scene needs) or `general`.
+    #[arg(long, default_value = "specialized", value_parser = ["specialized", "general"])]
+    pub(crate) kernel: String,
+    /// Primitive tests per dispatch (smaller = shorter dispatches, for devices
+    /// with a watchdog); the output is identical for any value.
+    #[arg(long, default_value_t = render::DEFAULT_DISPATCH_BUDGET, value_name = "TESTS")]
+    pub(crate) dispatch_budget: u64,
+    /// No progress bar, no summary line.
+    #[arg(short, long)]
+    pub(crate) quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct InfoArgs {
+    /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
+    pub(crate) scene: String,
+    /// Acceleration structure to build and describe, or auto (see `render --accel`;
+    /// chosen for the scene's own film size and 1 sample per pixel).
+    #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+    pub(crate) accel: String,
+    #[command(flatten)]
+    pub(crate) structure: StructureArgs,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
+    /// Device for --build gpu (unused otherwise).
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
+}
+
+#[derive(Subcommand)]
+pub(crate) enum Command {
+    /// Render a scene to PNG (8-bit sRGB) or EXR (linear float).
+    Render(RenderArgs),
+    /// Print scene and structure statistics (no rendering).
+    Info(InfoArgs),
+    /// List the Vulkan devices arbor can use.
+    Devices,
+    /// Benchmark every structure's build and trace on procedural meshes and scenes:
+    /// build ms, GPU trace ms (timestamps), Mrays/s, speedup over brute force, mean and
+    /// p99 nodes and primitives per ray, bytes, SAH cost, cracks and disagreement with
+    /// the watertight reference, time to image; CSV, JSON and plots with --out.
+    Bench(BenchArgs),
+}
