@@ -17,9 +17,11 @@ use crate::math::Aabb;
 
 impl Restructure {
     /// The LBVH of `refs` built straight into the restructuring's nodes (no
-    /// [`Binary`](crate::accel::bvh::Binary) in between) and fitted as [`Restructure::new`] does, by one climb
+    /// [`Binary`] in between) and fitted as [`Restructure::new`] does, by one climb
     /// from the leaves (`Restructure::climb`); with treelets of `leaves` leaves.
     /// Records the phases `morton + sort` and `hierarchy + fit`.
+    ///
+    /// [`Binary`]: crate::accel::bvh::Binary
     pub fn lbvh(
         refs: &PrimRefs,
         costs: &SahCosts,

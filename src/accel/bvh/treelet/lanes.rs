@@ -115,7 +115,9 @@ trait LaneOps: Copy {
     fn inf(self) -> Self::V;
     /// Subset `s` = `rest` ∪ {`low`}: its box (min and max as x86's MINPS and MAXPS:
     /// the first operand where it is less, resp. greater, else the second), its area
-    /// as [`area`](crate::accel::sah::area) (0 when empty, the same sum order) and its count.
+    /// as [`area`] (0 when empty, the same sum order) and its count.
+    ///
+    /// [`area`]: crate::accel::sah::area
     fn fold(self, t: &mut LaneTables, s: usize, rest: usize, low: usize);
     /// One step of a comparison chain: the sum `x + y` where it is strictly below `b`
     /// (a NaN sum never is). Only costs are kept; [`LaneTables::best_part`] finds the
@@ -125,8 +127,10 @@ trait LaneOps: Copy {
     fn merge(self, b: Self::V, b1: Self::V) -> Self::V;
     /// Keeps `b`, the cheapest partition sum of subset `s` (for
     /// [`LaneTables::best_part`]), and sets `s`'s optimal cost as
-    /// [`Restructure::cost_of_area`](super::Restructure::cost_of_area): C_T·A + b, or one leaf (C_I·A·N) if cheaper and N ≤
+    /// [`Restructure::cost_of_area`]: C_T·A + b, or one leaf (C_I·A·N) if cheaper and N ≤
     /// MAX_LEAF. As `f32::min`, a NaN on one side gives the other.
+    ///
+    /// [`Restructure::cost_of_area`]: super::Restructure::cost_of_area
     fn node(self, t: &mut LaneTables, s: usize, b: Self::V, traversal: f32, intersect: f32);
 }
 

@@ -6,7 +6,7 @@
 //! nodes can be expanded) until it has [`TREELET_LEAVES`] leaves. Its optimal topology
 //! is found by dynamic programming over the subsets of its leaves: for every subset S,
 //! the cheapest of splitting it into two subsets (C_T·A(S) + c(P) + c(S∖P)) and, when
-//! S holds at most [`MAX_LEAF`](super::MAX_LEAF) primitives, of making it one leaf (C_I·A(S)·N(S)). The
+//! S holds at most [`MAX_LEAF`] primitives, of making it one leaf (C_I·A(S)·N(S)). The
 //! treelet's inner nodes are reused for the new topology; subtrees below its leaves are
 //! kept intact.
 //!
@@ -39,6 +39,8 @@
 //! fitting), `climb` (the LBVH built straight into those nodes), `rounds` (forming,
 //! optimising and rewriting treelets, [`Restructure::round`]) and `lanes` (the
 //! generated dynamic programme over 16 treelets at once, in SSE, AVX2 or AVX-512).
+//!
+//! [`MAX_LEAF`]: super::MAX_LEAF
 
 use super::Binary;
 use crate::accel::sah::SahCosts;
