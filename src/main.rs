@@ -16,7 +16,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 // The kd-tree builder allocates many short-lived vectors; mimalloc builds the 75k
 // benchmark tree about 25% faster than glibc malloc here. It is built with `no_thp` (it
 // never asks for transparent huge pages; the system's policy decides) and told by
-// `keep_freed_memory` not to give freed memory back: README, "Host memory".
+// `keep_freed_memory` not to give freed memory back: docs/build-notes.md, "Host memory".
 #[path = "cli/args.rs"]
 mod args;
 
@@ -37,8 +37,8 @@ const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
 /// without, as long as a repeated build. `MIMALLOC_PURGE_DELAY`, when set, still wins.
 fn keep_freed_memory() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
-        // SAFETY: the one `unsafe` outside src/gpu besides this file's test (README, "Host
-        // memory"). `mi_option_set` stores an integer in mimalloc's option table; it is
+        // SAFETY: the one `unsafe` outside src/gpu besides this file's test (docs/build-notes.md,
+        // "Host memory"). `mi_option_set` stores an integer in mimalloc's option table; it is
         // called before any thread is started, and -1 ("never purge") is a documented
         // value of this option.
         #[allow(unsafe_code)]

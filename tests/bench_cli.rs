@@ -139,13 +139,15 @@ fn trace_times_come_from_gpu_timestamps() {
     let mut s = RenderSettings::for_size(96, 96);
     s.accel = AccelKind::None;
     s.primary_only = true;
+    // Several dispatches, each timed: a render whose timestamps came back out of order
+    // fails (Context::timestamp_ms, unit-tested with the scaling by timestampPeriod).
+    s.dispatch_budget = 20_000_000;
     let (_, st) = gpu::render(&ctx, &scene, &s, |_, _| {}).expect("render");
+    assert!(st.dispatches > 1, "{} dispatches", st.dispatches);
     let t = st.trace_ms.expect("GPU timestamps");
-    // Ticks scaled by timestampPeriod: positive, within the wall clock, and a large
-    // part of it for this tracing-bound frame (unscaled or doubly scaled ticks would
-    // be off by orders of magnitude unless the period is exactly 1 ns).
+    // The GPU intervals lie inside the host's wait for them, so their sum cannot exceed
+    // the wall clock; no ratio is asserted, which a loaded machine could break.
     assert!(t > 0.0 && t <= st.wall_ms, "trace {t} ms, wall {} ms", st.wall_ms);
-    assert!(t >= 0.2 * st.wall_ms, "trace {t} ms is a small part of wall {} ms", st.wall_ms);
 }
 
 #[test]

@@ -7,6 +7,7 @@ mod common;
 use arbor::accel::bvh::gpu_build::GpuBuilder;
 use arbor::accel::bvh::treelet::TreeletParams;
 use arbor::accel::bvh::{Bvh, BvhBuilder};
+use arbor::accel::params::Params;
 use arbor::accel::Accel;
 use arbor::scene::{procedural, Scene};
 use common::scenes::{bvh_cases, compare_with_brute_force, scene_from, tris};

@@ -332,10 +332,7 @@ impl AccelParams {
             "kd" => self.kd = self.kd.parse_onto(spec)?,
             "grid" => self.grid = self.grid.parse_onto(spec)?,
             "octree" => self.octree = self.octree.parse_onto(spec)?,
-            "trbvh" => {
-                self.treelet = bvh::treelet::TreeletParams::parse_onto(self.treelet, spec)
-                    .map_err(|what| params::ParamError { flag: "trbvh", item: spec.to_string(), what })?
-            }
+            "trbvh" => self.treelet = self.treelet.parse_onto(spec)?,
             _ => {
                 return Err(params::ParamError {
                     flag: "accel",

@@ -1,5 +1,5 @@
 //! Generates the treelet dynamic programme as straight-line code: Rust, one function
-//! per treelet size (included by `treelet.rs`), and GLSL for 7 leaves (included by
+//! per treelet size (included by `treelet/lanes.rs`), and GLSL for 7 leaves (included by
 //! `build_treelet.comp`).
 //!
 //! Used by `build.rs` only. The subsets of k leaves and their partitions are the same
@@ -7,7 +7,7 @@
 //! loop control and no loop-exit branches to mispredict on the CPU, and no per-lane
 //! indexing of private arrays (scratch memory) on llvmpipe.
 //!
-//! The order is the loop's in `treelet::tests` and in `build_treelet.comp`: subsets S in
+//! The order is the loop's in `treelet::lanes::tests` and in `build_treelet.comp`: subsets S in
 //! ascending order; the partitions (P, S∖P) with the lowest leaf of S in P, P
 //! descending; the first strictly cheapest wins, a NaN sum never wins, and if no sum is
 //! below +inf the lowest leaf alone is kept with cost +inf.
@@ -40,7 +40,7 @@ fn partitions(s: usize) -> Vec<usize> {
 
 /// Rust: `fn treelet_lanes_k{k}(ops, t, traversal, intersect)` for k in
 /// MIN_LEAVES..=MAX_LEAVES, and `treelet_lanes_with`, which dispatches on k. They
-/// optimise `LANES` treelets of k leaves at once, one per SIMD lane of `treelet.rs`'s
+/// optimise `LANES` treelets of k leaves at once, one per SIMD lane of `treelet/lanes.rs`'s
 /// `LaneTables`, so that every step is a vector operation of `ops` (a `LaneOps`: SSE
 /// or AVX2, the same bits): for each subset in ascending order, its box, area and
 /// count (`fold`, as the union of the rest and the lowest leaf), its cheapest split

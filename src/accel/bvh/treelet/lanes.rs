@@ -310,7 +310,7 @@ impl LaneOps for AvxLanes {
 /// run time where the processor has it, see [`treelet_lanes`]). The generated
 /// programme is large (about 80 KiB of code for 7 leaves, where the first-level
 /// instruction cache holds 32), so fetching it bounds its speed: 16 lanes per
-/// instruction do twice the work of AVX2's 8 for the same fetch (README, "trbvh").
+/// instruction do twice the work of AVX2's 8 for the same fetch (docs/bvh.md, "trbvh").
 #[cfg(target_arch = "x86_64")]
 #[derive(Debug, Clone, Copy)]
 struct Avx512Lanes(pulp::x86::V4);

@@ -2,6 +2,7 @@
 //! round, and the `--trbvh` spec they are parsed from.
 
 use super::TREELET_LEAVES;
+use crate::accel::params::{number, Key};
 
 /// Rounds of restructuring by default.
 pub const ROUNDS: u32 = 3;
@@ -9,7 +10,7 @@ pub const ROUNDS: u32 = 3;
 pub const MAX_ROUNDS: usize = 8;
 /// γ of each round by default, as multiples of the treelet size: two rounds at the
 /// treelet size, then one at 4 times it (7, 7, 28 for 7 leaves); later rounds repeat
-/// the pattern. Measured at 1M triangles (README, "trbvh"), the paper's doubling (7,
+/// the pattern. Measured at 1M triangles (docs/bvh.md, "trbvh"), the paper's doubling (7,
 /// 14, 28) spends its second round where little improves: two rounds at 7 alone gave a
 /// lower SAH cost than 7, 14, 28, and 7, 7, 28 is within 3% of the binned SAH builder.
 const SCHEDULE: [u32; MAX_ROUNDS] = [1, 1, 4, 1, 1, 4, 1, 1];
@@ -43,7 +44,7 @@ impl Default for TreeletParams {
 }
 
 impl TreeletParams {
-    /// Faster: 5-leaf treelets (README, "trbvh", for the figures).
+    /// Faster: 5-leaf treelets (docs/bvh.md, "trbvh").
     pub fn fast() -> Self {
         TreeletParams { leaves: 5, ..Self::default() }
     }
@@ -55,7 +56,7 @@ impl TreeletParams {
 
     /// Better trees for a longer build: every round at γ = the treelet size. Small
     /// subtrees gain most, and they gain again once the treelets above have regrouped
-    /// the nodes below them (README, "trbvh", for the figures).
+    /// the nodes below them (docs/bvh.md, "trbvh").
     pub fn quality() -> Self {
         TreeletParams { gamma: [1; MAX_ROUNDS], ..Self::default() }
     }
@@ -64,65 +65,42 @@ impl TreeletParams {
     pub fn gamma(&self, round: u32) -> u32 {
         self.leaves as u32 * self.gamma[round as usize % MAX_ROUNDS]
     }
+}
 
-    /// Parses a preset (`default`, `fast`, `quality`, `paper`) or `leaves=N`, `rounds=N` and
-    /// `gamma=A/B/...` (γ of each round as multiples of the treelet size; it sets the
-    /// rounds too) over the default.
-    pub fn parse(spec: &str) -> Result<TreeletParams, String> {
-        Self::parse_onto(TreeletParams::default(), spec)
-    }
-
-    /// Applies `spec` (presets and KEY=VALUE pairs, in order) on top of `base`.
-    pub fn parse_onto(base: TreeletParams, spec: &str) -> Result<TreeletParams, String> {
-        let mut p = base;
-        let keys = "leaves=3..7, rounds=0..8, gamma=A/B/... (multiples of leaves, one per round)";
-        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            match item {
-                "default" => p = TreeletParams::default(),
-                "fast" => p = TreeletParams::fast(),
-                "quality" => p = TreeletParams::quality(),
-                "paper" => p = TreeletParams::paper(),
-                _ => {
-                    let (k, v) = item.split_once('=').ok_or_else(|| {
-                        format!("--trbvh {item:?}: expected a preset (default, fast, quality, paper) or {keys}")
-                    })?;
-                    let number =
-                        |v: &str| v.parse::<u32>().map_err(|_| format!("--trbvh {k}={v}: expected a whole number"));
-                    match k {
-                        "leaves" => match number(v)? {
-                            n if (3..=TREELET_LEAVES as u32).contains(&n) => p.leaves = n as usize,
-                            _ => return Err(format!("--trbvh leaves={v}: expected 3..={TREELET_LEAVES}")),
-                        },
-                        "rounds" => match number(v)? {
-                            n if n as usize <= MAX_ROUNDS => p.rounds = n,
-                            _ => return Err(format!("--trbvh rounds={v}: expected 0..={MAX_ROUNDS}")),
-                        },
-                        "gamma" => {
-                            let list: Vec<u32> = v.split('/').map(number).collect::<Result<_, _>>()?;
-                            if list.is_empty()
-                                || list.len() > MAX_ROUNDS
-                                || list.iter().any(|&g| !(1..=1 << 20).contains(&g))
-                            {
-                                return Err(format!(
-                                    "--trbvh gamma={v}: expected 1 to {MAX_ROUNDS} multiples of leaves, each 1..=1048576, \
-                                     separated by '/'"
-                                ));
-                            }
-                            p.gamma[..list.len()].copy_from_slice(&list);
-                            p.rounds = list.len() as u32;
-                        }
-                        _ => return Err(format!("--trbvh: unknown key '{k}' ({keys})")),
-                    }
+/// `--trbvh`: presets `default`, `fast`, `quality`, `paper`; keys `leaves` (3..=7),
+/// `rounds` (0..=8) and `gamma=A/B/...` (each round's minimum subtree size as a
+/// multiple of `leaves`; it sets the rounds too).
+impl crate::accel::params::Params for TreeletParams {
+    const FLAG: &'static str = "trbvh";
+    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[
+        ("default", TreeletParams::default),
+        ("fast", TreeletParams::fast),
+        ("quality", TreeletParams::quality),
+        ("paper", TreeletParams::paper),
+    ];
+    const KEYS: &'static [Key<Self>] = &[
+        Key { name: "leaves", expects: "3..=7", set: |p, v| Some(p.leaves = number(v, 3, TREELET_LEAVES)?) },
+        Key { name: "rounds", expects: "0..=8", set: |p, v| Some(p.rounds = number(v, 0, MAX_ROUNDS as u32)?) },
+        Key {
+            name: "gamma",
+            expects: "1 to 8 multiples of leaves, each 1..=1048576, separated by '/'",
+            set: |p, v| {
+                let list: Vec<u32> = v.split('/').map(|g| number(g, 1, 1 << 20)).collect::<Option<_>>()?;
+                if list.is_empty() || list.len() > MAX_ROUNDS {
+                    return None;
                 }
-            }
-        }
-        Ok(p)
-    }
+                p.gamma[..list.len()].copy_from_slice(&list);
+                p.rounds = list.len() as u32;
+                Some(())
+            },
+        },
+    ];
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::params::Params;
 
     /// Presets and keys parse; each round's γ follows the schedule; bad values are
     /// refused.

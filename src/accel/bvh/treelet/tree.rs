@@ -12,7 +12,7 @@ use crate::accel::bvh::{BNode, Binary, Nodes, LEAF_FLAG, MAX_LEAF};
 use crate::accel::sah::{area, SahCosts};
 use crate::math::Aabb;
 
-// A node is 40 bytes (README, "trbvh"): the settled mark shares the count's word.
+// A node is 40 bytes (docs/bvh.md, "trbvh"): the settled mark shares the count's word.
 const _: () = assert!(std::mem::size_of::<Slot>() == 40);
 /// Levels of the tree split between parallel tasks when fitting it (2^10 subtrees).
 const FIT_PAR_LEVELS: u32 = 10;
