@@ -150,13 +150,13 @@ pub fn read_file(path: &Path, kind: FileKind) -> Result<Vec<u8>> {
 }
 
 /// What is wrong when a scene's running totals exceed [`MAX_TRIANGLES`] or
-/// [`MAX_VERTICES`]; None while they fit.
+/// [`MAX_VERTICES`] (`"N triangles; at most M are supported"`); None while they fit.
 pub fn totals_error(triangles: u64, vertices: u64) -> Option<String> {
     if triangles > MAX_TRIANGLES {
-        return Some(format!("the scene would have {triangles} triangles; at most {MAX_TRIANGLES} are supported"));
+        return Some(format!("{triangles} triangles; at most {MAX_TRIANGLES} are supported"));
     }
     if vertices > MAX_VERTICES {
-        return Some(format!("the scene would have {vertices} vertices; at most {MAX_VERTICES} are supported"));
+        return Some(format!("{vertices} vertices; at most {MAX_VERTICES} are supported"));
     }
     None
 }

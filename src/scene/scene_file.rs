@@ -235,7 +235,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             return Err(at(
                 m.span(),
                 format!(
-                    "{what} with [[mesh]] table {} ('{}', {} triangles, {} vertices): use fewer or smaller meshes",
+                    "[[mesh]] table {} ('{}', {} triangles, {} vertices) brings the scene to {what}: \
+                     use fewer or smaller meshes",
                     meshes.len() + 1,
                     d.file,
                     mesh.triangles.len(),
