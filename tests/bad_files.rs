@@ -89,12 +89,12 @@ fn devices_and_oversized_files_are_not_read() {
         std::fs::File::create(d(dir, name)).unwrap().set_len(len).unwrap();
         d(dir, name)
     };
-    let m = rejects(&sparse("huge.ply", MAX_MESH_FILE_BYTES + 1), &s(&d(dir, "huge.ply")), "at most 2 GiB are read");
+    let m = rejects(&sparse("huge.ply", MAX_MESH_FILE_BYTES + 1), &s(&d(dir, "huge.ply")), "at most 2 GiB (2147483648 bytes) are read");
     eprintln!("{m}");
-    rejects(&sparse("huge.toml", MAX_TEXT_FILE_BYTES + 1), &s(&d(dir, "huge.toml")), "at most 16 MiB are read");
+    rejects(&sparse("huge.toml", MAX_TEXT_FILE_BYTES + 1), &s(&d(dir, "huge.toml")), "at most 16 MiB (16777216 bytes) are read");
     sparse("huge.mtl", MAX_TEXT_FILE_BYTES + 1);
     std::fs::write(d(dir, "huge_mtl.obj"), format!("mtllib huge.mtl\n{TRI_OBJ}")).unwrap();
-    rejects(&d(dir, "huge_mtl.obj"), &s(&d(dir, "huge_mtl.obj")), "at most 16 MiB are read");
+    rejects(&d(dir, "huge_mtl.obj"), &s(&d(dir, "huge_mtl.obj")), "at most 16 MiB (16777216 bytes) are read");
 }
 
 #[test]

@@ -112,12 +112,17 @@ pub fn check_file(path: &Path, kind: FileKind) -> Result<u64> {
 
 fn too_big(path: &Path, kind: FileKind, len: Option<u64>) -> Error {
     let size = match len {
-        Some(n) => format!("is {}", human_bytes(n)),
+        Some(n) => format!("is {n} bytes"),
         None => "grew while it was read".to_string(),
     };
     Error::invalid(
         path,
-        format!("{} {size}; at most {} are read (docs/limits.md)", kind.noun(), human_bytes(kind.max_bytes())),
+        format!(
+            "{} {size}; at most {} ({} bytes) are read (docs/limits.md)",
+            kind.noun(),
+            human_bytes(kind.max_bytes()),
+            kind.max_bytes()
+        ),
     )
 }
 
@@ -181,7 +186,7 @@ mod tests {
         let big = dir.path().join("big.toml");
         std::fs::File::create(&big).unwrap().set_len(MAX_TEXT_FILE_BYTES + 1).unwrap();
         let e = read_file(&big, FileKind::SceneFile).unwrap_err().to_string();
-        assert!(e.contains("at most 16 MiB"), "{e}");
+        assert!(e.contains("at most 16 MiB (16777216 bytes)"), "{e}");
         let ok = dir.path().join("ok.toml");
         std::fs::write(&ok, "x").unwrap();
         assert_eq!(read_file(&ok, FileKind::SceneFile).unwrap(), b"x");

@@ -145,8 +145,8 @@ impl Libraries {
             self.error = Some(Error::invalid(
                 path,
                 format!(
-                    "the OBJ file's material libraries define more than {} materials; at most {} are supported",
-                    self.materials - defined,
+                    "the OBJ file's material libraries define {} materials; at most {} are supported",
+                    self.materials,
                     limits::MAX_MATERIALS
                 ),
             ));
