@@ -6,6 +6,7 @@
 
 pub mod builtin;
 pub mod camera;
+pub mod limits;
 pub mod mesh;
 pub mod obj;
 pub mod off;
@@ -247,7 +248,11 @@ impl Scene {
             "toml" => scene_file::load(path),
             "obj" | "ply" | "off" => {
                 let mesh = load_mesh(path)?;
-                Self::from_mesh(source, &mesh)
+                // Messages start with the file name, like every other file error.
+                Self::from_mesh(source, &mesh).map_err(|e| match e {
+                    Error::Scene { msg, .. } => Error::invalid(path, msg),
+                    other => other,
+                })
             }
             _ => Err(Error::invalid(
                 path,

@@ -25,7 +25,10 @@
 //!
 //! `mtllib` files are resolved relative to the OBJ file. A missing or malformed MTL is
 //! not an error: its materials are absent and the faces using them get the default grey
-//! Lambert material. When the file uses no materials at all (no `mtllib`, no `usemtl`)
+//! Lambert material. An MTL that is not a regular file (a FIFO, a device) or is larger
+//! than [`limits::MAX_TEXT_FILE_BYTES`] is an error at its `mtllib` line. Each distinct
+//! library is read once however often it is named, at most [`limits::MAX_MTLLIBS`] of
+//! them, defining at most [`limits::MAX_MATERIALS`] materials in all. When the file uses no materials at all (no `mtllib`, no `usemtl`)
 //! `materials` and `tri_material` are empty; otherwise every triangle has a material and
 //! the default is appended to `materials` if some triangle needs it.
 //!
@@ -42,13 +45,16 @@
 //! Per-vertex normals are returned only when every vertex of every model has one, all
 //! non-zero and finite; they are normalised. Otherwise `normals` is `None`.
 
+use std::cell::RefCell;
+use std::collections::HashSet;
 use std::fmt::Write as _;
 use std::io::{BufRead, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
 use crate::error::{Error, Result};
+use crate::scene::limits::{self, FileKind};
 use crate::scene::mesh::{Material, MaterialKind, MeshData};
 
 /// Name and albedo of the material given to faces without a (loadable) material.
@@ -61,11 +67,12 @@ const NO_MATERIAL: &str = "\u{0}no material";
 
 /// Loads the OBJ file at `path` and the MTL libraries it names.
 pub fn load(path: &Path) -> Result<MeshData> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = decode_text(&bytes);
-    let pre = prepass(path, &text)?;
-
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let pre = {
+        let text = decode_text(limits::read_file(path, FileKind::Mesh)?);
+        prepass_in(path, &dir, &text)?
+    };
+
     // `..Default::default()` covers the fields tobj's optional features add.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -76,13 +83,17 @@ pub fn load(path: &Path) -> Result<MeshData> {
         ..Default::default()
     };
     let mut reader = LineCounter::new(pre.text.as_bytes());
+    let libraries = RefCell::new(Libraries::default());
     // The pre-pass removes the inputs known to make tobj panic; this catches the rest.
     let parsed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut reader, &options, |mtl| load_mtl(&dir.join(mtl)))
+        tobj::load_obj_buf(&mut reader, &options, |mtl| libraries.borrow_mut().load(&dir.join(mtl)))
     }));
+    if let Some(e) = libraries.into_inner().error {
+        return Err(e);
+    }
     let (models, materials) = match parsed {
         Ok(Ok(result)) => result,
-        Ok(Err(e)) => return Err(tobj_error(path, e, reader.line())),
+        Ok(Err(e)) => return Err(tobj_error(path, &pre.text, e, reader.line())),
         Err(_) => {
             return Err(Error::invalid(
                 path,
@@ -96,11 +107,65 @@ pub fn load(path: &Path) -> Result<MeshData> {
     assemble(path, &models, materials, uses_materials)
 }
 
+/// The MTL libraries an OBJ file names, as tobj asks for them: each distinct path is
+/// read once (bounded, see [`limits::read_file`]); the first hard error is kept for
+/// [`load`] to return, since tobj only hears that the library failed.
+#[derive(Default)]
+struct Libraries {
+    seen: HashSet<PathBuf>,
+    materials: u64,
+    error: Option<Error>,
+}
+
+impl Libraries {
+    fn load(&mut self, path: &Path) -> tobj::MTLLoadResult {
+        if self.error.is_some() || !self.seen.insert(path.to_path_buf()) {
+            return Ok((Vec::new(), Default::default()));
+        }
+        if self.seen.len() > limits::MAX_MTLLIBS {
+            self.error = Some(Error::invalid(
+                path,
+                format!("more than {} distinct material libraries in one OBJ file", limits::MAX_MTLLIBS),
+            ));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+        let bytes = match limits::read_file(path, FileKind::MaterialLibrary) {
+            Ok(b) => b,
+            // A missing or unreadable library only loses its materials (module docs).
+            Err(Error::Io { .. }) => return Err(tobj::LoadError::OpenFileFailed),
+            Err(e) => {
+                self.error = Some(e);
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+        };
+        let text = decode_text(bytes);
+        let defined = text.lines().filter(|l| l.split_whitespace().next() == Some("newmtl")).count() as u64;
+        self.materials += defined;
+        if self.materials > limits::MAX_MATERIALS {
+            self.error = Some(Error::invalid(
+                path,
+                format!(
+                    "the OBJ file's material libraries define {} materials; at most {} are supported",
+                    self.materials,
+                    limits::MAX_MATERIALS
+                ),
+            ));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+        parse_mtl(&text)
+    }
+}
+
 /// Turns a tobj error into an [`Error`]. Errors tobj raises while reading a line get that
-/// line; those raised when a model is finished (index checks) have no single line, though
-/// the pre-pass already reports those cases with a line.
-fn tobj_error(path: &Path, e: tobj::LoadError, line: usize) -> Error {
+/// line. Index errors are raised when a group ends (`o`, `g`, `usemtl`), at line `line`:
+/// the face that caused it is found by [`find_late_reference`].
+fn tobj_error(path: &Path, text: &str, e: tobj::LoadError, line: usize) -> Error {
     use tobj::LoadError as E;
+    if matches!(e, E::FaceVertexOutOfBounds | E::FaceTexCoordOutOfBounds | E::FaceNormalOutOfBounds) {
+        if let Some((face_line, msg)) = find_late_reference(text, line) {
+            return Error::parse(path, face_line, msg);
+        }
+    }
     match e {
         E::FaceVertexOutOfBounds
         | E::FaceTexCoordOutOfBounds
@@ -117,7 +182,7 @@ fn tobj_error(path: &Path, e: tobj::LoadError, line: usize) -> Error {
 /// Decodes a text file: UTF-16 (LE or BE) when it starts with a byte-order mark, otherwise
 /// UTF-8 with an optional BOM and invalid sequences replaced. A file using lone `\r` line
 /// ends (and no `\n`) gets `\n` ones.
-fn decode_text(bytes: &[u8]) -> String {
+fn decode_text(mut bytes: Vec<u8>) -> String {
     let utf16 = |big_endian: bool, body: &[u8]| {
         let units = body.chunks_exact(2).map(|c| match *c {
             [a, b] if big_endian => u16::from_be_bytes([a, b]),
@@ -126,11 +191,18 @@ fn decode_text(bytes: &[u8]) -> String {
         });
         char::decode_utf16(units).map(|c| c.unwrap_or(char::REPLACEMENT_CHARACTER)).collect::<String>()
     };
-    let text = match bytes {
-        [0xFE, 0xFF, rest @ ..] => utf16(true, rest),
-        [0xFF, 0xFE, rest @ ..] => utf16(false, rest),
-        [0xEF, 0xBB, 0xBF, rest @ ..] => String::from_utf8_lossy(rest).into_owned(),
-        _ => String::from_utf8_lossy(bytes).into_owned(),
+    let utf8 = |bytes: Vec<u8>| {
+        // Valid UTF-8 (the usual case) is used in place, without a copy.
+        String::from_utf8(bytes).unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned())
+    };
+    let text = match bytes[..] {
+        [0xFE, 0xFF, ..] => utf16(true, bytes.get(2..).unwrap_or_default()),
+        [0xFF, 0xFE, ..] => utf16(false, bytes.get(2..).unwrap_or_default()),
+        [0xEF, 0xBB, 0xBF, ..] => {
+            bytes.drain(..3);
+            utf8(bytes)
+        }
+        _ => utf8(bytes),
     };
     if text.contains('\r') && !text.contains('\n') {
         text.replace('\r', "\n")
@@ -151,8 +223,17 @@ struct Prepass {
 const REF_KINDS: [(&str, &str); 3] =
     [("vertex", "vertices"), ("texture coordinate", "texture coordinates"), ("normal", "normals")];
 
-/// Checks and rewrites the OBJ text (see the module docs, step 2).
+/// [`prepass_in`] for an OBJ file whose libraries would be beside it.
+#[cfg(test)]
 fn prepass(path: &Path, text: &str) -> Result<Prepass> {
+    prepass_in(path, path.parent().unwrap_or(Path::new("")), text)
+}
+
+/// Checks and rewrites the OBJ text (see the module docs, step 2); `dir` is where
+/// `mtllib` names are resolved. Also checks the element counts against the scene limits
+/// and that each material library is a regular file of bounded size, before any of them
+/// is read.
+fn prepass_in(path: &Path, dir: &Path, text: &str) -> Result<Prepass> {
     let keyword = |line: &str| line.split_whitespace().next().unwrap_or_default().to_string();
     // Totals of v, vt, vn: positive face references may point forward.
     let mut totals = [0u64; 3];
@@ -165,8 +246,17 @@ fn prepass(path: &Path, text: &str) -> Result<Prepass> {
         }
     }
 
+    if totals[0] > limits::MAX_VERTICES {
+        return Err(Error::invalid(
+            path,
+            format!("the file has {} vertices; at most {} are supported", totals[0], limits::MAX_VERTICES),
+        ));
+    }
+
     let mut out = String::with_capacity(text.len());
     let mut so_far = [0u64; 3];
+    let mut triangles = 0u64;
+    let mut libraries: HashSet<&str> = HashSet::new();
     let mut mentions_materials = false;
     for (i, raw) in text.split('\n').enumerate() {
         let line_no = i + 1;
@@ -202,6 +292,14 @@ fn prepass(path: &Path, text: &str) -> Result<Prepass> {
                 }
                 if count >= 3 {
                     out.push_str(line);
+                    triangles += count as u64 - 2;
+                    if triangles > limits::MAX_TRIANGLES {
+                        return Err(Error::parse(
+                            path,
+                            line_no,
+                            format!("the file has more than {} triangles, the most supported", limits::MAX_TRIANGLES),
+                        ));
+                    }
                 }
             }
             Some("l") => {}
@@ -213,12 +311,73 @@ fn prepass(path: &Path, text: &str) -> Result<Prepass> {
             }
             Some("mtllib") => {
                 mentions_materials = true;
+                // tobj takes the rest of the line, spaces included, as one file name.
+                let name = line.split_once(' ').unwrap_or_default().1.trim();
+                if libraries.insert(name) {
+                    if libraries.len() > limits::MAX_MTLLIBS {
+                        return Err(Error::parse(
+                            path,
+                            line_no,
+                            format!("more than {} distinct material libraries (mtllib)", limits::MAX_MTLLIBS),
+                        ));
+                    }
+                    match limits::check_file(&dir.join(name), FileKind::MaterialLibrary) {
+                        // Missing or unreadable: only its materials are lost (module docs).
+                        Ok(_) | Err(Error::Io { .. }) => {}
+                        Err(Error::Invalid { msg, .. }) => {
+                            return Err(Error::parse(path, line_no, format!("mtllib '{name}' {msg}")))
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
                 out.push_str(line);
             }
             _ => out.push_str(line),
         }
     }
     Ok(Prepass { text: out, mentions_materials })
+}
+
+/// Finds the face behind a tobj index error raised at `flush_line` (1-based), where a
+/// group ended: the first face before it with a positive index beyond the entries defined
+/// by then (tobj resolves a group's faces when the group ends, so a face may only point
+/// forward to entries defined before its group ends). Returns its line and a message.
+fn find_late_reference(text: &str, flush_line: usize) -> Option<(usize, String)> {
+    let mut defined = [0u64; 3];
+    let lines: Vec<&str> = text.split('\n').take(flush_line.saturating_sub(1)).collect();
+    for line in &lines {
+        match line.split_whitespace().next() {
+            Some("v") => defined[0] += 1,
+            Some("vt") => defined[1] += 1,
+            Some("vn") => defined[2] += 1,
+            _ => {}
+        }
+    }
+    for (i, line) in lines.iter().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("f") {
+            continue;
+        }
+        for token in words {
+            for (k, part) in token.split('/').enumerate() {
+                let (Ok(index), Some(&(_, kinds)), Some(&n)) = (part.parse::<i64>(), REF_KINDS.get(k), defined.get(k))
+                else {
+                    continue;
+                };
+                if index > 0 && index.unsigned_abs() > n && n > 0 {
+                    let kind = REF_KINDS.get(k).map_or("vertex", |r| r.0);
+                    return Some((
+                        i + 1,
+                        format!(
+                            "face references {kind} {index}, but only {n} {kinds} are defined when its group ends at \
+                             line {flush_line}; define them before the next 'o', 'g' or 'usemtl' line"
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    None
 }
 
 /// Parses the values after `v`: `x y z`, optionally `w` (4 values) or colours (more).
@@ -338,9 +497,14 @@ const MTL_COLOURS: [&str; 4] = ["Ka", "Kd", "Ks", "Ke"];
 /// keyword and panics when they all parse but are fewer than three. So: one number
 /// (`Kd 0.5`, allowed by the MTL spec: grey) is expanded to three; none or two fail the
 /// file; anything non-numeric (`Kd spectral ...`) is left for tobj to reject.
+#[cfg(test)]
 fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
     let bytes = std::fs::read(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
-    let text = decode_text(&bytes);
+    parse_mtl(&decode_text(bytes))
+}
+
+/// [`load_mtl`] for MTL text already read.
+fn parse_mtl(text: &str) -> tobj::MTLLoadResult {
     let mut fixed = String::with_capacity(text.len());
     for line in text.lines() {
         let mut words = line.split_whitespace();
@@ -559,11 +723,12 @@ mod tests {
 
     #[test]
     fn decodes_boms_and_utf16() {
-        assert_eq!(decode_text(b"\xEF\xBB\xBFv 1"), "v 1");
-        assert_eq!(decode_text(b"\xFE\xFF\0v\0 \x001"), "v 1");
-        assert_eq!(decode_text(b"\xFF\xFEv\0 \x001\0"), "v 1");
-        assert_eq!(decode_text(b"a\rb"), "a\nb");
-        assert_eq!(decode_text(b"a\xFFb"), "a\u{FFFD}b");
+        let d = |b: &[u8]| decode_text(b.to_vec());
+        assert_eq!(d(b"\xEF\xBB\xBFv 1"), "v 1");
+        assert_eq!(d(b"\xFE\xFF\0v\0 \x001"), "v 1");
+        assert_eq!(d(b"\xFF\xFEv\0 \x001\0"), "v 1");
+        assert_eq!(d(b"a\rb"), "a\nb");
+        assert_eq!(d(b"a\xFFb"), "a\u{FFFD}b");
     }
 
     #[test]

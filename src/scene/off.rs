@@ -24,6 +24,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::error::{Error, Result};
+use crate::scene::limits::{self, FileKind};
 use crate::scene::mesh::{normalize_all, push_fan, MeshData};
 
 /// Upper bound on what a header count may pre-allocate; larger counts grow as data arrives.
@@ -31,7 +32,7 @@ const MAX_PREALLOC: usize = 1 << 20;
 
 /// Loads the OFF file at `path`. `materials` and `tri_material` stay empty.
 pub fn load(path: &Path) -> Result<MeshData> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = limits::read_file(path, FileKind::Mesh)?;
     parse(path, &String::from_utf8_lossy(&bytes))
 }
 
@@ -117,11 +118,11 @@ fn parse(path: &Path, text: &str) -> Result<MeshData> {
     };
     let nv = parse_count(path, count_line, counts.next(), "vertex")?;
     let nf = parse_count(path, count_line, counts.next(), "face")?;
-    if nv > u64::from(u32::MAX) {
+    if nv > limits::MAX_VERTICES {
         return Err(Error::parse(
             path,
             count_line,
-            format!("the file declares {nv} vertices; at most {} are supported", u32::MAX),
+            format!("the file declares {nv} vertices; at most {} are supported", limits::MAX_VERTICES),
         ));
     }
     let cap = |n: u64| usize::try_from(n).unwrap_or(usize::MAX).min(MAX_PREALLOC);
@@ -182,6 +183,13 @@ fn parse(path: &Path, text: &str) -> Result<MeshData> {
         }
         // Remaining tokens are the optional face colour.
         push_fan(&mut mesh.triangles, &polygon);
+        if mesh.triangles.len() as u64 > limits::MAX_TRIANGLES {
+            return Err(Error::parse(
+                path,
+                line,
+                format!("face {f}: the file has more than {} triangles, the most supported", limits::MAX_TRIANGLES),
+            ));
+        }
     }
 
     if variant.normals {

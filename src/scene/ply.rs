@@ -43,6 +43,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::error::{Error, Result};
+use crate::scene::limits::{self, FileKind};
 use crate::scene::mesh::{normalize_all, push_fan, MeshData};
 
 /// Upper bound on what a header count may pre-allocate; larger counts grow as data arrives.
@@ -51,7 +52,7 @@ const MAX_PREALLOC: usize = 1 << 20;
 /// Loads the PLY file at `path`. Materials are not read: `materials` and `tri_material`
 /// stay empty.
 pub fn load(path: &Path) -> Result<MeshData> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = limits::read_file(path, FileKind::Mesh)?;
     parse(path, &bytes)
 }
 
@@ -470,10 +471,10 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     // Vertex count as the header declares it: face indices are checked against it, so
     // the element order in the file does not matter.
     let vertex_count = header.elements.iter().find(|e| e.name == "vertex").map_or(0, |e| e.count);
-    if vertex_count > u64::from(u32::MAX) {
+    if vertex_count > limits::MAX_VERTICES {
         return Err(Error::invalid(
             path,
-            format!("the header declares {vertex_count} vertices; at most {} are supported", u32::MAX),
+            format!("the header declares {vertex_count} vertices; at most {} are supported", limits::MAX_VERTICES),
         ));
     }
 
@@ -630,6 +631,13 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 }
             } else if face_list.is_some() {
                 push_fan(&mut mesh.triangles, &indices);
+                if mesh.triangles.len() as u64 > limits::MAX_TRIANGLES {
+                    return Err(body.error_at(
+                        path,
+                        record_start,
+                        format!("face {rec}: the file has more than {} triangles, the most supported", limits::MAX_TRIANGLES),
+                    ));
+                }
             }
         }
     }

@@ -1,13 +1,21 @@
 //! The TOML scene format (keys are a contract; see README "Scene files").
 //! Unknown keys are errors; every error names the file and line.
+//!
+//! Bounds (docs/limits.md): the file is at most [`limits::MAX_TEXT_FILE_BYTES`]; each
+//! distinct mesh file is loaded once however many `[[mesh]]` tables name it, and the
+//! scene's total triangles and vertices (every table counted) are checked against
+//! [`limits::MAX_TRIANGLES`] / [`limits::MAX_VERTICES`] before the scene is assembled.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use glam::Vec3;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::mesh::{Material, MaterialKind};
+use super::limits::{self, FileKind};
+use super::mesh::{Material, MaterialKind, MeshData};
 use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
 use crate::error::{Error, Result};
 
@@ -122,7 +130,11 @@ fn v3(a: [f32; 3]) -> Vec3 {
 
 /// Loads a TOML scene file; mesh paths are relative to it.
 pub fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = limits::read_file(path, FileKind::SceneFile)?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let line = line_of(&String::from_utf8_lossy(e.as_bytes()), e.utf8_error().valid_up_to());
+        Error::parse(path, line, "the scene file is not valid UTF-8 text")
+    })?;
     let file: SceneFile = toml::from_str(&text).map_err(|e| {
         let line = e.span().map(|s| line_of(&text, s.start)).unwrap_or(1);
         Error::parse(path, line, e.message().trim().to_string())
@@ -130,10 +142,20 @@ pub fn load(path: &Path) -> Result<Scene> {
     let at = |span: std::ops::Range<usize>, msg: String| Error::parse(path, line_of(&text, span.start), msg);
     let dir: PathBuf = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut b = SceneBuilder::new(&path.display().to_string());
+    for (count, max, what) in [
+        (file.material.len(), limits::MAX_MATERIALS, "[[material]] tables"),
+        (file.sphere.len(), limits::MAX_SPHERES, "[[sphere]] tables"),
+    ] {
+        if count as u64 > max {
+            return Err(Error::invalid(path, format!("{count} {what}; at most {max} are supported")));
+        }
+    }
 
+    // Name -> index; SceneBuilder::find_material is a linear search.
+    let mut names: HashMap<String, u32> = HashMap::new();
     for m in &file.material {
         let d = m.get_ref();
-        if b.find_material(&d.name).is_some() {
+        if names.contains_key(&d.name) {
             return Err(at(m.span(), format!("material '{}' is defined twice", d.name)));
         }
         let base = Material::lambert(&d.name, Vec3::splat(0.7));
@@ -166,35 +188,81 @@ pub fn load(path: &Path) -> Result<Scene> {
         if bad || mat.ior <= 0.0 {
             return Err(at(m.span(), format!("material '{}' has a non-finite value or ior <= 0", d.name)));
         }
-        b.material(mat);
+        let index = b.material(mat);
+        names.insert(d.name.clone(), index);
     }
-    let lookup = |b: &SceneBuilder, name: &Option<String>, span: std::ops::Range<usize>| -> Result<Option<u32>> {
+    let lookup = |name: &Option<String>, span: std::ops::Range<usize>| -> Result<Option<u32>> {
         match name {
             None => Ok(None),
-            Some(n) => b
-                .find_material(n)
+            Some(n) => names
+                .get(n)
+                .copied()
                 .map(Some)
                 .ok_or_else(|| at(span, format!("unknown material '{n}' (define it in a [[material]] table)"))),
         }
     };
+
+    // Every mesh file once, then the totals, then the scene.
+    let mut loaded: HashMap<PathBuf, Rc<MeshData>> = HashMap::new();
+    let mut meshes = Vec::with_capacity(file.mesh.len());
+    let (mut triangles, mut vertices, mut materials) = (0u64, 0u64, b.scene.materials.len() as u64);
     for m in &file.mesh {
         let d = m.get_ref();
-        let mat = lookup(&b, &d.material, m.span())?;
+        let mat = lookup(&d.material, m.span())?;
         if !(d.scale.is_finite() && d.scale != 0.0 && v3(d.translate).is_finite()) {
             return Err(at(m.span(), "mesh scale must be finite and non-zero, translate finite".into()));
         }
         let mesh_path = dir.join(&d.file);
-        let mesh = load_mesh(&mesh_path).map_err(|e| match e {
-            Error::Io { path, cause } if cause.kind() == std::io::ErrorKind::NotFound => {
-                at(m.span(), format!("mesh file '{}' not found ({})", d.file, path.display()))
+        let mesh = match loaded.get(&mesh_path) {
+            Some(mesh) => Rc::clone(mesh),
+            None => {
+                let mesh = Rc::new(load_mesh(&mesh_path).map_err(|e| match e {
+                    Error::Io { path, cause } if cause.kind() == std::io::ErrorKind::NotFound => {
+                        at(m.span(), format!("mesh file '{}' not found ({})", d.file, path.display()))
+                    }
+                    other => other,
+                })?);
+                loaded.insert(mesh_path, Rc::clone(&mesh));
+                mesh
             }
-            other => other,
-        })?;
+        };
+        triangles += mesh.triangles.len() as u64;
+        vertices += mesh.positions.len() as u64;
+        if mat.is_none() {
+            materials += mesh.materials.len() as u64;
+        }
+        if let Some(what) = limits::totals_error(triangles, vertices) {
+            return Err(at(
+                m.span(),
+                format!(
+                    "[[mesh]] table {} ('{}', {} triangles, {} vertices) brings the scene to {what}: \
+                     use fewer or smaller meshes",
+                    meshes.len() + 1,
+                    d.file,
+                    mesh.triangles.len(),
+                    mesh.positions.len()
+                ),
+            ));
+        }
+        if materials > limits::MAX_MATERIALS {
+            return Err(at(
+                m.span(),
+                format!(
+                    "the scene would have more than {} materials (mesh files' materials count once per [[mesh]] \
+                     table); give the tables a 'material' or use fewer meshes",
+                    limits::MAX_MATERIALS
+                ),
+            ));
+        }
+        meshes.push((mesh, d, mat));
+    }
+    drop(loaded);
+    for (mesh, d, mat) in meshes {
         b.mesh(&mesh, d.scale, v3(d.translate), mat);
     }
     for s in &file.sphere {
         let d = s.get_ref();
-        let mat = lookup(&b, &d.material, s.span())?.unwrap_or(0);
+        let mat = lookup(&d.material, s.span())?.unwrap_or(0);
         let c = v3(d.center);
         if !(c.is_finite() && d.radius.is_finite() && d.radius > 0.0) {
             return Err(at(s.span(), "sphere needs a finite center and a finite radius > 0".into()));
