@@ -61,7 +61,11 @@ fn fifos_are_refused_not_waited_on() {
     let m = rejects(&d(dir, "lib.obj"), &format!("{}:1:", s(&d(dir, "lib.obj"))), "mtllib 'fifo.mtl' is a named pipe");
     eprintln!("{m}");
     std::fs::write(d(dir, "mesh.toml"), "[[mesh]]\nfile = \"fifo.ply\"\n").unwrap();
-    rejects(&d(dir, "mesh.toml"), &s(&d(dir, "fifo.ply")), "is a named pipe (FIFO); a mesh file must be a regular file");
+    rejects(
+        &d(dir, "mesh.toml"),
+        &s(&d(dir, "fifo.ply")),
+        "is a named pipe (FIFO); a mesh file must be a regular file",
+    );
 }
 
 #[cfg(unix)]
@@ -80,7 +84,11 @@ fn devices_and_oversized_files_are_not_read() {
     std::fs::write(d(dir, "zero_mesh.toml"), "[[mesh]]\nfile = \"zero.ply\"\n").unwrap();
     rejects(&d(dir, "zero_mesh.toml"), &s(&d(dir, "zero.ply")), "is a character device");
     std::fs::write(d(dir, "zero_mtl.obj"), format!("mtllib /dev/zero\n{TRI_OBJ}")).unwrap();
-    rejects(&d(dir, "zero_mtl.obj"), &format!("{}:1:", s(&d(dir, "zero_mtl.obj"))), "mtllib '/dev/zero' is a character device");
+    rejects(
+        &d(dir, "zero_mtl.obj"),
+        &format!("{}:1:", s(&d(dir, "zero_mtl.obj"))),
+        "mtllib '/dev/zero' is a character device",
+    );
     std::fs::write(d(dir, "dir.obj"), format!("mtllib .\n{TRI_OBJ}")).unwrap();
     rejects(&d(dir, "dir.obj"), &s(&d(dir, "dir.obj")), "is a directory");
 
@@ -89,9 +97,17 @@ fn devices_and_oversized_files_are_not_read() {
         std::fs::File::create(d(dir, name)).unwrap().set_len(len).unwrap();
         d(dir, name)
     };
-    let m = rejects(&sparse("huge.ply", MAX_MESH_FILE_BYTES + 1), &s(&d(dir, "huge.ply")), "at most 2 GiB (2147483648 bytes) are read");
+    let m = rejects(
+        &sparse("huge.ply", MAX_MESH_FILE_BYTES + 1),
+        &s(&d(dir, "huge.ply")),
+        "at most 2 GiB (2147483648 bytes) are read",
+    );
     eprintln!("{m}");
-    rejects(&sparse("huge.toml", MAX_TEXT_FILE_BYTES + 1), &s(&d(dir, "huge.toml")), "at most 16 MiB (16777216 bytes) are read");
+    rejects(
+        &sparse("huge.toml", MAX_TEXT_FILE_BYTES + 1),
+        &s(&d(dir, "huge.toml")),
+        "at most 16 MiB (16777216 bytes) are read",
+    );
     sparse("huge.mtl", MAX_TEXT_FILE_BYTES + 1);
     std::fs::write(d(dir, "huge_mtl.obj"), format!("mtllib huge.mtl\n{TRI_OBJ}")).unwrap();
     rejects(&d(dir, "huge_mtl.obj"), &s(&d(dir, "huge_mtl.obj")), "at most 16 MiB (16777216 bytes) are read");

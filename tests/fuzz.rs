@@ -39,14 +39,16 @@ impl Rng {
     }
 }
 
-const MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\nKs 0.2 0.2 0.2\nNs 20\n\nnewmtl glass\nillum 7\nNi 1.5\nTf 0.9 0.9 0.9\n\
+const MTL: &str =
+    "newmtl red\nKd 0.8 0.1 0.1\nKs 0.2 0.2 0.2\nNs 20\n\nnewmtl glass\nillum 7\nNi 1.5\nTf 0.9 0.9 0.9\n\
 newmtl light\nKe 4 4 4\n";
 
 const OBJ: &str = "# seed\nmtllib a.mtl\no cube\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1 1\nv 1 0 1 0.5 0.5 0.5\n\
 vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\nvn 0 1 0\nusemtl red\nf 1/1/1 2/2/1 3/3/1 4/1/1\ng side\nusemtl glass\n\
 f 1//2 2//2 6//2 5//2\nf -1 -2 -3\nusemtl light\nf 3 4 5\nl 1 2\n";
 
-const OFF: &str = "OFF\n# seed\n5 3 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0.5 1 255 0 0\n4 0 1 2 3\n3 0 1 4 1 1 1\n3 1 2 4\n";
+const OFF: &str =
+    "OFF\n# seed\n5 3 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0.5 1 255 0 0\n4 0 1 2 3\n3 0 1 4 1 1 1\n3 1 2 4\n";
 
 const NOFF: &str = "NOFF 3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n";
 

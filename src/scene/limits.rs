@@ -174,7 +174,7 @@ mod tests {
     fn sizes_read_well() {
         assert_eq!(human_bytes(16 << 20), "16 MiB");
         assert_eq!(human_bytes(2 << 30), "2 GiB");
-        assert_eq!(human_bytes(3 << 29), "1.5 GiB");
+        assert_eq!(human_bytes(3 << 29), "1536 MiB");
         assert_eq!(human_bytes(12), "12 bytes");
     }
 
