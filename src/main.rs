@@ -1,17 +1,15 @@
 //! The `arbor` command line: render, info, devices, bench.
 
-use std::io::{IsTerminal, Write};
-use std::path::Path;
+use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
 use arbor::accel::{Accel, AccelKind, BuildOn};
 use arbor::bench;
 use arbor::gpu::{Context, ContextOptions};
-use arbor::render::{self, output, KernelChoice, RenderSettings};
+use arbor::render::{self, memory, output, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
 use clap::Parser;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 // The kd-tree builder allocates many short-lived vectors; mimalloc builds the 75k
 // benchmark tree about 25% faster than glibc malloc here. It is built with `no_thp` (it
@@ -19,8 +17,11 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 // `keep_freed_memory` not to give freed memory back: docs/build-notes.md, "Host memory".
 #[path = "cli/args.rs"]
 mod args;
+#[path = "cli/progress.rs"]
+mod progress;
 
 use args::{BenchArgs, Cli, Command, DeviceArgs, InfoArgs, RenderArgs};
+use progress::{BenchProgress, Reporter};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -141,29 +142,6 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// Fails early (before any work) if `path` cannot be written later.
-fn check_writable(path: &Path) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!("{}: the directory {} does not exist", path.display(), dir.display());
-    }
-    if path.is_dir() {
-        bail!("{}: is a directory", path.display());
-    }
-    Ok(())
-}
-
-fn progress_bar() -> ProgressBar {
-    let pb = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
-    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {percent}% eta {eta}") {
-        pb.set_style(style.progress_chars("=> "));
-    }
-    pb
-}
-
 fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
@@ -173,10 +151,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render(&args),
         Command::Info(args) => info(&args),
         Command::Devices => devices(),
-        Command::Bench(args) => {
-            print_out(&format!("{}\n", bench::HEADER))?;
-            bench(&args)
-        }
+        Command::Bench(args) => bench(&args),
     }
 }
 
@@ -184,10 +159,9 @@ fn render(a: &RenderArgs) -> Result<()> {
     let start = Instant::now();
     let aovs = output::parse_aovs(&a.aov)?;
     let params = a.structure.single()?;
-    output::format_of(&a.output, "image")?;
-    for p in std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats) {
-        check_writable(p)?;
-    }
+    let format = output::format_of(&a.output, "image")?;
+    let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats);
+    output::check_outputs(paths.map(|p| p.as_path()))?;
     if a.spp == 0 || a.spp > 1 << 20 {
         bail!("--spp must be 1..=1048576, got {}", a.spp);
     }
@@ -196,6 +170,11 @@ fn render(a: &RenderArgs) -> Result<()> {
     let load_ms = ms(start);
     warn_if_only_emissive(&scene);
     let (w, h) = size.unwrap_or((scene.width, scene.height));
+    let mut encoded = vec![(format, 3)];
+    for (name, path) in &aovs {
+        encoded.push((output::format_of(path, "aov")?, output::aov_channel_count(name)));
+    }
+    memory::check_render(&format!("--size {w}x{h}"), w, h, scene.prim_count(), &encoded)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), a.spp)?;
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
@@ -210,20 +189,7 @@ fn render(a: &RenderArgs) -> Result<()> {
     settings.dispatch_budget = a.dispatch_budget.max(1);
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
     let (frame, st) = trace(&ctx, &scene, &settings, a.quiet)?;
-    output::write_image(&a.output, w, h, &frame.radiance)?;
-    output::write_aovs(&aovs, &frame, w, h)?;
-    if let Some(p) = &a.stats {
-        let provenance = output::Provenance {
-            version: env!("CARGO_PKG_VERSION").into(),
-            seed: a.seed,
-            spp: a.spp,
-            width: w,
-            height: h,
-            integrator: "whitted".into(),
-            command_line: std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect(),
-        };
-        output::write_stats(p, &st, provenance)?;
-    }
+    write_outputs(a, &aovs, &frame, &st)?;
     if !a.quiet {
         let trace = match st.trace_ms {
             Some(t) => format!("{t:.1} ms GPU"),
@@ -246,6 +212,32 @@ fn render(a: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// Writes the image, the AOVs and the statistics of a render: all of them or none.
+fn write_outputs(
+    a: &RenderArgs,
+    aovs: &[(String, std::path::PathBuf)],
+    frame: &render::Frame,
+    st: &render::RenderStats,
+) -> Result<()> {
+    let (w, h) = (frame.width, frame.height);
+    let mut set = output::OutputSet::new();
+    output::write_image(&mut set, &a.output, w, h, &frame.radiance)?;
+    output::write_aovs(&mut set, aovs, frame, w, h)?;
+    if let Some(p) = &a.stats {
+        let provenance = output::Provenance {
+            version: env!("CARGO_PKG_VERSION").into(),
+            seed: a.seed,
+            spp: a.spp,
+            width: w,
+            height: h,
+            integrator: "whitted".into(),
+            command_line: std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect(),
+        };
+        output::write_stats(&mut set, p, st, provenance)?;
+    }
+    Ok(set.commit()?)
+}
+
 /// Until the path tracer lands, an emissive material lights nothing else: say so when
 /// it is the scene's only light.
 fn warn_if_only_emissive(scene: &Scene) {
@@ -257,27 +249,18 @@ fn warn_if_only_emissive(scene: &Scene) {
     }
 }
 
-/// Renders with a progress bar (on an interactive stderr, after the first second).
+/// Renders with progress: a bar on an interactive stderr after the first second, else
+/// a plain line every few seconds; none with `quiet`.
 fn trace(
     ctx: &Context,
     scene: &Scene,
     settings: &RenderSettings,
     quiet: bool,
 ) -> Result<(render::Frame, render::RenderStats)> {
-    let pb = progress_bar();
-    let interactive = !quiet && std::io::stderr().is_terminal();
-    pb.set_message(format!("tracing {}", scene.name));
-    let start = Instant::now();
-    let mut shown = false;
-    let done = render::gpu::render(ctx, scene, settings, |done, total| {
-        pb.set_length(total);
-        pb.set_position(done);
-        if interactive && !shown && start.elapsed().as_secs_f64() > 1.0 {
-            pb.set_draw_target(ProgressDrawTarget::stderr());
-            shown = true;
-        }
-    });
-    pb.finish_and_clear();
+    let progress = Reporter::new("render", quiet, false);
+    progress.bar().set_message(format!("tracing {}", scene.name));
+    let done = render::gpu::render(ctx, scene, settings, |done, total| progress.update(done, total));
+    progress.finish();
     Ok(done?)
 }
 
@@ -316,13 +299,9 @@ fn devices() -> Result<()> {
     Ok(print_out(&text)?)
 }
 
+/// `arbor bench`: every input (sizes, values, scenes, memory, output paths) is checked
+/// before a device is opened and anything is printed.
 fn bench(args: &BenchArgs) -> Result<()> {
-    if let Some(p) = &args.json {
-        check_writable(p)?;
-    }
-    if let Some(d) = &args.out {
-        std::fs::create_dir_all(d).with_context(|| format!("--out {}: cannot create the directory", d.display()))?;
-    }
     let size = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
     let opts = bench::Request {
         tris: args.tris.clone(),
@@ -341,6 +320,20 @@ fn bench(args: &BenchArgs) -> Result<()> {
         json: args.json.clone(),
     }
     .options()?;
+    if let Some(p) = &args.json {
+        output::check_writable(p)?;
+    }
+    if let Some(d) = &args.out {
+        if d.exists() && !d.is_dir() {
+            bail!("{}: --out is not a directory", d.display());
+        }
+    }
+    let scenes = bench::load_scenes(&opts)?;
+    if let Some(d) = &args.out {
+        std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
+        let files = [d.join("bench.json"), d.join("bench.csv")];
+        output::check_outputs(files.iter().map(|p| p.as_path()).chain(args.json.as_deref()))?;
+    }
     let ctx = context(&args.device)?;
     eprintln!(
         "device: {} ({}); {}x{} camera rays, kinds {}; brute force on a smaller image of the same view; median of {} rounds (structures in turn) after 1 warm-up",
@@ -351,34 +344,11 @@ fn bench(args: &BenchArgs) -> Result<()> {
         opts.rays.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
         opts.repeat
     );
-    let pb = progress_bar();
-    if std::io::stderr().is_terminal() {
-        pb.set_draw_target(ProgressDrawTarget::stderr());
-    }
-    let done = bench::run(&ctx, &opts, &BarProgress(pb.clone()));
-    pb.finish_and_clear();
+    print_out(&format!("{}\n", bench::HEADER))?;
+    let progress = BenchProgress(Reporter::new("bench", false, true));
+    let done = bench::run(&ctx, &opts, Some(scenes), &progress);
+    progress.0.finish();
     Ok(done?)
-}
-
-/// The progress bar as the benchmark's reporter.
-struct BarProgress(ProgressBar);
-
-impl bench::Progress for BarProgress {
-    fn set_length(&self, n: u64) {
-        self.0.set_length(n);
-    }
-    fn message(&self, m: String) {
-        self.0.set_message(m);
-    }
-    fn inc(&self, n: u64) {
-        self.0.inc(n);
-    }
-    fn line(&self, l: &str) -> std::io::Result<()> {
-        self.0.suspend(|| print_out(&format!("{l}\n")))
-    }
-    fn note(&self, l: &str) {
-        self.0.suspend(|| eprintln!("{l}"));
-    }
 }
 
 #[cfg(test)]

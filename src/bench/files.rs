@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::render::output::write_atomic;
+use crate::render::output::OutputSet;
 
 use super::rows::{Heatmap, Row};
 use super::{Options, Progress, RayKind};
@@ -131,12 +131,17 @@ pub(super) fn write(
 ) -> Result<()> {
     let json = serde_json::to_vec_pretty(&serde_json::json!({ "rows": rows, "time_to_image": tti }))
         .map_err(|e| Error::Usage(format!("bench JSON: {e}")))?;
+    // The JSON and CSV files appear together or not at all.
+    let mut set = OutputSet::new();
     if let Some(p) = &opts.json {
-        write_atomic(p, &json)?;
+        set.add(p, &json)?;
     }
     if let Some(d) = &opts.out {
-        write_atomic(&d.join("bench.json"), &json)?;
-        write_atomic(&d.join("bench.csv"), to_csv(rows)?.as_bytes())?;
+        set.add(&d.join("bench.json"), &json)?;
+        set.add(&d.join("bench.csv"), to_csv(rows)?.as_bytes())?;
+    }
+    set.commit()?;
+    if let Some(d) = &opts.out {
         progress.note(&format!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display()));
         let dir: &Path = &d.join("plots");
         let plots = super::plots::bench_plots(dir, rows, heatmaps, opts.intersect[0].name())?;

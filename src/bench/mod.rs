@@ -23,7 +23,7 @@ mod run;
 
 pub use files::CSV_COLUMNS;
 pub use options::Request;
-pub use run::run;
+pub use run::{load_scenes, run};
 
 /// Where the benchmark reports as it goes (the CLI's progress bar).
 pub trait Progress {

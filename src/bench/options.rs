@@ -9,6 +9,9 @@ use crate::math::intersect::IntersectMode;
 
 use super::{Options, RayKind};
 
+/// Most timed rounds `--repeat` takes.
+pub const MAX_REPEAT: usize = 1000;
+
 /// What the command line asked for; [`Request::options`] fills in the defaults.
 #[derive(Debug, Clone)]
 pub struct Request {
@@ -41,6 +44,9 @@ pub struct Request {
 impl Request {
     /// What to run.
     pub fn options(&self) -> Result<Options> {
+        if !(1..=MAX_REPEAT).contains(&self.repeat) {
+            return Err(Error::Usage(format!("--repeat {}: must be 1..={MAX_REPEAT}", self.repeat)));
+        }
         if let Some(bad) = self.lambda.iter().find(|l| !(l.is_finite() && **l > 0.0 && **l <= 1e4)) {
             return Err(Error::Usage(format!("--lambda {bad}: each value must be in (0, 10000]")));
         }
@@ -62,7 +68,7 @@ impl Request {
             rays,
             intersect: self.intersect.clone(),
             size: self.size,
-            repeat: if self.quick { 1 } else { self.repeat.max(1) },
+            repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
             json: self.json.clone(),
         })
@@ -156,5 +162,13 @@ mod tests {
     fn lambda_out_of_range_is_refused() {
         let r = Request { lambda: vec![0.0], ..request() };
         assert!(r.options().is_err());
+    }
+
+    #[test]
+    fn repeat_out_of_range_is_refused() {
+        for repeat in [0, MAX_REPEAT + 1, usize::MAX] {
+            let e = Request { repeat, ..request() }.options().expect_err("refused");
+            assert_eq!(e.to_string(), format!("--repeat {repeat}: must be 1..=1000"));
+        }
     }
 }

@@ -61,30 +61,55 @@ fn print(progress: &dyn Progress, l: &str) -> Result<()> {
     progress.line(l).map_err(|e| Error::io("stdout", e))
 }
 
+/// Loads every scene of `opts` (before a device is opened: a bad scene fails first)
+/// and checks that the frames of `opts.size` fit in the host memory available.
+pub fn load_scenes(opts: &Options) -> Result<Vec<Scene>> {
+    let (w, h) = opts.size;
+    let what = format!("--size {w}x{h}");
+    let mut scenes = Vec::with_capacity(opts.scenes.len());
+    for name in &opts.scenes {
+        let scene = Scene::load(name)?;
+        crate::render::memory::check_render(&what, w, h, scene.prim_count(), &[])?;
+        scenes.push(scene);
+    }
+    Ok(scenes)
+}
+
 /// Runs the benchmark described by `opts` on `ctx`, reporting through `progress`;
-/// writes the files of `opts.out` / `opts.json`.
-pub fn run(ctx: &Context, opts: &Options, progress: &dyn Progress) -> Result<()> {
+/// writes the files of `opts.out` / `opts.json`. `scenes` are those of `opts.scenes`,
+/// loaded by [`load_scenes`] (`None`: loaded here).
+pub fn run(ctx: &Context, opts: &Options, scenes: Option<Vec<Scene>>, progress: &dyn Progress) -> Result<()> {
+    let scenes = match scenes {
+        Some(s) => s,
+        None => load_scenes(opts)?,
+    };
     let cases = opts.scenes.len() * opts.rays.len() * opts.intersect.len() * opts.variants.len();
     progress.set_length((cases * (opts.repeat.max(1) + 1)) as u64);
     let mut out = Results::default();
-    for name in &opts.scenes {
-        run_scene(ctx, opts, name, progress, &mut out)?;
+    for (name, base) in opts.scenes.iter().zip(&scenes) {
+        run_scene(ctx, opts, name, base, progress, &mut out)?;
     }
     files::write(opts, &out.rows, &out.tti, &out.heatmaps, progress)
 }
 
-/// Every ray kind and case on the scene `name`.
-fn run_scene(ctx: &Context, opts: &Options, name: &str, progress: &dyn Progress, out: &mut Results) -> Result<()> {
+/// Every ray kind and case on the scene `base`, loaded from `name`.
+fn run_scene(
+    ctx: &Context,
+    opts: &Options,
+    name: &str,
+    base: &Scene,
+    progress: &dyn Progress,
+    out: &mut Results,
+) -> Result<()> {
     let (w, h) = opts.size;
-    let base = Scene::load(name)?;
     // Brute force over all pixels would take too long: trace a square subset whose
     // side keeps it under about 4e8 primitive tests.
     let side = ((4e8 / base.prim_count().max(1) as f64).sqrt() as u32).max(8).min(w.min(h));
     // The watertight reference for the camera rays (CPU, a sample of the pixels).
     let stride = ((u64::from(w) * u64::from(h)) / REFERENCE_PIXELS).max(1) as usize;
     let reference = {
-        let accel = Accel::build(AccelKind::CPU_REFERENCE, &base);
-        crate::render::cpu::reference_prims(&base, &accel, w, h, stride)
+        let accel = Accel::build(AccelKind::CPU_REFERENCE, base);
+        crate::render::cpu::reference_prims(base, &accel, w, h, stride)
     };
     let short = name.strip_prefix("builtin:").unwrap_or(name).to_string();
     let sc = SceneRun { name, short, triangles: base.triangles.len(), side, reference };

@@ -18,6 +18,8 @@ spatial data structures. Scenes: a .toml scene file, a mesh (.obj/.ply/.off, cam
 automatically), or builtin:default | builtin:cornell | builtin:spheres | builtin:blob:N | builtin:stadium:N | builtin:inside:N.\n\n\
 Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error fails the run); \
 ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
+ARBOR_MEMORY_LIMIT=BYTES caps the host memory a render or bench may plan for (default: what /proc/meminfo and \
+`ulimit -v` allow; a larger --size is refused before any work); \
 VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots; \
 MIMALLOC_PURGE_DELAY=MS lets the allocator give freed memory back to the OS after MS ms (default: arbor keeps it for reuse)."
 )]
@@ -101,8 +103,8 @@ pub(crate) struct BenchArgs {
     /// Image size WIDTHxHEIGHT of the camera rays (128x128 with --quick unless given).
     #[arg(long, default_value = "256x256", value_name = "WxH")]
     pub(crate) size: String,
-    /// Timed rounds (after one warm-up round); in each, every structure builds and
-    /// traces once, in turn; medians are reported.
+    /// Timed rounds, 1..=1000 (after one warm-up round); in each, every structure builds
+    /// and traces once, in turn; medians are reported.
     #[arg(long, default_value_t = 5)]
     pub(crate) repeat: usize,
     /// Write all figures as JSON here.
@@ -151,13 +153,15 @@ pub(crate) struct RenderArgs {
     /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
     #[arg(default_value = "builtin:default")]
     pub(crate) scene: String,
-    /// Output image; the extension picks the format (.png or .exr).
+    /// Output image; the extension picks the format (.png or .exr). The image, the AOVs
+    /// and the statistics are written together, or none of them when one fails.
     #[arg(short, long, default_value = "render.png")]
     pub(crate) output: PathBuf,
     /// Image size WIDTHxHEIGHT (default: the scene's film size).
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
-    /// Samples per pixel (jittered; sample 0 goes through the pixel centre).
+    /// Samples per pixel, 1..=1048576 (jittered; sample 0 goes through the pixel centre).
+    /// Time grows with pixels x samples: long renders show progress on stderr.
     #[arg(long, default_value_t = 1)]
     pub(crate) spp: u32,
     /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
@@ -194,7 +198,7 @@ pub(crate) struct RenderArgs {
     /// with a watchdog); the output is identical for any value.
     #[arg(long, default_value_t = render::DEFAULT_DISPATCH_BUDGET, value_name = "TESTS")]
     pub(crate) dispatch_budget: u64,
-    /// No progress bar, no summary line.
+    /// No progress (bar or lines), no summary line.
     #[arg(short, long)]
     pub(crate) quiet: bool,
 }

@@ -8,6 +8,7 @@ pub mod cracks;
 pub mod dispatch;
 pub mod gpu;
 pub mod kernel;
+pub mod memory;
 pub mod output;
 pub mod readback;
 pub mod upload;

@@ -1,7 +1,11 @@
 //! Writers for images (PNG 8-bit sRGB, EXR linear float), AOVs (PFM, EXR; [`aov_channels`]
 //! turns a frame into them) and the statistics JSON (with its [`Provenance`]). Every
 //! file is written whole to a temporary file beside the target, then renamed, so a
-//! failed run never leaves a truncated file or clobbers an existing one.
+//! failed run never leaves a truncated file or clobbers an existing one. The outputs of
+//! one run form an [`OutputSet`]: every path is checked before the work starts
+//! ([`check_writable`]), every file is written to its temporary file, and only when all
+//! of them are written are they renamed; a failure removes the temporary files, so a
+//! run leaves either every output or none.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -29,25 +33,130 @@ pub fn format_of(path: &Path, what: &str) -> Result<Format> {
     }
 }
 
-/// Writes `bytes` to `path` atomically (temporary file + rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
+/// The directory `path` is written in ("." for a bare file name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
-    };
+    }
+}
+
+/// A name beside `path` for its temporary file, unique within this process.
+fn temp_path(path: &Path) -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io(path, e));
+    parent_dir(path).join(format!(".{name}.{}.{n}.tmp", std::process::id()))
+}
+
+/// Fails, before any work, if `path` could not be written later: a name ending in `/`,
+/// a directory or other non-file at `path`, a parent that is missing or not a directory,
+/// or a parent where no file can be created (checked by creating and removing a
+/// temporary file there).
+pub fn check_writable(path: &Path) -> Result<()> {
+    let bad = |msg: String| Err(Error::invalid(path, msg));
+    if path.as_os_str().is_empty() {
+        return Err(Error::Usage("an output path is empty".into()));
+    }
+    if path.as_os_str().to_string_lossy().ends_with(['/', std::path::MAIN_SEPARATOR]) || path.file_name().is_none() {
+        return bad("names a directory (ends in '/' or '..'); expected a file name".into());
+    }
+    let dir = parent_dir(path);
+    match std::fs::metadata(&dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => return bad(format!("{} is not a directory", dir.display())),
+        Err(_) => return bad(format!("the directory {} does not exist", dir.display())),
+    }
+    if let Ok(m) = std::fs::symlink_metadata(path) {
+        if m.is_dir() {
+            return bad("is a directory".into());
+        }
+        if !m.is_file() && !m.file_type().is_symlink() {
+            return bad("exists and is not a regular file".into());
+        }
+    }
+    let probe = temp_path(path);
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => bad(format!("cannot create a file in {}: {e}", dir.display())),
+    }
+}
+
+/// Checks every path of one run's outputs ([`check_writable`]) and that no two are the same.
+pub fn check_outputs<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Result<()> {
+    let mut seen: Vec<&Path> = Vec::new();
+    for p in paths {
+        check_writable(p)?;
+        if seen.contains(&p) {
+            return Err(Error::invalid(p, "is given as two outputs"));
+        }
+        seen.push(p);
     }
     Ok(())
+}
+
+/// The files of one run, written together or not at all: [`OutputSet::add`] writes a
+/// file's bytes to a temporary file beside it; [`OutputSet::commit`] renames every
+/// temporary file onto its target. Dropping the set uncommitted (an error, a panic)
+/// removes the temporary files written so far.
+#[derive(Debug, Default)]
+pub struct OutputSet {
+    /// (temporary file, target), in the order added.
+    pending: Vec<(PathBuf, PathBuf)>,
+}
+
+impl OutputSet {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes `bytes` (whole, synced) to a temporary file beside `path`.
+    pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let tmp = temp_path(path);
+        let written = (|| -> std::io::Result<()> {
+            let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+            f.write_all(bytes)?;
+            f.sync_all()
+        })();
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(Error::io(path, e));
+        }
+        self.pending.push((tmp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every temporary file onto its target. A rename that fails (after every
+    /// file was written: the target turned into a directory meanwhile) removes the
+    /// temporary files not yet renamed.
+    pub fn commit(mut self) -> Result<()> {
+        while !self.pending.is_empty() {
+            let (tmp, path) = self.pending.remove(0);
+            if let Err(e) = std::fs::rename(&tmp, &path) {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(Error::io(path, e)); // Drop removes the rest.
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.pending {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
+/// Writes `bytes` to `path` atomically (temporary file + rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut set = OutputSet::new();
+    set.add(path, bytes)?;
+    set.commit()
 }
 
 /// Linear to sRGB-encoded 8-bit.
@@ -92,15 +201,22 @@ pub fn encode_pfm(width: u32, height: u32, channels: usize, data: &[f32]) -> Vec
     out
 }
 
-/// Writes the image `rgb` to `path` (PNG or EXR by extension).
-pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
+/// Adds the image `rgb` as `path` (PNG or EXR by extension) to `set`.
+pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     let f = format_of(path, "image")?;
-    write_atomic(path, &encode_image(f, width, height, rgb)?)
+    set.add(path, &encode_image(f, width, height, rgb)?)
 }
 
-/// Writes a 1- or 3-channel AOV to `path` (PFM or EXR by extension; an EXR of a
-/// 1-channel AOV repeats the value in R, G and B).
-pub fn write_aov(path: &Path, width: u32, height: u32, channels: usize, data: &[f32]) -> Result<()> {
+/// Adds a 1- or 3-channel AOV as `path` (PFM or EXR by extension; an EXR of a
+/// 1-channel AOV repeats the value in R, G and B) to `set`.
+pub fn write_aov(
+    set: &mut OutputSet,
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: usize,
+    data: &[f32],
+) -> Result<()> {
     let bytes = match format_of(path, "aov")? {
         Format::Pfm => encode_pfm(width, height, channels, data),
         _ => {
@@ -112,7 +228,7 @@ pub fn write_aov(path: &Path, width: u32, height: u32, channels: usize, data: &[
             encode_image(Format::Exr, width, height, &rgb)?
         }
     };
-    write_atomic(path, &bytes)
+    set.add(path, &bytes)
 }
 
 /// The AOVs `render --aov` writes, by name.
@@ -141,6 +257,14 @@ pub fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
     Ok(out)
 }
 
+/// Channels of the AOV `name` (see [`aov_channels`]); 3 for a name not known.
+pub fn aov_channel_count(name: &str) -> u64 {
+    match name {
+        "depth" | "prim" => 1,
+        _ => 3,
+    }
+}
+
 /// The AOV `name` of `frame` as (channels, row-major values): depth (1), normal (3),
 /// prim (1; -1 where the ray missed), cost (3: nodes visited, primitives tested, 0).
 pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
@@ -153,11 +277,17 @@ pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
     })
 }
 
-/// Writes each (name, path) of `aovs` from `frame` (`width` x `height`).
-pub fn write_aovs(aovs: &[(String, PathBuf)], frame: &Frame, width: u32, height: u32) -> Result<()> {
+/// Adds each (name, path) of `aovs` from `frame` (`width` x `height`) to `set`.
+pub fn write_aovs(
+    set: &mut OutputSet,
+    aovs: &[(String, PathBuf)],
+    frame: &Frame,
+    width: u32,
+    height: u32,
+) -> Result<()> {
     for (name, path) in aovs {
         let (channels, data) = aov_channels(frame, name)?;
-        write_aov(path, width, height, channels, &data)?;
+        write_aov(set, path, width, height, channels, &data)?;
     }
     Ok(())
 }
@@ -184,11 +314,11 @@ pub struct Provenance {
     pub command_line: Vec<String>,
 }
 
-/// Writes the statistics JSON (`stats` and `provenance`) to `path`.
-pub fn write_stats(path: &Path, stats: &RenderStats, provenance: Provenance) -> Result<()> {
+/// Adds the statistics JSON (`stats` and `provenance`) as `path` to `set`.
+pub fn write_stats(set: &mut OutputSet, path: &Path, stats: &RenderStats, provenance: Provenance) -> Result<()> {
     let json = serde_json::to_vec_pretty(&StatsFile { stats, provenance })
         .map_err(|e| Error::Usage(format!("stats JSON: {e}")))?;
-    write_atomic(path, &json)
+    set.add(path, &json)
 }
 
 /// Reads a PFM written by [`encode_pfm`] (or any standard PFM): (width, height,
@@ -258,6 +388,59 @@ mod tests {
         let (w, h, c, back) = read_pfm(&p).expect("read");
         assert_eq!((w, h, c), (3, 2, 1));
         assert_eq!(back, data);
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().into_string().expect("utf8"))
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// A failed file removes the temporary files already written; nothing is renamed.
+    #[test]
+    fn output_set_writes_all_or_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let d = dir.path();
+        std::fs::write(d.join("a.png"), "old").expect("write");
+        {
+            let mut set = OutputSet::new();
+            set.add(&d.join("a.png"), b"new").expect("add a");
+            set.add(&d.join("b.pfm"), b"new").expect("add b");
+            assert_eq!(names(d).len(), 3, "two temporary files beside a.png");
+            assert!(set.add(&d.join("missing/c.json"), b"new").is_err());
+        }
+        assert_eq!(names(d), ["a.png"]);
+        assert_eq!(std::fs::read(d.join("a.png")).expect("read"), b"old");
+        let mut set = OutputSet::new();
+        set.add(&d.join("a.png"), b"new").expect("add a");
+        set.add(&d.join("b.pfm"), b"new").expect("add b");
+        set.commit().expect("commit");
+        assert_eq!(names(d), ["a.png", "b.pfm"]);
+        assert_eq!(std::fs::read(d.join("a.png")).expect("read"), b"new");
+    }
+
+    #[test]
+    fn unwritable_paths_are_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let d = dir.path();
+        std::fs::write(d.join("file"), "x").expect("write");
+        std::fs::create_dir(d.join("sub")).expect("mkdir");
+        let slash = PathBuf::from(format!("{}/", d.join("a.pfm").display()));
+        for (p, what) in [
+            (slash, "expected a file name"),
+            (d.join("file/a.pfm"), "is not a directory"),
+            (d.join("nope/a.pfm"), "does not exist"),
+            (d.join("sub"), "is a directory"),
+        ] {
+            let e = check_writable(&p).expect_err("refused").to_string();
+            assert!(e.contains(what), "{}: {e}", p.display());
+        }
+        check_writable(&d.join("ok.png")).expect("writable");
+        assert!(check_outputs([d.join("x.exr").as_path(), d.join("x.exr").as_path()]).is_err());
+        assert_eq!(names(d), ["file", "sub"], "the probes are gone");
     }
 
     #[test]

@@ -3,26 +3,41 @@
 
 use super::Frame;
 use crate::accel::gpu_layout::{GpuPixel, PIXEL_HEADER_BYTES};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::bindings::OVERFLOW_FLAG;
 use crate::gpu::{Buffer, Context};
 
 impl Frame {
-    /// An empty frame: black, misses everywhere.
-    pub fn new(width: u32, height: u32) -> Frame {
+    /// An empty frame: black, misses everywhere. An error (not an abort) when the host
+    /// cannot allocate it.
+    pub fn new(width: u32, height: u32) -> Result<Frame> {
         let n = width as usize * height as usize;
-        Frame {
+        let too_big = || {
+            Error::Usage(format!(
+                "--size {width}x{height}: cannot allocate the frame (about {} MiB); use a smaller --size",
+                (n as u64 * super::memory::FRAME_BYTES_PER_PIXEL) >> 20
+            ))
+        };
+        Ok(Frame {
             width,
             height,
-            radiance: vec![[0.0; 3]; n],
-            depth: vec![f32::INFINITY; n],
-            normal: vec![[0.0; 3]; n],
-            prim: vec![u32::MAX; n],
-            nodes: vec![0; n],
-            tests: vec![0; n],
-            rays: vec![0; n],
-        }
+            radiance: filled(n, [0.0; 3]).ok_or_else(too_big)?,
+            depth: filled(n, f32::INFINITY).ok_or_else(too_big)?,
+            normal: filled(n, [0.0; 3]).ok_or_else(too_big)?,
+            prim: filled(n, u32::MAX).ok_or_else(too_big)?,
+            nodes: filled(n, 0).ok_or_else(too_big)?,
+            tests: filled(n, 0).ok_or_else(too_big)?,
+            rays: filled(n, 0).ok_or_else(too_big)?,
+        })
     }
+}
+
+/// `n` copies of `v`, or `None` when the allocation fails.
+fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
+    let mut out = Vec::new();
+    out.try_reserve_exact(n).ok()?;
+    out.resize(n, v);
+    Some(out)
 }
 
 /// Reads `len` pixels of the chunk in `pixel_buf` into `frame` from pixel `first`,

@@ -134,7 +134,7 @@ pub fn render_with(
     let gs = GpuScene::new(scene);
     let p = params(scene, settings, accel);
     let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
-    let mut frame = Frame::new(settings.width, settings.height);
+    let mut frame = Frame::new(settings.width, settings.height)?;
     let mut overflow = 0u64;
     let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, progress, |first, len| {
         overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len, settings.spp)?;
