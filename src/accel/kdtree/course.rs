@@ -3,6 +3,21 @@
 //! left count x left area + right count x right area, at most 4 primitives per leaf,
 //! at most 20 levels. Primitives go to every child their bounding box overlaps.
 //! Stored compactly in the common node layout (no complete binary tree).
+//!
+//! # Caps on degenerate input
+//!
+//! Splitting a node whose primitives all straddle the plane copies every reference
+//! into both children; with co-located, coplanar or fanned primitives that happens at
+//! every level, and 20 levels make up to 2^20 copies of each. Two rules stop it; both
+//! leave trees of ordinary scenes unchanged (see docs/limits-builders.md):
+//!
+//! - A node becomes a leaf when every primitive's box contains the node's box: no
+//!   plane below it could separate anything (identical primitives).
+//! - References are budgeted: the root may hand out [`REF_BUDGET_PER_PRIM`] x N +
+//!   [`REF_BUDGET_EXTRA`] references in all, each split passes its node's budget on
+//!   in proportion to the children's counts, and a node whose split would hold more
+//!   references than its budget stays a leaf. So the tree never holds more than the
+//!   root budget, and a build costs at most 20 sweeps over it.
 
 use super::BuildNode;
 use crate::accel::prim;
@@ -12,15 +27,29 @@ use crate::scene::Scene;
 
 const MAX_LEVEL: u32 = 20;
 const LEAF_PRIMS: usize = 4;
+/// References per primitive the whole tree may hold (see the module doc).
+pub const REF_BUDGET_PER_PRIM: usize = 8;
+/// References the whole tree may hold beyond [`REF_BUDGET_PER_PRIM`] x N.
+pub const REF_BUDGET_EXTRA: usize = 64;
 
 pub(super) fn build(scene: &Scene, bounds: &Aabb) -> BuildNode {
     let boxes: Vec<Aabb> = (0..scene.prim_count() as u32).map(|i| prim::bounds(&prim::geom(scene, i))).collect();
     let all: Vec<u32> = (0..boxes.len() as u32).collect();
-    node(&boxes, all, *bounds, 0)
+    let budget = REF_BUDGET_PER_PRIM * boxes.len() + REF_BUDGET_EXTRA;
+    node(&boxes, all, *bounds, 0, budget)
 }
 
-fn node(boxes: &[Aabb], prims: Vec<u32>, b: Aabb, level: u32) -> BuildNode {
+/// The subtree of `prims` in box `b`, holding at most `budget` (>= prims.len())
+/// references in its leaves.
+fn node(boxes: &[Aabb], prims: Vec<u32>, b: Aabb, level: u32, budget: usize) -> BuildNode {
     if prims.len() <= LEAF_PRIMS || level >= MAX_LEVEL {
+        return BuildNode::Leaf(prims);
+    }
+    let covers = |p: &u32| {
+        let pb = &boxes[*p as usize];
+        pb.min.cmple(b.min).all() && pb.max.cmpge(b.max).all()
+    };
+    if prims.iter().all(covers) {
         return BuildNode::Leaf(prims);
     }
     let mut best: Option<(f32, usize, f32)> = None;
@@ -44,13 +73,20 @@ fn node(boxes: &[Aabb], prims: Vec<u32>, b: Aabb, level: u32) -> BuildNode {
     }
     let left: Vec<u32> = prims.iter().copied().filter(|&p| boxes[p as usize].min[axis] <= pos).collect();
     let right: Vec<u32> = prims.iter().copied().filter(|&p| boxes[p as usize].max[axis] >= pos).collect();
+    let (nl, nr) = (left.len(), right.len());
+    if nl + nr > budget {
+        return BuildNode::Leaf(prims);
+    }
+    // Proportional shares: each child's share covers its own count because nl + nr <= budget.
+    let lbudget = ((budget as u128 * nl as u128) / (nl + nr).max(1) as u128) as usize;
+    let rbudget = budget - lbudget;
     let (mut lb, mut rb) = (b, b);
     lb.max[axis] = pos;
     rb.min[axis] = pos;
     let (below, above) = if prims.len() > 1024 {
-        rayon::join(|| node(boxes, left, lb, level + 1), || node(boxes, right, rb, level + 1))
+        rayon::join(|| node(boxes, left, lb, level + 1, lbudget), || node(boxes, right, rb, level + 1, rbudget))
     } else {
-        (node(boxes, left, lb, level + 1), node(boxes, right, rb, level + 1))
+        (node(boxes, left, lb, level + 1, lbudget), node(boxes, right, rb, level + 1, rbudget))
     };
     BuildNode::Inner { axis, split: pos, below: Box::new(below), above: Box::new(above) }
 }

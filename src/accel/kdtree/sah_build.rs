@@ -8,6 +8,18 @@
 //! primitives' events, sorts those few, and merges. Children are built in parallel
 //! with rayon; the result does not depend on the thread count (every tie is broken by
 //! a total order).
+//!
+//! # Reference budget
+//!
+//! The SAH alone keeps splitting a node while a plane removes even one primitive from
+//! a side, so heavily overlapping input (thousands of coplanar triangles over one
+//! point) copies its references into both children level after level, up to the
+//! depth limit. The root may hand out [`REF_BUDGET_PER_PRIM`] x N + [`REF_BUDGET_EXTRA`]
+//! references; each split passes its node's budget on in proportion to the children's
+//! counts, and a node whose split would hold more references than its budget stays a
+//! leaf. Ordinary scenes stay far below it (about 1.1 references per primitive) and
+//! their trees do not change; the cap keeps references, memory and build time linear
+//! in N. Deterministic: a node's budget depends only on its ancestors.
 
 use super::{BuildNode, KdParams};
 use crate::accel::prim::{self, PrimGeom};
@@ -18,6 +30,11 @@ use crate::scene::Scene;
 const END: u8 = 0;
 const PLANAR: u8 = 1;
 const START: u8 = 2;
+
+/// References per primitive the whole tree may hold (see the module doc).
+pub const REF_BUDGET_PER_PRIM: usize = 8;
+/// References the whole tree may hold beyond [`REF_BUDGET_PER_PRIM`] x N.
+pub const REF_BUDGET_EXTRA: usize = 64;
 
 /// Children with more primitives than this are built in parallel.
 const PARALLEL_MIN: usize = 1024;
@@ -113,7 +130,8 @@ pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb) -> BuildNod
         use rayon::prelude::*;
         events.par_iter_mut().for_each(|l| l.par_sort_unstable_by_key(key));
     }
-    build_node(&ctx, NodeData { bbox: *bounds, prims, events }, 0)
+    let budget = REF_BUDGET_PER_PRIM * n + REF_BUDGET_EXTRA;
+    build_node(&ctx, NodeData { bbox: *bounds, prims, events }, 0, budget)
 }
 
 struct Plane {
@@ -200,7 +218,9 @@ const RIGHT: u8 = 2;
 /// Set when a primitive's events are regenerated from clipped bounds.
 const REGEN: u8 = 4;
 
-fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
+/// The subtree of `node`, holding at most `budget` (>= its primitive count)
+/// references in its leaves.
+fn build_node(ctx: &Ctx, node: NodeData, depth: u32, budget: usize) -> BuildNode {
     let n = node.prims.len();
     if n <= ctx.params.leaf_size || depth >= ctx.max_depth {
         return BuildNode::Leaf(node.prims);
@@ -251,6 +271,12 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
         };
         *s = new_side | REGEN;
         straddlers.push((i as u32, l, r));
+    }
+    let nl = side.iter().filter(|&&s| s & 3 != RIGHT).count();
+    let nr = side.iter().filter(|&&s| s & 3 != LEFT).count();
+    if nl + nr > budget {
+        // Over budget (see the module doc): the node stays a leaf.
+        return BuildNode::Leaf(node.prims);
     }
     // Local index maps (monotone, so child lists stay ascending).
     let mut lmap = vec![u32::MAX; n];
@@ -314,12 +340,15 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
         lev[a] = l;
         rev[a] = r;
     }
+    // Proportional shares: each covers its child's count because nl + nr <= budget.
+    let lbudget = ((budget as u128 * nl as u128) / (nl + nr).max(1) as u128) as usize;
+    let rbudget = budget - lbudget;
     let left = NodeData { bbox: lbox, prims: lprims, events: lev };
     let right = NodeData { bbox: rbox, prims: rprims, events: rev };
     let (below, above) = if n > PARALLEL_MIN {
-        rayon::join(|| build_node(ctx, left, depth + 1), || build_node(ctx, right, depth + 1))
+        rayon::join(|| build_node(ctx, left, depth + 1, lbudget), || build_node(ctx, right, depth + 1, rbudget))
     } else {
-        (build_node(ctx, left, depth + 1), build_node(ctx, right, depth + 1))
+        (build_node(ctx, left, depth + 1, lbudget), build_node(ctx, right, depth + 1, rbudget))
     };
     BuildNode::Inner { axis, split: pos, below: Box::new(below), above: Box::new(above) }
 }
