@@ -19,6 +19,8 @@
 pub mod course;
 mod sah_build;
 
+pub use sah_build::{REF_BUDGET_EXTRA, REF_BUDGET_PER_PRIM};
+
 use crate::accel::validate::ValidateError;
 use std::time::Instant;
 
