@@ -8,18 +8,17 @@
 //!
 //! Splitting a node whose primitives all straddle the plane copies every reference
 //! into both children; with co-located, coplanar or fanned primitives that happens at
-//! every level, and 20 levels make up to 2^20 copies of each. Two rules stop it; both
-//! leave trees of ordinary scenes unchanged (see docs/limits-builders.md):
+//! every level, and 20 levels make up to 2^20 copies of each. A budget stops it and
+//! leaves trees of ordinary scenes unchanged (see docs/limits-builders.md):
 //!
-//! - A node becomes a leaf when every primitive's box contains the node's box: no
-//!   plane below it could separate anything (identical primitives).
 //! - References are budgeted: the tree may hold [`REF_BUDGET_PER_PRIM`] x N +
 //!   [`REF_BUDGET_EXTRA`]. The first build counts its leaves' references and gives up
 //!   once over; ordinary scenes never are (the lecture's tree holds 100 per primitive
 //!   at 80 triangles, 16 at 10,000: the constant covers small scenes). Otherwise a
 //!   second build shares the budget out: each split passes its node's budget on in
 //!   proportion to the children's counts, and a node whose split would hold more
-//!   references than its budget stays a leaf.
+//!   references than its budget stays a leaf, as does a node whose every primitive's
+//!   box contains the node's box (no plane below could separate anything).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -78,7 +77,7 @@ fn split(boxes: &[Aabb], watch: &Watch, prims: Vec<u32>, b: Aabb, level: u32, bu
         let pb = &boxes[*p as usize];
         pb.min.cmple(b.min).all() && pb.max.cmpge(b.max).all()
     };
-    if prims.iter().all(covers) {
+    if budget.is_some() && prims.iter().all(covers) {
         return BuildNode::Leaf(prims);
     }
     let mut best: Option<(f32, usize, f32)> = None;
