@@ -11,6 +11,12 @@
 //! coordinate (about 64 ulps), four times the padding of [`prim::grow`], so that far
 //! from the origin cells stay well above float resolution.
 //!
+//! Degenerate input (co-located or heavily overlapping primitives) would make every
+//! primitive reach a share of a grid that grows with N: quadratic references. The
+//! (cell, primitive) candidate pairs are capped at [`CANDIDATES_PER_ITEM`] x (N +
+//! cells); a grid over it is rebuilt with lambda x 0.7 per step, down to one cell
+//! (docs/limits-builders.md). Ordinary scenes stay far below and keep their grid.
+//!
 //! # Layout (words of `u32`, read by shaders/accel/grid.glsl)
 //!
 //! ```text
