@@ -11,6 +11,12 @@
 //! coordinate (about 64 ulps), four times the padding of [`prim::grow`], so that far
 //! from the origin cells stay well above float resolution.
 //!
+//! Degenerate input (co-located or heavily overlapping primitives) would make every
+//! primitive reach a share of a grid that grows with N: quadratic references. The
+//! (cell, primitive) candidate pairs are capped at [`CANDIDATES_PER_ITEM`] x (N +
+//! cells); a grid over it is rebuilt with lambda x 0.7 per step, down to one cell
+//! (docs/limits-builders.md). Ordinary scenes stay far below and keep their grid.
+//!
 //! # Layout (words of `u32`, read by shaders/accel/grid.glsl)
 //!
 //! ```text
@@ -54,6 +60,11 @@ use crate::scene::Scene;
 
 /// Most cells along one axis.
 pub const MAX_RES: u32 = 4096;
+/// Insertion tests at most this many (cell, primitive) candidate pairs per primitive
+/// and cell: `CANDIDATES_PER_ITEM x (N + cells)`. A grid whose primitives' boxes reach
+/// more cells is rebuilt coarser (see `Grid::cap_candidates`), so references, memory
+/// and build time stay linear in N + cells.
+pub const CANDIDATES_PER_ITEM: u64 = 8;
 /// Words before the cell starts in the GPU layout (a `GpuGridHeader`).
 pub const HEADER_WORDS: usize = std::mem::size_of::<super::gpu_layout::GpuGridHeader>() / 4;
 
@@ -145,29 +156,8 @@ impl Grid {
         let mut phases = Vec::new();
         let bounds = scene.bounds();
         let n = scene.prim_count();
-        let res = resolution(&bounds, n, params);
-        let cell =
-            if n == 0 { Vec3::ZERO } else { bounds.extent() / Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32) };
-        let mut g = Grid {
-            bounds,
-            res,
-            cell,
-            start: Vec::new(),
-            indices: Vec::new(),
-            prims: n,
-            params: *params,
-            margin: [0.0; 3],
-            build_ms: 0.0,
-            phases: Vec::new(),
-        };
-        // Candidate cells reach the grown boxes' pad (1e-5 of a cell plus 1e-6 of the
-        // coordinates) and a hundredth of a cell for rounding.
-        let mag = f64::from(bounds.min.abs().max(bounds.max.abs()).max_element());
-        for a in 0..3 {
-            if cell[a] > 0.0 {
-                g.margin[a] = 0.01 + 1e-5 + mag * 1e-6 / f64::from(cell[a]);
-            }
-        }
+        let mut g = Grid::empty(bounds, resolution(&bounds, n, params), n, params);
+        g.cap_candidates(scene);
         // (cell, primitive) pairs, in primitive order, from chunks in parallel.
         let pairs: Vec<Vec<(u32, u32)>> = (0..n as u32)
             .collect::<Vec<_>>()
@@ -204,6 +194,74 @@ impl Grid {
         g.phases = phases;
         g.build_ms = start_time.elapsed().as_secs_f64() * 1e3;
         g
+    }
+
+    /// A grid of resolution `res` over `bounds` with no cells filled yet.
+    fn empty(bounds: Aabb, res: [u32; 3], n: usize, params: &GridParams) -> Grid {
+        let cell =
+            if n == 0 { Vec3::ZERO } else { bounds.extent() / Vec3::new(res[0] as f32, res[1] as f32, res[2] as f32) };
+        let mut g = Grid {
+            bounds,
+            res,
+            cell,
+            start: Vec::new(),
+            indices: Vec::new(),
+            prims: n,
+            params: *params,
+            margin: [0.0; 3],
+            build_ms: 0.0,
+            phases: Vec::new(),
+        };
+        // Candidate cells reach the grown boxes' pad (1e-5 of a cell plus 1e-6 of the
+        // coordinates) and a hundredth of a cell for rounding.
+        let mag = f64::from(bounds.min.abs().max(bounds.max.abs()).max_element());
+        for a in 0..3 {
+            if cell[a] > 0.0 {
+                g.margin[a] = 0.01 + 1e-5 + mag * 1e-6 / f64::from(cell[a]);
+            }
+        }
+        g
+    }
+
+    /// Most (cell, primitive) candidate pairs insertion may test: see [`CANDIDATES_PER_ITEM`].
+    pub fn candidate_budget(&self) -> u64 {
+        CANDIDATES_PER_ITEM * (self.prims as u64 + self.cell_count() as u64)
+    }
+
+    /// Whether the candidate cells of primitives with boxes `boxes` number at most
+    /// the budget (stops counting once over).
+    fn within_budget(&self, boxes: &[Aabb]) -> bool {
+        let budget = self.candidate_budget();
+        let mut total = 0u64;
+        for b in boxes {
+            let (lo, hi) = self.candidates(b);
+            total += (0..3).map(|a| u64::from(hi[a] - lo[a] + 1)).product::<u64>();
+            if total > budget {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Lowers the resolution (lambda x 0.7 per step, down to one cell) until the
+    /// candidate pairs fit the budget. Ordinary scenes use a few candidates per
+    /// primitive and never get here; co-located or overlapping primitives would
+    /// otherwise each fill a share of a grid that grows with N (quadratic).
+    fn cap_candidates(&mut self, scene: &Scene) {
+        let n = self.prims;
+        if n == 0 {
+            return;
+        }
+        let boxes: Vec<Aabb> = (0..n as u32).into_par_iter().map(|p| prim::bounds(&prim::geom(scene, p))).collect();
+        let mut params = self.params;
+        while !self.within_budget(&boxes) && self.res != [1, 1, 1] {
+            params.lambda *= 0.7;
+            let mut res = resolution(&self.bounds, n, &params);
+            if res.iter().map(|&r| u64::from(r)).product::<u64>() >= self.cell_count() as u64 {
+                res = [1, 1, 1];
+            }
+            *self = Grid::empty(self.bounds, res, n, &self.params);
+        }
     }
 
     /// Number of cells.

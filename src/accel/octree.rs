@@ -22,6 +22,18 @@
 //! 14. A leaf with 5 primitives from index 40 is `[0x8000_0005, 40]`. Absent octants
 //! are empty space: nothing is stored for them.
 //!
+//! # Reference budget
+//!
+//! Splitting pays by the SAH while it less than about quadruples a node's references,
+//! so densely overlapping input (thousands of coplanar triangles over one point) could
+//! multiply its references level after level down to the depth limit. The tree may
+//! hold [`REF_BUDGET_PER_PRIM`] x N + [`REF_BUDGET_EXTRA`] references. The first build
+//! counts its leaves' references and gives up once over; ordinary scenes never are
+//! (at most 7 per primitive by default, 18 with `leaf=1`) and keep their tree.
+//! Otherwise a second build shares the budget out: each split passes its node's
+//! budget on to the octants in proportion to their counts, and a node whose octants
+//! would hold more than its budget stays a leaf.
+//!
 //! The GPU buffer starts with two vec4 (the root cube's min and max, w unused), then
 //! the nodes. A node's centre is `0.5 min + 0.5 max` of its box, computed the same way
 //! here and in the kernel, so a child's faces are bit for bit its ancestors' centres.
@@ -31,6 +43,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::kdtree::{before, shrink};
 use super::params::{number, Key};
@@ -44,6 +57,10 @@ use crate::scene::Scene;
 
 /// Deepest octree the builder makes.
 pub const MAX_OCTREE_DEPTH: u32 = 24;
+/// References per primitive the whole tree may hold (see the module doc).
+pub const REF_BUDGET_PER_PRIM: usize = 32;
+/// References the whole tree may hold beyond [`REF_BUDGET_PER_PRIM`] x N.
+pub const REF_BUDGET_EXTRA: usize = 64;
 /// Leaf flag in word 0.
 pub const LEAF: u32 = 0x8000_0000;
 /// Words of the header before the nodes in the GPU layout (a `GpuOctreeHeader`).
@@ -167,7 +184,13 @@ impl Octree {
         let geoms: Vec<PrimGeom> = (0..n as u32).map(|p| prim::geom(scene, p)).collect();
         let params = OctreeParams { max_depth: params.max_depth.min(MAX_OCTREE_DEPTH), ..*params };
         let all: Vec<u32> = (0..n as u32).collect();
-        let root = if n == 0 { BuildNode::Leaf(Vec::new()) } else { subdivide(&geoms, all, bounds, 0, &params) };
+        let limit = REF_BUDGET_PER_PRIM * n + REF_BUDGET_EXTRA;
+        let watch = Watch { refs: AtomicUsize::new(0), limit };
+        let mut root = subdivide(&geoms, &watch, all.clone(), bounds, 0, &params, None);
+        if watch.refs.load(Ordering::Relaxed) > limit {
+            drop(root);
+            root = subdivide(&geoms, &watch, all, bounds, 0, &params, Some(limit));
+        }
         super::bvh::lap(&mut phases, "subdivide", &mut t);
         let mut o = Octree {
             bounds,
@@ -462,7 +485,43 @@ impl Octree {
 /// Primitives at which subdivision fans out over threads.
 const PARALLEL_PRIMS: usize = 4096;
 
-fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &OctreeParams) -> BuildNode {
+/// References in the leaves the first build made so far, and the most allowed.
+struct Watch {
+    refs: AtomicUsize,
+    limit: usize,
+}
+
+/// The subtree of `prims` in box `b`. First build (`budget` None): counts leaf
+/// references and stops early once over the limit (the tree is then discarded).
+/// Second build: holds at most `budget` (>= prims.len()) references.
+fn subdivide(
+    geoms: &[PrimGeom],
+    watch: &Watch,
+    prims: Vec<u32>,
+    b: Aabb,
+    depth: u32,
+    params: &OctreeParams,
+    budget: Option<usize>,
+) -> BuildNode {
+    if budget.is_none() && watch.refs.load(Ordering::Relaxed) > watch.limit {
+        return BuildNode::Leaf(Vec::new());
+    }
+    let tree = split(geoms, watch, prims, b, depth, params, budget);
+    if let (None, BuildNode::Leaf(list)) = (budget, &tree) {
+        watch.refs.fetch_add(list.len(), Ordering::Relaxed);
+    }
+    tree
+}
+
+fn split(
+    geoms: &[PrimGeom],
+    watch: &Watch,
+    prims: Vec<u32>,
+    b: Aabb,
+    depth: u32,
+    params: &OctreeParams,
+    budget: Option<usize>,
+) -> BuildNode {
     if prims.len() <= params.leaf_size || depth >= params.max_depth || !splittable(&b) {
         return BuildNode::Leaf(prims);
     }
@@ -516,10 +575,26 @@ fn subdivide(geoms: &[PrimGeom], prims: Vec<u32>, b: Aabb, depth: u32, params: &
     if lists.iter().all(Vec::is_empty) || split >= costs.leaf(prims.len()) {
         return BuildNode::Leaf(prims);
     }
+    // Over budget (see the module doc): stay a leaf. Otherwise each octant gets its
+    // proportional share, which covers its count because the total fits the budget.
+    let total: usize = lists.iter().map(Vec::len).sum();
+    if budget.is_some_and(|b| total > b) {
+        return BuildNode::Leaf(prims);
+    }
     drop(prims);
-    let work: Vec<(u8, Vec<u32>)> =
-        lists.into_iter().enumerate().filter(|(_, l)| !l.is_empty()).map(|(k, l)| (k as u8, l)).collect();
-    let build = |(k, l): (u8, Vec<u32>)| (k, subdivide(geoms, l, octant_box(&b, c, k as usize), depth + 1, params));
+    let share = |len: usize| budget.map(|b| ((b as u128 * len as u128) / total as u128) as usize);
+    let work: Vec<(u8, Vec<u32>, Option<usize>)> = lists
+        .into_iter()
+        .enumerate()
+        .filter(|(_, l)| !l.is_empty())
+        .map(|(k, l)| {
+            let s = share(l.len());
+            (k as u8, l, s)
+        })
+        .collect();
+    let build = |(k, l, s): (u8, Vec<u32>, Option<usize>)| {
+        (k, subdivide(geoms, watch, l, octant_box(&b, c, k as usize), depth + 1, params, s))
+    };
     let children: Vec<(u8, BuildNode)> = if n >= PARALLEL_PRIMS {
         work.into_par_iter().map(build).collect()
     } else {

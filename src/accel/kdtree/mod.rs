@@ -16,8 +16,10 @@
 //! `[0x3f000000, (7 << 2) | 1] = [0x3f000000, 0x1d]`; a leaf with 3 primitives
 //! starting at index-array entry 40 is `[3, (40 << 2) | 3] = [3, 0xa3]`.
 
-mod course;
+pub mod course;
 mod sah_build;
+
+pub use sah_build::{REF_BUDGET_EXTRA, REF_BUDGET_PER_PRIM};
 
 use crate::accel::validate::ValidateError;
 use std::time::Instant;

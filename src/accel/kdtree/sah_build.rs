@@ -8,6 +8,22 @@
 //! primitives' events, sorts those few, and merges. Children are built in parallel
 //! with rayon; the result does not depend on the thread count (every tie is broken by
 //! a total order).
+//!
+//! # Reference budget
+//!
+//! The SAH alone keeps splitting a node while a plane removes even one primitive from
+//! a side, so heavily overlapping input (thousands of coplanar triangles over one
+//! point) copies its references into both children level after level, up to the
+//! depth limit. The tree may hold [`REF_BUDGET_PER_PRIM`] x N + [`REF_BUDGET_EXTRA`]
+//! references. The first build counts the references of the leaves it makes and
+//! gives up as soon as they exceed that; ordinary scenes (at most 6 per primitive
+//! with `quality`) never do, and keep exactly the tree they had. Otherwise a second
+//! build shares the budget out: the root gets all of it, each split passes its node's
+//! budget on in proportion to the children's counts, and a node whose split would
+//! hold more references than its budget stays a leaf. Both builds are deterministic
+//! (the first one's outcome depends only on its finished tree's size).
+
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::{BuildNode, KdParams};
 use crate::accel::prim::{self, PrimGeom};
@@ -18,6 +34,11 @@ use crate::scene::Scene;
 const END: u8 = 0;
 const PLANAR: u8 = 1;
 const START: u8 = 2;
+
+/// References per primitive the whole tree may hold (see the module doc).
+pub const REF_BUDGET_PER_PRIM: usize = 16;
+/// References the whole tree may hold beyond [`REF_BUDGET_PER_PRIM`] x N.
+pub const REF_BUDGET_EXTRA: usize = 64;
 
 /// Children with more primitives than this are built in parallel.
 const PARALLEL_MIN: usize = 1024;
@@ -68,11 +89,15 @@ fn key(e: &Event) -> u64 {
 }
 
 struct Ctx<'a> {
+    /// References in the leaves made so far (first build) and the most allowed.
+    refs: AtomicUsize,
+    budget: usize,
     geoms: Vec<PrimGeom>,
     params: &'a KdParams,
     max_depth: u32,
 }
 
+#[derive(Clone)]
 struct NodeData {
     bbox: Aabb,
     /// Global primitive ids, ascending.
@@ -99,7 +124,8 @@ fn push_events(events: &mut [Vec<Event>; 3], b: &Aabb, prim: u32) {
 pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb) -> BuildNode {
     let n = scene.prim_count();
     let geoms: Vec<PrimGeom> = (0..n as u32).map(|i| prim::geom(scene, i)).collect();
-    let ctx = Ctx { geoms, params, max_depth: params.depth_limit(n) };
+    let budget = REF_BUDGET_PER_PRIM * n + REF_BUDGET_EXTRA;
+    let ctx = Ctx { refs: AtomicUsize::new(0), budget, geoms, params, max_depth: params.depth_limit(n) };
     let mut prims = Vec::with_capacity(n);
     let mut events: [Vec<Event>; 3] = Default::default();
     for (i, g) in ctx.geoms.iter().enumerate() {
@@ -113,7 +139,13 @@ pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb) -> BuildNod
         use rayon::prelude::*;
         events.par_iter_mut().for_each(|l| l.par_sort_unstable_by_key(key));
     }
-    build_node(&ctx, NodeData { bbox: *bounds, prims, events }, 0)
+    let root = NodeData { bbox: *bounds, prims, events };
+    let tree = build_node(&ctx, root.clone(), 0, None);
+    if ctx.refs.load(Ordering::Relaxed) <= budget {
+        return tree;
+    }
+    drop(tree);
+    build_node(&ctx, root, 0, Some(budget))
 }
 
 struct Plane {
@@ -200,7 +232,21 @@ const RIGHT: u8 = 2;
 /// Set when a primitive's events are regenerated from clipped bounds.
 const REGEN: u8 = 4;
 
-fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
+/// The subtree of `node`. First build (`budget` None): counts leaf references in
+/// `ctx.refs` and stops early once over `ctx.budget` (the tree is then discarded).
+/// Second build: holds at most `budget` (>= its primitive count) references.
+fn build_node(ctx: &Ctx, node: NodeData, depth: u32, budget: Option<usize>) -> BuildNode {
+    if budget.is_none() && ctx.refs.load(Ordering::Relaxed) > ctx.budget {
+        return BuildNode::Leaf(Vec::new());
+    }
+    let tree = split_node(ctx, node, depth, budget);
+    if let (None, BuildNode::Leaf(list)) = (budget, &tree) {
+        ctx.refs.fetch_add(list.len(), Ordering::Relaxed);
+    }
+    tree
+}
+
+fn split_node(ctx: &Ctx, node: NodeData, depth: u32, budget: Option<usize>) -> BuildNode {
     let n = node.prims.len();
     if n <= ctx.params.leaf_size || depth >= ctx.max_depth {
         return BuildNode::Leaf(node.prims);
@@ -251,6 +297,12 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
         };
         *s = new_side | REGEN;
         straddlers.push((i as u32, l, r));
+    }
+    let nl = side.iter().filter(|&&s| s & 3 != RIGHT).count();
+    let nr = side.iter().filter(|&&s| s & 3 != LEFT).count();
+    if budget.is_some_and(|b| nl + nr > b) {
+        // Over budget (see the module doc): the node stays a leaf.
+        return BuildNode::Leaf(node.prims);
     }
     // Local index maps (monotone, so child lists stay ascending).
     let mut lmap = vec![u32::MAX; n];
@@ -314,12 +366,15 @@ fn build_node(ctx: &Ctx, node: NodeData, depth: u32) -> BuildNode {
         lev[a] = l;
         rev[a] = r;
     }
+    // Proportional shares: each covers its child's count because nl + nr <= budget.
+    let lbudget = budget.map(|b| ((b as u128 * nl as u128) / (nl + nr).max(1) as u128) as usize);
+    let rbudget = budget.zip(lbudget).map(|(b, l)| b - l);
     let left = NodeData { bbox: lbox, prims: lprims, events: lev };
     let right = NodeData { bbox: rbox, prims: rprims, events: rev };
     let (below, above) = if n > PARALLEL_MIN {
-        rayon::join(|| build_node(ctx, left, depth + 1), || build_node(ctx, right, depth + 1))
+        rayon::join(|| build_node(ctx, left, depth + 1, lbudget), || build_node(ctx, right, depth + 1, rbudget))
     } else {
-        (build_node(ctx, left, depth + 1), build_node(ctx, right, depth + 1))
+        (build_node(ctx, left, depth + 1, lbudget), build_node(ctx, right, depth + 1, rbudget))
     };
     BuildNode::Inner { axis, split: pos, below: Box::new(below), above: Box::new(above) }
 }
