@@ -1,7 +1,7 @@
 //! Degenerate input stays bounded for every structure: co-located, coplanar and
 //! duplicated primitives, fans around one vertex, zero-area triangles, one huge among
 //! many tiny. Each build must validate, keep depth, nodes and references within the
-//! documented linear caps (docs/limits-builders.md) and trace as brute force does.
+//! documented linear caps (docs/limits.md, "Builders on degenerate input") and trace as brute force does.
 //! Build times are printed, never asserted.
 
 mod common;

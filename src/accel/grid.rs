@@ -15,7 +15,7 @@
 //! primitive reach a share of a grid that grows with N: quadratic references. The
 //! (cell, primitive) candidate pairs are capped at [`CANDIDATES_PER_ITEM`] x (N +
 //! cells); a grid over it is rebuilt with lambda x 0.7 per step, down to one cell
-//! (docs/limits-builders.md). Ordinary scenes stay far below and keep their grid.
+//! (docs/limits.md, "Builders on degenerate input"). Ordinary scenes stay far below and keep their grid.
 //!
 //! # Layout (words of `u32`, read by shaders/accel/grid.glsl)
 //!

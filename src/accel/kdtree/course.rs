@@ -9,7 +9,7 @@
 //! Splitting a node whose primitives all straddle the plane copies every reference
 //! into both children; with co-located, coplanar or fanned primitives that happens at
 //! every level, and 20 levels make up to 2^20 copies of each. A budget stops it and
-//! leaves trees of ordinary scenes unchanged (see docs/limits-builders.md):
+//! leaves trees of ordinary scenes unchanged (see docs/limits.md, "Builders on degenerate input"):
 //!
 //! - References are budgeted: the tree may hold [`REF_BUDGET_PER_PRIM`] x N +
 //!   [`REF_BUDGET_EXTRA`]. The first build counts its leaves' references and gives up
