@@ -49,7 +49,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::kdtree::{before, shrink};
-use super::params::{number, Key};
+use super::params::{number, Key, Preset};
 use super::prim::{self, PrimGeom};
 use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
@@ -89,14 +89,24 @@ impl Default for GridParams {
 /// cells in all).
 impl super::params::Params for GridParams {
     const FLAG: &'static str = "grid";
-    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[("default", GridParams::default)];
+    const PRESETS: &'static [Preset<Self>] = &[("default", GridParams::default)];
     const KEYS: &'static [Key<Self>] = &[
         Key {
             name: "lambda",
             expects: "a number in (0, 10000]",
-            set: |p, v| Some(p.lambda = number(v, f32::MIN_POSITIVE, 1e4)?),
+            set: |p, v| {
+                p.lambda = number(v, f32::MIN_POSITIVE, 1e4)?;
+                Some(())
+            },
         },
-        Key { name: "cells", expects: "1..=33554432", set: |p, v| Some(p.max_cells = number(v, 1, 1 << 25)?) },
+        Key {
+            name: "cells",
+            expects: "1..=33554432",
+            set: |p, v| {
+                p.max_cells = number(v, 1, 1 << 25)?;
+                Some(())
+            },
+        },
     ];
 }
 

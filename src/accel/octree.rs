@@ -46,7 +46,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::kdtree::{before, shrink};
-use super::params::{number, Key};
+use super::params::{number, Key, Preset};
 use super::prim::{self, PrimGeom};
 use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
@@ -86,10 +86,24 @@ impl Default for OctreeParams {
 /// splitting) and `depth` (deepest level).
 impl super::params::Params for OctreeParams {
     const FLAG: &'static str = "octree";
-    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[("default", OctreeParams::default)];
+    const PRESETS: &'static [Preset<Self>] = &[("default", OctreeParams::default)];
     const KEYS: &'static [Key<Self>] = &[
-        Key { name: "leaf", expects: "1..=1048576", set: |p, v| Some(p.leaf_size = number(v, 1, 1 << 20)?) },
-        Key { name: "depth", expects: "0..=24", set: |p, v| Some(p.max_depth = number(v, 0, MAX_OCTREE_DEPTH)?) },
+        Key {
+            name: "leaf",
+            expects: "1..=1048576",
+            set: |p, v| {
+                p.leaf_size = number(v, 1, 1 << 20)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "depth",
+            expects: "0..=24",
+            set: |p, v| {
+                p.max_depth = number(v, 0, MAX_OCTREE_DEPTH)?;
+                Some(())
+            },
+        },
     ];
 }
 

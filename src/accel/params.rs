@@ -22,12 +22,15 @@ impl<P> std::fmt::Debug for Key<P> {
     }
 }
 
+/// A named preset: its name and the parameters it stands for.
+pub type Preset<P> = (&'static str, fn() -> P);
+
 /// Parameters of a structure's builder.
 pub trait Params: Copy + Default + 'static {
     /// The command-line flag, without `--`.
     const FLAG: &'static str;
     /// Named presets; `default` is always among them.
-    const PRESETS: &'static [(&'static str, fn() -> Self)];
+    const PRESETS: &'static [Preset<Self>];
     /// Keys in the order the help text lists them.
     const KEYS: &'static [Key<Self>];
 

@@ -26,7 +26,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::params::{number, Key};
+use super::params::{number, Key, Preset};
 use super::prim;
 use super::prim::{intersect_prim, Prims};
 use super::sah::{self, SahCosts};
@@ -84,14 +84,49 @@ impl KdParams {
 /// keeps without trying to split), `perfect` (true/false), `depth` (auto or a number).
 impl super::params::Params for KdParams {
     const FLAG: &'static str = "kd";
-    const PRESETS: &'static [(&'static str, fn() -> Self)] =
+    const PRESETS: &'static [Preset<Self>] =
         &[("default", KdParams::default), ("quality", KdParams::quality), ("fast", KdParams::fast)];
     const KEYS: &'static [Key<Self>] = &[
-        Key { name: "kt", expects: "a non-negative number", set: |p, v| Some(p.costs.traversal = cost(v)?) },
-        Key { name: "ki", expects: "a non-negative number", set: |p, v| Some(p.costs.intersect = cost(v)?) },
-        Key { name: "bonus", expects: "a non-negative number", set: |p, v| Some(p.costs.empty_bonus = cost(v)?) },
-        Key { name: "leaf", expects: "0..=1048576", set: |p, v| Some(p.leaf_size = number(v, 0, 1 << 20)?) },
-        Key { name: "perfect", expects: "true or false", set: |p, v| Some(p.perfect_splits = v.parse().ok()?) },
+        Key {
+            name: "kt",
+            expects: "a non-negative number",
+            set: |p, v| {
+                p.costs.traversal = cost(v)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "ki",
+            expects: "a non-negative number",
+            set: |p, v| {
+                p.costs.intersect = cost(v)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "bonus",
+            expects: "a non-negative number",
+            set: |p, v| {
+                p.costs.empty_bonus = cost(v)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "leaf",
+            expects: "0..=1048576",
+            set: |p, v| {
+                p.leaf_size = number(v, 0, 1 << 20)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "perfect",
+            expects: "true or false",
+            set: |p, v| {
+                p.perfect_splits = v.parse().ok()?;
+                Some(())
+            },
+        },
         Key {
             name: "depth",
             expects: "auto or 0..=64",

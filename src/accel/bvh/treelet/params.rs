@@ -2,7 +2,7 @@
 //! round, and the `--trbvh` spec they are parsed from.
 
 use super::TREELET_LEAVES;
-use crate::accel::params::{number, Key};
+use crate::accel::params::{number, Key, Preset};
 
 /// Rounds of restructuring by default.
 pub const ROUNDS: u32 = 3;
@@ -72,15 +72,29 @@ impl TreeletParams {
 /// multiple of `leaves`; it sets the rounds too).
 impl crate::accel::params::Params for TreeletParams {
     const FLAG: &'static str = "trbvh";
-    const PRESETS: &'static [(&'static str, fn() -> Self)] = &[
+    const PRESETS: &'static [Preset<Self>] = &[
         ("default", TreeletParams::default),
         ("fast", TreeletParams::fast),
         ("quality", TreeletParams::quality),
         ("paper", TreeletParams::paper),
     ];
     const KEYS: &'static [Key<Self>] = &[
-        Key { name: "leaves", expects: "3..=7", set: |p, v| Some(p.leaves = number(v, 3, TREELET_LEAVES)?) },
-        Key { name: "rounds", expects: "0..=8", set: |p, v| Some(p.rounds = number(v, 0, MAX_ROUNDS as u32)?) },
+        Key {
+            name: "leaves",
+            expects: "3..=7",
+            set: |p, v| {
+                p.leaves = number(v, 3, TREELET_LEAVES)?;
+                Some(())
+            },
+        },
+        Key {
+            name: "rounds",
+            expects: "0..=8",
+            set: |p, v| {
+                p.rounds = number(v, 0, MAX_ROUNDS as u32)?;
+                Some(())
+            },
+        },
         Key {
             name: "gamma",
             expects: "1 to 8 multiples of leaves, each 1..=1048576, separated by '/'",
