@@ -29,6 +29,14 @@ pub struct Material {
     pub ior: f32,
     /// Emitted radiance (emissive; also added for any kind where non-zero).
     pub emission: Vec3,
+    /// Emission on both sides of the surface; otherwise only along the geometric
+    /// normal (the side the triangle's winding faces, a sphere's outside).
+    pub two_sided: bool,
+    /// Glass: Beer-Lambert absorption coefficient per unit length inside (0 = clear).
+    pub absorption: Vec3,
+    /// Diffuse albedo texture: an index into `Scene::textures` (the albedo multiplies
+    /// `color`), or, in a `MeshData`, into `MeshData::textures`.
+    pub texture: Option<u32>,
 }
 
 impl Material {
@@ -42,6 +50,9 @@ impl Material {
             shininess: 1.0,
             ior: 1.5,
             emission: Vec3::ZERO,
+            two_sided: false,
+            absorption: Vec3::ZERO,
+            texture: None,
         }
     }
 }
@@ -58,6 +69,39 @@ pub struct MeshData {
     /// Per-triangle index into `materials`; empty when `materials` is empty.
     pub tri_material: Vec<u32>,
     pub materials: Vec<Material>,
+    /// Per-vertex texture coordinates, the same length as `positions`, when the file
+    /// has them.
+    pub uvs: Option<Vec<glam::Vec2>>,
+    /// Texture images the materials name (`Material::texture` indexes this).
+    pub textures: Vec<Texture>,
+}
+
+/// A texture image: 8-bit RGBA texels as stored (sRGB-encoded colour), row 0 at the
+/// top (v = 1 in texture space), sampled with bilinear filtering and repeat wrap.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Texture {
+    /// The file it came from, for messages.
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` texels, row-major.
+    pub texels: Vec<[u8; 4]>,
+}
+
+/// An equirectangular environment map: linear RGB radiance, row 0 at the top (the
+/// +y pole), u = 0 at -z... see `render::path` for the exact direction mapping.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Environment {
+    /// The file it came from, for messages.
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` texels, row-major, linear radiance (before `intensity`).
+    pub texels: Vec<[f32; 3]>,
+    /// Rotation about +y, degrees.
+    pub rotation: f32,
+    /// Multiplies every texel.
+    pub intensity: f32,
 }
 
 /// Appends the fan `(i0, ik, ik+1)` of a polygon; polygons with < 3 vertices add nothing.

@@ -19,7 +19,7 @@ use std::path::Path;
 use glam::Vec3;
 
 pub use camera::{Camera, CameraBasis};
-pub use mesh::{Material, MaterialKind, MeshData};
+pub use mesh::{Environment, Material, MaterialKind, MeshData, Texture};
 
 use crate::error::{Error, Result};
 use crate::math::Aabb;
@@ -56,6 +56,9 @@ pub struct Scene {
     /// Per-vertex shading normals; `Vec3::ZERO` where a vertex has none.
     pub normals: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex texture coordinates: empty, or one per position (`Vec2::ZERO` where
+    /// a vertex has none).
+    pub uvs: Vec<glam::Vec2>,
     /// Per-triangle material index.
     pub tri_material: Vec<u32>,
     pub spheres: Vec<Sphere>,
@@ -65,8 +68,13 @@ pub struct Scene {
     pub camera: Camera,
     pub width: u32,
     pub height: u32,
+    /// Texture images; `Material::texture` indexes this.
+    pub textures: Vec<Texture>,
     /// Radiance of rays that leave the scene.
     pub background: Vec3,
+    /// An environment map lighting the scene from every direction; replaces
+    /// `background` for rays that leave the scene (path integrator).
+    pub environment: Option<Environment>,
     /// Fraction of the albedo added as ambient light to Lambert and Phong surfaces.
     pub ambient: f32,
     /// Longest path followed (camera ray + mirror/glass bounces), 1..=MAX_PATH_DEPTH.
@@ -89,10 +97,13 @@ impl SceneBuilder {
                 name: name.to_string(),
                 positions: Vec::new(),
                 normals: Vec::new(),
+                uvs: Vec::new(),
                 triangles: Vec::new(),
                 tri_material: Vec::new(),
                 spheres: Vec::new(),
                 materials: vec![Material::lambert("default", Vec3::splat(0.7))],
+                textures: Vec::new(),
+                environment: None,
                 lights: Vec::new(),
                 camera: Camera { eye: Vec3::new(0.0, 0.0, 3.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 45.0 },
                 width: 512,

@@ -67,7 +67,7 @@ pub fn blob(target_tris: usize, amplitude: f32, seed: u32) -> MeshData {
         }
     }
     let normals = vertex_normals(&positions, &triangles);
-    MeshData { positions, normals: Some(normals), triangles, tri_material: Vec::new(), materials: Vec::new() }
+    MeshData { positions, normals: Some(normals), triangles, ..Default::default() }
 }
 
 /// Area-weighted vertex normals; vertices of only degenerate triangles get +Y.
@@ -89,8 +89,7 @@ pub fn quad(corners: [Vec3; 4]) -> MeshData {
         positions: corners.to_vec(),
         normals: None,
         triangles: vec![[0, 1, 2], [0, 2, 3]],
-        tri_material: Vec::new(),
-        materials: Vec::new(),
+        ..Default::default()
     }
 }
 
