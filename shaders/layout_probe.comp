@@ -18,7 +18,7 @@ void main() {
     // GpuParams
     f4(o, params.cam_eye); f4(o, params.cam_right); f4(o, params.cam_up); f4(o, params.cam_forward);
     f4(o, params.scene_min); f4(o, params.scene_max); w4(o, params.dims); w4(o, params.counts);
-    f4(o, params.background);
+    f4(o, params.background); w4(o, params.tables); f4(o, params.env);
     // GpuDispatch (the pixel buffer's header)
     w4(o, dispatch_range); w4(o, dispatch_chunk);
     // GpuVertex[0..2]
@@ -30,5 +30,5 @@ void main() {
     // shading rows: one GpuMaterial + one GpuLight = 6 rows
     for (uint k = 0u; k < 6u; k++) { f4(o, shading[k]); }
     // GpuPixel[0..2] (read)
-    for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); }
+    for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); f4(o, pixels[k].albedo_m2); }
 }

@@ -1,6 +1,7 @@
 #version 460
-// The trace kernel: camera rays, hard shadows, mirror and glass bounces; one thread
-// per pixel, samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
+// The trace kernel, one thread per pixel, for either integrator (SPEC_INTEGRATOR):
+// Whitted (camera rays, hard shadows, mirror and glass bounces; below) or path
+// tracing (common/path.glsl). Each thread runs samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
 // buffer's header).
 // Compiled once per (structure, geometry) variant by build.rs: exactly one
 // ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist.
@@ -15,6 +16,13 @@ layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
 layout(constant_id = SPEC_BRUTE_UNROLL) const uint BRUTE_UNROLL = 1u;
 layout(constant_id = SPEC_INTERSECT) const uint INTERSECT_MODE = 0u;
 layout(constant_id = SPEC_DIFFUSE_PROBE) const bool DIFFUSE_PROBE = false;
+layout(constant_id = SPEC_INTEGRATOR) const uint INTEGRATOR = 0u;
+layout(constant_id = SPEC_EMITTERS) const uint EMITTER_COUNT = 0u;
+layout(constant_id = SPEC_ENV_WIDTH) const uint ENV_WIDTH = 0u;
+layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
+layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
+layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
+layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -86,25 +94,13 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/octree.glsl"
 #endif
 
-const float PI = 3.14159265358979;
-
-// A cosine-distributed direction about unit n from two uniform numbers (Malley's
-// method; orthonormal basis of Duff et al. 2017).
-vec3 cosine_direction(vec3 n, float u1, float u2) {
-    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (sgn + n.z);
-    float b = n.x * n.y * a;
-    vec3 t = vec3(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
-    vec3 bt = vec3(b, sgn + n.y * n.y * a, -n.y);
-    float r = sqrt(u1);
-    float phi = 2.0 * PI * u2;
-    return normalize(t * (r * cos(phi)) + bt * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - u1)));
-}
+#include "common/sampling.glsl"
 
 // Shading frame at a hit: the point (recomputed on the surface) and its error bound
-// for spawning rays, geometric normal, shading normal, material index.
-void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, out uint mat) {
-    gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u;
+// for spawning rays, geometric normal (the triangle's winding, a sphere's outside),
+// shading normal, material index, texture coordinates.
+void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, out uint mat, out vec2 uv) {
+    gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u; uv = vec2(0.0);
     p = vec3(0.0); err = vec3(0.0);
 #if HAS_TRIANGLES
     if (h.prim < params.dims.z) {
@@ -115,10 +111,14 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
         triangle_point(a.position.xyz, b.position.xyz, c.position.xyz, h.u, h.v, p, err);
         gn = normalize(cross(b.position.xyz - a.position.xyz, c.position.xyz - a.position.xyz));
         sn = gn;
-        if (a.normal.w > 0.5 && b.normal.w > 0.5 && c.normal.w > 0.5) {
-            vec3 n = a.normal.xyz * (1.0 - h.u - h.v) + b.normal.xyz * h.u + c.normal.xyz * h.v;
+        float w0 = 1.0 - h.u - h.v;
+        if (dot(a.normal.xyz, a.normal.xyz) > 0.0 && dot(b.normal.xyz, b.normal.xyz) > 0.0
+            && dot(c.normal.xyz, c.normal.xyz) > 0.0) {
+            vec3 n = a.normal.xyz * w0 + b.normal.xyz * h.u + c.normal.xyz * h.v;
             if (dot(n, n) > 0.0) sn = normalize(n);
         }
+        uv = vec2(a.position.w, a.normal.w) * w0 + vec2(b.position.w, b.normal.w) * h.u
+             + vec2(c.position.w, c.normal.w) * h.v;
         mat = tri.w;
         return;
     }
@@ -130,6 +130,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
     sn = gn;
     mat = s.material.x;
+    uv = vec2(0.5 + atan(gn.x, -gn.z) * (0.5 / PI), acos(clamp(gn.y, -1.0, 1.0)) / PI);
 #endif
 }
 
@@ -176,7 +177,10 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
     return total;
 }
 
-void main() {
+#include "common/bsdf.glsl"
+#include "common/path.glsl"
+
+void whitted_main() {
     uint gid = gl_GlobalInvocationID.x;
     if (gid >= dispatch_range.y) return;
     uint pixel = dispatch_range.x + gid;
@@ -190,6 +194,7 @@ void main() {
         out_px.radiance = vec4(0.0);
         out_px.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
         out_px.prim_cost = uvec4(NO_PRIM, 0u, 0u, 0u);
+        out_px.albedo_m2 = vec4(0.0);
     } else {
         out_px = pixels[slot];
     }
@@ -215,10 +220,12 @@ void main() {
             bool hit = trace_closest(r, h);
             vec3 p, err, gn, sn;
             uint mat;
-            if (hit) surface(h, r, p, err, gn, sn, mat);
+            vec2 uv;
+            if (hit) surface(h, r, p, err, gn, sn, mat, uv);
             if (s == 0u && depth == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
                 out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+                out_px.albedo_m2.rgb = hit ? mat_row(mat, 0u).rgb : vec3(0.0);
             }
             if (!hit) { L += beta * params.background.rgb; break; }
             if (DIFFUSE_PROBE) {
@@ -276,8 +283,14 @@ void main() {
             r.tmax = uintBitsToFloat(0x7f800000u);
         }
         out_px.radiance += vec4(L, 1.0);
+        float y = luminance(L);
+        out_px.albedo_m2.w += y * y;
     }
     out_px.prim_cost.w += g_rays;
     if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
     pixels[slot] = out_px;
+}
+
+void main() {
+    if (INTEGRATOR == 1u) path_main(); else whitted_main();
 }

@@ -19,6 +19,8 @@ use clap::Parser;
 mod args;
 #[path = "cli/progress.rs"]
 mod progress;
+#[path = "cli/interrupt.rs"]
+mod interrupt;
 
 use args::{BenchArgs, Cli, Command, DeviceArgs, InfoArgs, RenderArgs};
 use progress::{BenchProgress, Reporter};
@@ -146,6 +148,10 @@ fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
 
+/// Samples per pixel of `arbor render --integrator path` without --spp: enough for a
+/// clean image of the built-in scenes (README, "Path tracing").
+const DEFAULT_PATH_SPP: u32 = 64;
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
@@ -162,34 +168,61 @@ fn render(a: &RenderArgs) -> Result<()> {
     let format = output::format_of(&a.output, "image")?;
     let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats);
     output::check_outputs(paths.map(|p| p.as_path()))?;
-    if a.spp == 0 || a.spp > 1 << 20 {
-        bail!("--spp must be 1..=1048576, got {}", a.spp);
+    let integrator = render::Integrator::parse(&a.integrator).unwrap_or_default();
+    let spp = a.spp.unwrap_or(if integrator == render::Integrator::Path { DEFAULT_PATH_SPP } else { 1 });
+    if spp == 0 || spp > 1 << 20 {
+        bail!("--spp must be 1..=1048576, got {spp}");
+    }
+    if integrator == render::Integrator::Whitted && (a.time.is_some() || a.checkpoint.is_some()) {
+        bail!("--time and --checkpoint need --integrator path");
+    }
+    if let Some(c) = a.checkpoint {
+        if !(c.is_finite() && c > 0.0) {
+            bail!("--checkpoint must be a positive number of seconds, got {c}");
+        }
     }
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let scene = Scene::load(&a.scene)?;
     let load_ms = ms(start);
-    warn_if_only_emissive(&scene);
+    warn_if_only_emissive(&scene, integrator);
     let (w, h) = size.unwrap_or((scene.width, scene.height));
     let mut encoded = vec![(format, 3)];
     for (name, path) in &aovs {
         encoded.push((output::format_of(path, "aov")?, output::aov_channel_count(name)));
     }
     memory::check_render(&format!("--size {w}x{h}"), w, h, scene.prim_count(), &encoded)?;
-    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), a.spp)?;
+    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp)?;
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
     }
     let ctx = context(&a.device)?;
     let mut settings = RenderSettings::for_size(w, h);
-    settings.spp = a.spp;
+    settings.spp = spp;
+    settings.integrator = integrator;
+    settings.time_budget = a.time;
+    settings.max_depth = a.max_depth;
+    settings.mis = match a.mis.as_str() {
+        "light" => render::Mis::Light,
+        "bsdf" => render::Mis::Bsdf,
+        _ => render::Mis::Both,
+    };
     settings.seed = a.seed;
     settings.intersect = a.intersect;
     settings.accel = accel;
     settings.params = params;
     settings.dispatch_budget = a.dispatch_budget.max(1);
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
-    let (frame, st) = trace(&ctx, &scene, &settings, a.quiet)?;
-    write_outputs(a, &aovs, &frame, &st)?;
+    settings.check()?;
+    let (frame, st) = trace(&ctx, &scene, &settings, a, &aovs)?;
+    write_outputs(a, &aovs, &frame, Some(&st))?;
+    if st.interrupted && interrupt::requested() {
+        eprintln!(
+            "arbor: interrupted: wrote {} with {} of {spp} samples per pixel",
+            a.output.display(),
+            st.samples_done
+        );
+        std::process::exit(interrupt::EXIT_CODE);
+    }
     if !a.quiet {
         let trace = match st.trace_ms {
             Some(t) => format!("{t:.1} ms GPU"),
@@ -197,9 +230,11 @@ fn render(a: &RenderArgs) -> Result<()> {
         };
         let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
         eprintln!(
-            "wrote {} ({w}x{h}, {} spp, {} triangles, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
+            "wrote {} ({w}x{h}, {} {}{} spp, {} triangles, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
             a.output.display(),
-            a.spp,
+            st.integrator,
+            st.samples_done,
+            if st.samples_done < spp { format!(" of {spp}") } else { String::new() },
             st.triangles,
             st.spheres,
             st.accel,
@@ -213,24 +248,25 @@ fn render(a: &RenderArgs) -> Result<()> {
 }
 
 /// Writes the image, the AOVs and the statistics of a render: all of them or none.
+/// A checkpoint (`st` None) writes the image and the AOVs.
 fn write_outputs(
     a: &RenderArgs,
     aovs: &[(String, std::path::PathBuf)],
     frame: &render::Frame,
-    st: &render::RenderStats,
+    st: Option<&render::RenderStats>,
 ) -> Result<()> {
     let (w, h) = (frame.width, frame.height);
     let mut set = output::OutputSet::new();
     output::write_image(&mut set, &a.output, w, h, &frame.radiance)?;
     output::write_aovs(&mut set, aovs, frame, w, h)?;
-    if let Some(p) = &a.stats {
+    if let (Some(p), Some(st)) = (&a.stats, st) {
         let provenance = output::Provenance {
             version: env!("CARGO_PKG_VERSION").into(),
             seed: a.seed,
-            spp: a.spp,
+            spp: st.spp,
             width: w,
             height: h,
-            integrator: "whitted".into(),
+            integrator: st.integrator.clone(),
             command_line: std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect(),
         };
         output::write_stats(&mut set, p, st, provenance)?;
@@ -238,10 +274,13 @@ fn write_outputs(
     Ok(set.commit()?)
 }
 
-/// Until the path tracer lands, an emissive material lights nothing else: say so when
+/// With the Whitted integrator an emissive material lights nothing else: say so when
 /// it is the scene's only light.
-fn warn_if_only_emissive(scene: &Scene) {
-    if scene.lights.is_empty() && scene.materials.iter().any(|m| m.emission != glam::Vec3::ZERO) {
+fn warn_if_only_emissive(scene: &Scene, integrator: render::Integrator) {
+    if integrator == render::Integrator::Whitted
+        && scene.lights.is_empty()
+        && scene.materials.iter().any(|m| m.emission != glam::Vec3::ZERO)
+    {
         eprintln!(
             "arbor: warning: {}: emissive materials do not light other surfaces with the whitted integrator (no point or directional light)",
             scene.name
@@ -251,15 +290,30 @@ fn warn_if_only_emissive(scene: &Scene) {
 
 /// Renders with progress: a bar on an interactive stderr after the first second, else
 /// a plain line every few seconds; none with `quiet`.
+/// SIGINT and SIGTERM stop a path-traced render after its current sample wave; the
+/// image so far is written and the exit code is [`interrupt::EXIT_CODE`].
 fn trace(
     ctx: &Context,
     scene: &Scene,
     settings: &RenderSettings,
-    quiet: bool,
+    a: &RenderArgs,
+    aovs: &[(String, std::path::PathBuf)],
 ) -> Result<(render::Frame, render::RenderStats)> {
-    let progress = Reporter::new("render", quiet, false);
-    progress.bar().set_message(format!("tracing {}", scene.name));
-    let done = render::gpu::render(ctx, scene, settings, |done, total| progress.update(done, total));
+    interrupt::install();
+    let progress = Reporter::new("render", a.quiet, false);
+    progress.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
+    let checkpoint = a.checkpoint.map(|every| {
+        let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
+            write_outputs(a, aovs, frame, None).map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
+        };
+        (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
+    });
+    let control = render::path::Control {
+        progress: Box::new(|done, total| progress.update(done, total)),
+        interrupted: Box::new(interrupt::requested),
+        checkpoint,
+    };
+    let done = render::gpu::render_controlled(ctx, scene, settings, control);
     progress.finish();
     Ok(done?)
 }

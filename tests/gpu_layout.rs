@@ -25,7 +25,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
             })
             .collect()
     };
-    let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(36)));
+    let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(44)));
     let dispatch: GpuDispatch = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
     let vertices: Vec<GpuVertex> =
         (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
@@ -35,7 +35,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
         (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
     let material: GpuMaterial = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)));
     let light: GpuLight = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
-    let pixels: Vec<GpuPixel> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(12)))).collect();
+    let pixels: Vec<GpuPixel> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)))).collect();
 
     let mut expected = words(&params);
     expected.extend(words(&dispatch));

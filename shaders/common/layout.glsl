@@ -4,8 +4,8 @@
 #define ARBOR_LAYOUT_GLSL
 
 struct Vertex {
-    vec4 position;   // 0..12 position, 12..16 unused
-    vec4 normal;     // 16..28 normal, 28..32 valid flag (1.0 / 0.0)
+    vec4 position;   // 0..12 position, 12..16 texture u
+    vec4 normal;     // 16..28 normal (zero: none), 28..32 texture v
 };                   // 32 bytes
 
 struct Sphere {
@@ -16,14 +16,16 @@ struct Sphere {
 struct Pixel {
     vec4 radiance;      // 0..12 summed radiance, 12..16 sample count
     vec4 normal_depth;  // 16..28 normal, 28..32 depth
-    uvec4 prim_cost;    // 32..36 prim, 36..40 nodes visited, 40..44 prims tested
-};                      // 48 bytes
+    uvec4 prim_cost;    // 32..36 prim, 36..40 nodes visited, 40..44 prims tested, 44..48 rays
+    vec4 albedo_m2;     // 48..60 albedo at the first hit, 60..64 summed squared luminance
+};                      // 64 bytes
 
 // Material = 4 vec4 rows of the shading buffer:
 //   row 0: rgb colour, a = kind (uint bits)
 //   row 1: rgb specular, a = shininess
 //   row 2: rgb emission, a = ior
-//   row 3: unused
+//   row 3: rgb absorption (glass), a = flags (uint bits): MAT_FLAG_TWO_SIDED,
+//          texture index + 1 from bit MAT_TEXTURE_SHIFT (0: none)
 // Light = 2 vec4 rows, after all materials:
 //   row 0: xyz position (w = 1) or travel direction (w = 0)
 //   row 1: rgb radiance / intensity
@@ -45,6 +47,9 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     uvec4 dims;        // 96  width, height, triangles, spheres
     uvec4 counts;      // 112 lights (the trace loop uses SPEC_LIGHTS), materials, seed, flags
     vec4 background;   // 128 rgb, a ambient factor
+    uvec4 tables;      // 144 path integrator: shading rows of the emitters, textures,
+                       //     environment texels, environment distribution
+    vec4 env;          // 160 environment intensity, rotation (radians), total emitter power
 } params;
 
 #if HAS_TRIANGLES

@@ -14,9 +14,10 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuVertex {
-    /// bytes 0..12 position, 12..16 unused (0)
+    /// bytes 0..12 position, 12..16 texture coordinate u (0 without UVs)
     pub position: [f32; 4],
-    /// bytes 16..28 normal, 28..32 valid flag (1.0 or 0.0)
+    /// bytes 16..28 shading normal (zero: the vertex has none), 28..32 texture
+    /// coordinate v
     pub normal: [f32; 4],
 }
 
@@ -49,8 +50,9 @@ pub struct GpuMaterial {
     pub specular: [f32; 4],
     /// bytes 32..44 emitted radiance, 44..48 index of refraction
     pub emission_ior: [f32; 4],
-    /// bytes 48..64 unused (0)
-    pub pad: [f32; 4],
+    /// bytes 48..60 glass absorption per unit length, 60..64 flags as float-encoded
+    /// integer bits: bit 0 two-sided emission, bits 8.. texture index + 1 (0: none)
+    pub absorption_flags: [f32; 4],
 }
 
 /// One light: two vec4 rows of the shading buffer, after all materials.
@@ -74,8 +76,12 @@ pub struct GpuPixel {
     /// 28..32 depth (t of the camera ray's hit, +inf on a miss)
     pub normal_depth: [f32; 4],
     /// bytes 32..36 primitive index (u32::MAX on a miss), 36..40 nodes visited,
-    /// 40..44 primitives tested, 44..48 unused; all for the pixel-centre camera ray
+    /// 40..44 primitives tested, all for sample 0's camera ray; 44..48 rays traced
+    /// (bit 31: a trace ran out of steps)
     pub prim_cost: [u32; 4],
+    /// bytes 48..60 albedo at sample 0's first hit, 60..64 summed squared luminance
+    /// of the samples (for the variance estimate)
+    pub albedo_m2: [f32; 4],
 }
 
 /// The uniform block (std140; every member a 16-byte vec4/uvec4).
@@ -101,6 +107,12 @@ pub struct GpuParams {
     pub counts: [u32; 4],
     /// bytes 128..140 background radiance, 140..144 ambient factor
     pub background: [f32; 4],
+    /// bytes 144..160, path integrator: first shading row of the emitter table, the
+    /// texture table, the environment texels and the environment distribution
+    pub tables: [u32; 4],
+    /// bytes 160..176: environment intensity, rotation about +y (radians), total
+    /// emitter power, unused
+    pub env: [f32; 4],
 }
 
 /// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,
@@ -145,6 +157,8 @@ const _: () = assert!(std::mem::size_of::<GpuVertex>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuPixel>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 176);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 32);
 /// Push constants of every GPU BVH build kernel (`BuildPush` in
 /// shaders/build/common.glsl; the canonical-node layout is documented there).
@@ -167,8 +181,6 @@ pub struct GpuBuildPush {
 }
 
 const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
-const _: () = assert!(std::mem::size_of::<GpuPixel>() == 48);
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 144);
 const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 32);
 
 /// Bytes before the first [`GpuPixel`] of the pixel buffer: one [`GpuDispatch`].

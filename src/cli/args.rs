@@ -160,10 +160,33 @@ pub(crate) struct RenderArgs {
     /// Image size WIDTHxHEIGHT (default: the scene's film size).
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
-    /// Samples per pixel, 1..=1048576 (jittered; sample 0 goes through the pixel centre).
+    /// Light transport: path (path tracing with area lights, environment light,
+    /// soft shadows and indirect light; converges with more samples) or whitted
+    /// (point and directional lights, hard shadows, mirror and glass; a fast preview).
+    #[arg(long, default_value = "path", value_parser = ["path", "whitted"])]
+    pub(crate) integrator: String,
+    /// Samples per pixel, 1..=1048576 (default: 64 for path, 1 for whitted). Path:
+    /// every sample jittered in the pixel; whitted: sample 0 through the pixel centre.
     /// Time grows with pixels x samples: long renders show progress on stderr.
-    #[arg(long, default_value_t = 1)]
-    pub(crate) spp: u32,
+    #[arg(long)]
+    pub(crate) spp: Option<u32>,
+    /// Path: stop after the first sample wave past this many seconds (the image holds
+    /// the samples done so far, at most --spp; the stats say how many).
+    #[arg(long, value_name = "SECONDS")]
+    pub(crate) time: Option<f64>,
+    /// Path: write the image (and AOVs and stats) so far every SECONDS, atomically, to
+    /// the output paths; the final image replaces it.
+    #[arg(long, value_name = "SECONDS")]
+    pub(crate) checkpoint: Option<f64>,
+    /// Longest path in segments (1: only what emits; 2: direct light; default: the
+    /// scene's [render] max_depth, else 8), at most 16.
+    #[arg(long, value_name = "N")]
+    pub(crate) max_depth: Option<u32>,
+    /// Path: direct-light estimators: both (multiple importance sampling), light
+    /// (light sampling only) or bsdf (BSDF sampling only). The three converge to the
+    /// same image; both has the least noise.
+    #[arg(long, default_value = "both", value_parser = ["both", "light", "bsdf"])]
+    pub(crate) mis: String,
     /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
     /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
     /// (LBVH + treelet restructuring), grid (uniform grid), octree, none (brute
@@ -180,7 +203,9 @@ pub(crate) struct RenderArgs {
     #[arg(long, default_value = "watertight", value_name = "MODE")]
     pub(crate) intersect: arbor::math::intersect::IntersectMode,
     /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
-    /// cost (RGB: nodes visited, primitives tested, 0). PFM or EXR by extension.
+    /// cost (RGB: nodes visited, primitives tested, 0) of sample 0's camera ray;
+    /// albedo (first hit, for denoisers); variance (of the pixel's mean luminance);
+    /// samples (per pixel). PFM or EXR by extension.
     #[arg(long, value_name = "NAME=PATH,...")]
     pub(crate) aov: Vec<String>,
     /// Write statistics JSON here.

@@ -1,6 +1,7 @@
 //! Progress of long work (included by main.rs only): on a terminal, a bar that appears
 //! after the first second; otherwise (a log file, a pipe, a batch job) a plain line on
-//! stderr every few seconds, `render: 35% (12.3 s, about 22 s left)`. Nothing with
+//! stderr every few seconds, `render: 35% (12.3 s, about 22 s left, 1.234 M/s)` (units:
+//! pixel samples for a render). Nothing with
 //! `--quiet`.
 
 use std::cell::Cell;
@@ -32,7 +33,7 @@ impl Reporter {
     /// A reporter for work called `label`; `bar_now` draws the bar from the start.
     pub(crate) fn new(label: &'static str, quiet: bool, bar_now: bool) -> Self {
         let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::hidden());
-        if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {percent}% eta {eta}") {
+        if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {percent}% {per_sec} eta {eta}") {
             bar.set_style(style.progress_chars("=> "));
         }
         let terminal = std::io::stderr().is_terminal();
@@ -90,7 +91,8 @@ impl Reporter {
 fn line(label: &str, done: u64, total: u64, secs: f64) -> String {
     let frac = if total > 0 { done as f64 / total as f64 } else { 0.0 };
     let left = if done > 0 { format!(", about {:.0} s left", secs * (1.0 - frac) / frac) } else { String::new() };
-    format!("{label}: {:.0}% ({secs:.1} s{left})", frac * 100.0)
+    let rate = if secs > 0.0 { format!(", {:.3} M/s", done as f64 / secs / 1e6) } else { String::new() };
+    format!("{label}: {:.0}% ({secs:.1} s{left}{rate})", frac * 100.0)
 }
 
 /// The reporter as the benchmark's progress.

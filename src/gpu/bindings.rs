@@ -138,6 +138,28 @@ pub const SPEC_SCATTER_GROUP: u32 = 8;
 /// for the reason given at SPEC_LIGHTS).
 pub const SPEC_TRIANGLE_COUNT: u32 = 9;
 pub const SPEC_SPHERE_COUNT: u32 = 10;
+/// Integrator of the trace kernel: 0 Whitted, 1 path tracing.
+pub const SPEC_INTEGRATOR: u32 = 11;
+/// Path integrator: emissive primitives in the emitter table (0: no area-light code).
+pub const SPEC_EMITTERS: u32 = 12;
+/// Path integrator: environment map width and height in texels (width 0: no map).
+pub const SPEC_ENV_WIDTH: u32 = 13;
+pub const SPEC_ENV_HEIGHT: u32 = 14;
+/// Path integrator: whether any material has a texture.
+pub const SPEC_TEXTURES: u32 = 15;
+/// Path integrator: 0 multiple importance sampling, 1 light sampling only, 2 BSDF
+/// sampling only (the last two for tests and the benchmark).
+pub const SPEC_MIS: u32 = 16;
+/// Path integrator: the depth from which Russian roulette may end a path.
+pub const SPEC_RR_DEPTH: u32 = 17;
+/// Bit of a material's flags word (row 3, w): emits on both sides.
+pub const MAT_FLAG_TWO_SIDED: u32 = 1;
+/// Shift of the texture index + 1 (0: no texture) in a material's flags word.
+pub const MAT_TEXTURE_SHIFT: u32 = 8;
+/// Values of SPEC_MIS.
+pub const MIS_BOTH: u32 = 0;
+pub const MIS_LIGHT: u32 = 1;
+pub const MIS_BSDF: u32 = 2;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
 
@@ -164,7 +186,19 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_SCATTER_GROUP", SPEC_SCATTER_GROUP),
     ("SPEC_TRIANGLE_COUNT", SPEC_TRIANGLE_COUNT),
     ("SPEC_SPHERE_COUNT", SPEC_SPHERE_COUNT),
+    ("SPEC_INTEGRATOR", SPEC_INTEGRATOR),
+    ("SPEC_EMITTERS", SPEC_EMITTERS),
+    ("SPEC_ENV_WIDTH", SPEC_ENV_WIDTH),
+    ("SPEC_ENV_HEIGHT", SPEC_ENV_HEIGHT),
+    ("SPEC_TEXTURES", SPEC_TEXTURES),
+    ("SPEC_MIS", SPEC_MIS),
+    ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
+    ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
+    ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
+    ("MIS_BOTH", MIS_BOTH),
+    ("MIS_LIGHT", MIS_LIGHT),
+    ("MIS_BSDF", MIS_BSDF),
     ("BINDING_BUILD_HEADER", BINDING_BUILD_HEADER),
     ("BINDING_BUILD_PRIM_BOUNDS", BINDING_BUILD_PRIM_BOUNDS),
     ("BINDING_BUILD_PAIRS", BINDING_BUILD_PAIRS),

@@ -70,6 +70,9 @@ pub fn reference_aovs(scene: &Scene, width: u32, height: u32) -> Frame {
         nodes: vec![1; n],
         tests: vec![scene.prim_count() as u32; n],
         rays: vec![1; n],
+        albedo: vec![[0.0; 3]; n],
+        variance: vec![0.0; n],
+        samples: vec![1; n],
     };
     for (t, p, nrm) in rows.into_iter().flatten() {
         f.depth.push(t);

@@ -98,3 +98,84 @@ pub fn run(
     }
     Ok(totals)
 }
+
+/// What a progressive run does after a sample wave: go on, or stop the whole render
+/// (interrupted) or only this chunk (its share of the time budget is spent).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Next {
+    Continue,
+    NextChunk,
+    Stop,
+}
+
+/// Runs `kernel` like [`run`], but sample waves outermost within each chunk, so that
+/// after every wave all pixels of the chunk hold the same number of samples. After
+/// each wave, `wave_done(first_pixel, pixels, samples, chunk_complete)` decides what
+/// comes next (and may read the chunk back); it is called once more with
+/// `chunk_complete = true` when a chunk ends early. Returns the totals and whether
+/// the render stopped before its end.
+pub fn run_progressive(
+    ctx: &Context,
+    kernel: &Kernel,
+    pixel_buf: &Buffer,
+    waves: &Waves,
+    mut progress: impl FnMut(u64, u64),
+    mut wave_done: impl FnMut(u64, u64, u32, bool) -> Result<Next>,
+) -> Result<(DispatchTotals, bool)> {
+    let total_work = waves.total_pixels * u64::from(waves.spp);
+    let mut done = 0u64;
+    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
+    let mut chunk_start = 0u64;
+    while chunk_start < waves.total_pixels {
+        let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
+        let mut s = 0u32;
+        while s < waves.spp {
+            let s_end = (s + waves.samples_per_dispatch).min(waves.spp);
+            let mut p = 0u64;
+            while p < chunk_len {
+                let n = waves.pixels_per_dispatch.min(chunk_len - p);
+                let header = GpuDispatch {
+                    range: [(chunk_start + p) as u32, n as u32, s, s_end],
+                    chunk: [chunk_start as u32, 0, 0, 0],
+                };
+                let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
+                let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
+                let ms = ctx.dispatch_after_write(
+                    kernel,
+                    pixel_buf,
+                    0,
+                    bytemuck::bytes_of(&header),
+                    [groups, 1, 1],
+                    &label,
+                )?;
+                totals.gpu_ms = match (totals.gpu_ms, ms) {
+                    (Some(a), Some(b)) => Some(a + b),
+                    _ => None,
+                };
+                totals.dispatches += 1;
+                done += n * u64::from(s_end - s);
+                progress(done, total_work);
+                p += n;
+            }
+            s = s_end;
+            match wave_done(chunk_start, chunk_len, s, s == waves.spp)? {
+                Next::Continue => {}
+                Next::NextChunk => {
+                    if s < waves.spp {
+                        wave_done(chunk_start, chunk_len, s, true)?;
+                        done += chunk_len * u64::from(waves.spp - s);
+                    }
+                    break;
+                }
+                Next::Stop => {
+                    if s < waves.spp {
+                        wave_done(chunk_start, chunk_len, s, true)?;
+                    }
+                    return Ok((totals, chunk_start + chunk_len < waves.total_pixels || s < waves.spp));
+                }
+            }
+        }
+        chunk_start += chunk_len;
+    }
+    Ok((totals, false))
+}

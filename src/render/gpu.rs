@@ -37,5 +37,25 @@ pub fn render_with(
 ) -> Result<(Frame, RenderStats)> {
     match settings.integrator {
         Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, accel, progress),
+        Integrator::Path => {
+            super::path::render_with(ctx, scene, settings, accel, super::path::Control::progress_only(progress))
+        }
+    }
+}
+
+/// Builds the structure and renders with `control`: progress, and for the path
+/// integrator interruption, checkpoints and the time budget (the Whitted integrator
+/// reports progress only).
+pub fn render_controlled(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    control: super::path::Control<'_>,
+) -> Result<(Frame, RenderStats)> {
+    settings.check()?;
+    let accel = Accel::build_on(ctx, settings.accel, scene, &settings.params)?;
+    match settings.integrator {
+        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, &accel, control.progress),
+        Integrator::Path => super::path::render_with(ctx, scene, settings, &accel, control),
     }
 }

@@ -16,8 +16,8 @@ use super::output::Format;
 use crate::error::{Error, Result};
 
 /// Bytes per pixel of a [`super::Frame`]: radiance (12), depth (4), normal (12),
-/// primitive, nodes, tests, rays (4 each).
-pub const FRAME_BYTES_PER_PIXEL: u64 = 44;
+/// primitive, nodes, tests, rays (4 each), albedo (12), variance and samples (4 each).
+pub const FRAME_BYTES_PER_PIXEL: u64 = 64;
 
 /// Host bytes per primitive assumed for building a structure (references, nodes,
 /// the builder's scratch and the GPU image's staging copy); a generous estimate.

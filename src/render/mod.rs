@@ -10,6 +10,7 @@ pub mod gpu;
 pub mod kernel;
 pub mod memory;
 pub mod output;
+pub mod path;
 pub mod readback;
 pub mod upload;
 pub mod whitted;
@@ -38,15 +39,52 @@ pub enum KernelChoice {
 #[serde(rename_all = "kebab-case")]
 pub enum Integrator {
     /// Direct light from point and directional lights, hard shadows, mirror and glass
-    /// ([`whitted`]).
+    /// ([`whitted`]); the library's default, which the structure tests pin.
     #[default]
     Whitted,
+    /// Unidirectional path tracing with next-event estimation and multiple importance
+    /// sampling ([`path`]); the default of `arbor render`.
+    Path,
 }
 
 impl Integrator {
     pub fn name(self) -> &'static str {
         match self {
             Integrator::Whitted => "whitted",
+            Integrator::Path => "path",
+        }
+    }
+
+    /// By name (`whitted`, `path`).
+    pub fn parse(s: &str) -> Option<Integrator> {
+        match s {
+            "whitted" => Some(Integrator::Whitted),
+            "path" => Some(Integrator::Path),
+            _ => None,
+        }
+    }
+}
+
+/// Which estimators of direct light the path integrator combines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mis {
+    /// Light sampling and BSDF sampling, weighed by the power heuristic.
+    #[default]
+    Both,
+    /// Light sampling only (area lights and the environment map are reached only
+    /// by next-event estimation).
+    Light,
+    /// BSDF sampling only (no shadow rays toward area lights or the map).
+    Bsdf,
+}
+
+impl Mis {
+    /// The SPEC_MIS value.
+    pub fn spec(self) -> u32 {
+        match self {
+            Mis::Both => crate::gpu::bindings::MIS_BOTH,
+            Mis::Light => crate::gpu::bindings::MIS_LIGHT,
+            Mis::Bsdf => crate::gpu::bindings::MIS_BSDF,
         }
     }
 }
@@ -75,6 +113,13 @@ pub struct RenderSettings {
     pub diffuse_probe: bool,
     /// Budget of primitive tests per dispatch; smaller means shorter dispatches.
     pub dispatch_budget: u64,
+    /// Path integrator: which direct-light estimators it combines.
+    pub mis: Mis,
+    /// Path integrator: stop after the first sample wave past this many seconds (the
+    /// image then holds fewer than `spp` samples).
+    pub time_budget: Option<f64>,
+    /// Overrides the scene's maximum path depth.
+    pub max_depth: Option<u32>,
 }
 
 impl RenderSettings {
@@ -93,6 +138,9 @@ impl RenderSettings {
             primary_only: false,
             diffuse_probe: false,
             dispatch_budget: DEFAULT_DISPATCH_BUDGET,
+            mis: Mis::Both,
+            time_budget: None,
+            max_depth: None,
         }
     }
 }
@@ -106,6 +154,17 @@ impl RenderSettings {
         }
         if self.spp == 0 || self.spp > 1 << 20 {
             return Err(Error::Usage(format!("--spp must be 1..=1048576, got {}", self.spp)));
+        }
+        if let Some(t) = self.time_budget {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(Error::Usage(format!("--time must be a positive number of seconds, got {t}")));
+            }
+        }
+        if let Some(d) = self.max_depth {
+            let most = crate::gpu::bindings::MAX_PATH_DEPTH;
+            if d == 0 || d > most {
+                return Err(Error::Usage(format!("--max-depth must be 1..={most}, got {d}")));
+            }
         }
         Ok(())
     }
@@ -134,6 +193,15 @@ pub struct Frame {
     pub tests: Vec<u32>,
     /// Rays traced per pixel over all samples (camera, shadow, bounce).
     pub rays: Vec<u32>,
+    /// Albedo at sample 0's first hit (textured; the tint of mirror and glass), for
+    /// denoisers; zero on a miss.
+    pub albedo: Vec<[f32; 3]>,
+    /// Variance of the pixel's mean luminance (sample variance / samples), for judging
+    /// convergence; 0 with fewer than two samples.
+    pub variance: Vec<f32>,
+    /// Samples the pixel holds (fewer than asked for after an interruption or with
+    /// `--time`).
+    pub samples: Vec<u32>,
 }
 
 /// The figures `--stats` writes.
@@ -146,6 +214,13 @@ pub struct RenderStats {
     pub width: u32,
     pub height: u32,
     pub spp: u32,
+    /// The light transport algorithm.
+    pub integrator: String,
+    /// Fewest samples any pixel holds (less than `spp` after an interruption or with
+    /// a time budget).
+    pub samples_done: u32,
+    /// The render stopped early (interrupted, or the time budget ran out).
+    pub interrupted: bool,
     pub accel: String,
     /// Structure statistics (nodes, leaves, depth, references, SAH cost, bytes).
     pub build: crate::accel::BuildStats,
@@ -193,6 +268,9 @@ impl RenderStats {
             width: settings.width,
             height: settings.height,
             spp: settings.spp,
+            integrator: settings.integrator.name().to_string(),
+            samples_done: frame.samples.iter().copied().min().unwrap_or(0),
+            interrupted: false,
             accel: settings.accel.name().to_string(),
             build_ms: build.build_ms,
             accel_bytes: build.bytes,

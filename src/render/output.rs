@@ -232,7 +232,7 @@ pub fn write_aov(
 }
 
 /// The AOVs `render --aov` writes, by name.
-pub const AOV_NAMES: [&str; 4] = ["depth", "normal", "prim", "cost"];
+pub const AOV_NAMES: [&str; 7] = ["depth", "normal", "prim", "cost", "albedo", "variance", "samples"];
 
 /// Parses `--aov` values (NAME=PATH pairs, comma-separated or repeated): each name one
 /// of [`AOV_NAMES`] and given once, each path a .pfm or .exr.
@@ -260,7 +260,7 @@ pub fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
 /// Channels of the AOV `name` (see [`aov_channels`]); 3 for a name not known.
 pub fn aov_channel_count(name: &str) -> u64 {
     match name {
-        "depth" | "prim" => 1,
+        "depth" | "prim" | "variance" | "samples" => 1,
         _ => 3,
     }
 }
@@ -273,6 +273,9 @@ pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
         "normal" => (3, frame.normal.iter().flatten().copied().collect()),
         "prim" => (1, frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect()),
         "cost" => (3, frame.nodes.iter().zip(&frame.tests).flat_map(|(&n, &t)| [n as f32, t as f32, 0.0]).collect()),
+        "albedo" => (3, frame.albedo.iter().flatten().copied().collect()),
+        "variance" => (1, frame.variance.clone()),
+        "samples" => (1, frame.samples.iter().map(|&n| n as f32).collect()),
         _ => return Err(Error::Usage(format!("unknown AOV '{name}' (known: {})", AOV_NAMES.join(", ")))),
     })
 }

@@ -28,6 +28,9 @@ impl Frame {
             nodes: filled(n, 0).ok_or_else(too_big)?,
             tests: filled(n, 0).ok_or_else(too_big)?,
             rays: filled(n, 0).ok_or_else(too_big)?,
+            albedo: filled(n, [0.0; 3]).ok_or_else(too_big)?,
+            variance: filled(n, 0.0).ok_or_else(too_big)?,
+            samples: filled(n, 0).ok_or_else(too_big)?,
         })
     }
 }
@@ -41,15 +44,23 @@ fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
 }
 
 /// Reads `len` pixels of the chunk in `pixel_buf` into `frame` from pixel `first`,
-/// dividing radiance sums by `spp`. Returns how many pixels ran out of traversal steps.
-pub fn read_chunk(ctx: &Context, pixel_buf: &Buffer, frame: &mut Frame, first: u64, len: u64, spp: u32) -> Result<u64> {
+/// dividing radiance sums by the pixel's sample count. Returns how many pixels ran
+/// out of traversal steps.
+pub fn read_chunk(ctx: &Context, pixel_buf: &Buffer, frame: &mut Frame, first: u64, len: u64) -> Result<u64> {
     let size = std::mem::size_of::<GpuPixel>();
     let bytes = ctx.read_storage(pixel_buf, PIXEL_HEADER_BYTES, len * size as u64)?;
     let mut overflow = 0u64;
-    let inv = 1.0 / spp as f32;
     for (k, g) in bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned::<GpuPixel>).enumerate() {
         let idx = first as usize + k;
+        let n = g.radiance[3];
+        let inv = if n > 0.0 { 1.0 / n } else { 0.0 };
         frame.radiance[idx] = [g.radiance[0] * inv, g.radiance[1] * inv, g.radiance[2] * inv];
+        frame.samples[idx] = n as u32;
+        frame.albedo[idx] = [g.albedo_m2[0], g.albedo_m2[1], g.albedo_m2[2]];
+        // Variance of the mean: (E[y^2] - E[y]^2) / (n - 1), from the sums.
+        let [r, gg, b] = frame.radiance[idx];
+        let mean = 0.2126 * r + 0.7152 * gg + 0.0722 * b;
+        frame.variance[idx] = if n > 1.0 { ((g.albedo_m2[3] * inv - mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 };
         frame.normal[idx] = [g.normal_depth[0], g.normal_depth[1], g.normal_depth[2]];
         frame.depth[idx] = g.normal_depth[3];
         frame.prim[idx] = g.prim_cost[0];

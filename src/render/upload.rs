@@ -21,14 +21,13 @@ pub struct GpuScene {
 impl GpuScene {
     /// Converts a validated scene.
     pub fn new(scene: &Scene) -> GpuScene {
+        let uv = |k: usize| scene.uvs.get(k).copied().unwrap_or(glam::Vec2::ZERO);
         let vertices = scene
             .positions
             .iter()
             .zip(&scene.normals)
-            .map(|(p, n)| GpuVertex {
-                position: [p.x, p.y, p.z, 0.0],
-                normal: [n.x, n.y, n.z, if *n == glam::Vec3::ZERO { 0.0 } else { 1.0 }],
-            })
+            .enumerate()
+            .map(|(k, (p, n))| GpuVertex { position: [p.x, p.y, p.z, uv(k).x], normal: [n.x, n.y, n.z, uv(k).y] })
             .collect();
         let triangles = scene
             .triangles
@@ -56,9 +55,9 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
             color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(m.kind as u32)],
             specular: [m.specular.x, m.specular.y, m.specular.z, m.shininess],
             emission_ior: [m.emission.x, m.emission.y, m.emission.z, m.ior],
-            pad: [0.0; 4],
+            absorption_flags: [m.absorption.x, m.absorption.y, m.absorption.z, f32::from_bits(material_flags(m))],
         };
-        shading.extend([g.color_kind, g.specular, g.emission_ior, g.pad]);
+        shading.extend([g.color_kind, g.specular, g.emission_ior, g.absorption_flags]);
     }
     for l in &scene.lights {
         let g = match *l {
@@ -72,6 +71,13 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
         shading.extend([g.position_or_direction, g.radiance]);
     }
     shading
+}
+
+/// The flags word of material row 3 (shaders/common/layout.glsl).
+fn material_flags(m: &crate::scene::Material) -> u32 {
+    let sides = if m.two_sided { MAT_FLAG_TWO_SIDED } else { 0 };
+    let tex = m.texture.map_or(0, |t| (t + 1) << MAT_TEXTURE_SHIFT);
+    sides | tex
 }
 
 /// The buffers bound to one kernel, kept alive while it runs.

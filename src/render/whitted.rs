@@ -17,7 +17,7 @@ use crate::gpu::bindings::*;
 use crate::gpu::Context;
 use crate::scene::Scene;
 
-/// Most pixels held on the device at once (48 bytes each).
+/// Most pixels held on the device at once (64 bytes each).
 const MAX_CHUNK_PIXELS: u64 = 1 << 20;
 
 /// Traces one sample may run: at most `max_depth` closest-hit rays and one shadow
@@ -85,6 +85,8 @@ fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams 
         dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
         counts: [lights_used(scene, settings), scene.materials.len() as u32, settings.seed, 0],
         background: [scene.background.x, scene.background.y, scene.background.z, scene.ambient],
+        tables: [0; 4],
+        env: [0.0; 4],
     }
 }
 
@@ -137,7 +139,7 @@ pub fn render_with(
     let mut frame = Frame::new(settings.width, settings.height)?;
     let mut overflow = 0u64;
     let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, progress, |first, len| {
-        overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len, settings.spp)?;
+        overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
         Ok(())
     })?;
     ctx.check_validation()?;

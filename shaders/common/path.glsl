@@ -1,0 +1,504 @@
+// The path integrator (Integrator::Path): unidirectional path tracing with
+// next-event estimation. At every non-delta vertex it samples each point and
+// directional light, one area light (emissive triangle or sphere, chosen in
+// proportion to its power from the emitter table) and the environment map, and
+// weighs area-light and environment samples against BSDF sampling with the power
+// heuristic. Russian roulette from depth RR_DEPTH. Depth counts path segments: 1
+// shows only what emits, 2 adds direct light (Mitsuba's convention).
+//
+// Only what the scene has is compiled in: EMITTER_COUNT, ENV_WIDTH and HAS_TEXTURES
+// are specialization constants, so without emitters there is no light-table code,
+// without a map no environment code, without textures no texture code.
+//
+// Shading-buffer sections after the materials and lights (row bases in
+// params.tables; see src/render/path.rs, which writes them):
+//   emitters (tables.x): one row each: x primitive (uint bits), y CDF at its start,
+//     z its probability; params.env.z is the total power
+//   textures (tables.y): one row each: x first texel row (uint bits), y width, z height;
+//     texels 4 per row, each 0x00BBGGRR (sRGB), row-major from the top row
+//   environment texels (tables.z): 2 per row, each two words packHalf2x16(r, g),
+//     packHalf2x16(b, 0), row-major from the top row (the +y pole)
+//   environment distribution (tables.w): floats 4 per row, the layout of
+//     `render::envdist` (marginal CDF, then one conditional CDF per row)
+#ifndef ARBOR_PATH_GLSL
+#define ARBOR_PATH_GLSL
+
+#include "common/sampling.glsl"
+
+float shading_float(uint base, uint k) {
+    return shading[base + (k >> 2u)][k & 3u];
+}
+
+uint shading_word(uint base, uint k) {
+    return floatBitsToUint(shading[base + (k >> 2u)][k & 3u]);
+}
+
+// Largest i in [0, n) with cdf(i) <= u, for the n + 1 non-decreasing floats of a CDF
+// at float index `first` of section `base` (cdf(0) = 0).
+uint cdf_search(uint base, uint first, uint n, float u) {
+    uint lo = 0u;
+    uint hi = n;
+    for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
+        uint mid = (lo + hi) >> 1u;
+        if (shading_float(base, first + mid) <= u) lo = mid; else hi = mid;
+    }
+    return lo;
+}
+
+// --- textures ----------------------------------------------------------------
+
+float srgb_to_linear(float c) {
+    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
+vec3 texel(uint base, uint w, uint x, uint y) {
+    uint word = shading_word(base, y * w + x);
+    vec3 c = vec3(float(word & 255u), float((word >> 8u) & 255u), float((word >> 16u) & 255u)) / 255.0;
+    return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
+}
+
+// Bilinear, repeat wrap, decoded to linear before filtering.
+vec3 texture_albedo(uint tex, vec2 uv) {
+    vec4 row = shading[params.tables.y + tex];
+    uint base = floatBitsToUint(row.x);
+    uint w = floatBitsToUint(row.y);
+    uint h = floatBitsToUint(row.z);
+    float x = (uv.x - floor(uv.x)) * float(w) - 0.5;
+    float y = (1.0 - (uv.y - floor(uv.y))) * float(h) - 0.5;
+    float fx = floor(x);
+    float fy = floor(y);
+    float ax = x - fx;
+    float ay = y - fy;
+    int ix = int(fx);
+    int iy = int(fy);
+    uint x0 = uint((ix % int(w) + int(w)) % int(w));
+    uint x1 = (x0 + 1u) % w;
+    uint y0 = uint((iy % int(h) + int(h)) % int(h));
+    uint y1 = (y0 + 1u) % h;
+    vec3 a = mix(texel(base, w, x0, y0), texel(base, w, x1, y0), ax);
+    vec3 b = mix(texel(base, w, x0, y1), texel(base, w, x1, y1), ax);
+    return mix(a, b, ay);
+}
+
+// --- environment ---------------------------------------------------------------
+
+// The map's direction convention (render::envdist): u = phi / 2 pi, v = theta / pi
+// with theta from +y; params.env.y is the rotation about +y in radians.
+vec2 env_dir_to_uv(vec3 d) {
+    float theta = acos(clamp(d.y, -1.0, 1.0));
+    float phi = atan(d.x, -d.z) - params.env.y;
+    float u = phi * (0.5 * INV_PI);
+    u -= floor(u);
+    return vec2(u, theta * INV_PI);
+}
+
+vec3 env_uv_to_dir(vec2 uv, out float sin_theta) {
+    float theta = uv.y * PI;
+    float phi = uv.x * 2.0 * PI + params.env.y;
+    sin_theta = sin(theta);
+    return vec3(sin_theta * sin(phi), cos(theta), -sin_theta * cos(phi));
+}
+
+vec3 env_texel(uint x, uint y) {
+    uint k = (y * ENV_WIDTH + x) * 2u;
+    vec2 rg = unpackHalf2x16(shading_word(params.tables.z, k));
+    vec2 b_ = unpackHalf2x16(shading_word(params.tables.z, k + 1u));
+    return vec3(rg, b_.x) * params.env.x;
+}
+
+// Cell (x, y) holding uv.
+uvec2 env_cell(vec2 uv) {
+    return uvec2(min(uint(uv.x * float(ENV_WIDTH)), ENV_WIDTH - 1u), min(uint(uv.y * float(ENV_HEIGHT)), ENV_HEIGHT - 1u));
+}
+
+// Float index of row y's conditional CDF in the distribution section.
+uint env_row_cdf(uint y) {
+    return ENV_HEIGHT + 2u + y * (ENV_WIDTH + 1u);
+}
+
+// Solid-angle pdf of env_sample choosing direction d.
+float env_pdf(vec3 d) {
+    vec2 uv = env_dir_to_uv(d);
+    uvec2 c = env_cell(uv);
+    uint base = params.tables.w;
+    float pm = shading_float(base, c.y + 1u) - shading_float(base, c.y);
+    uint row = env_row_cdf(c.y);
+    float pc = shading_float(base, row + c.x + 1u) - shading_float(base, row + c.x);
+    float pdf_uv = pm * float(ENV_HEIGHT) * pc * float(ENV_WIDTH);
+    float sin_theta = sin(uv.y * PI);
+    return sin_theta > 0.0 ? pdf_uv / (2.0 * PI * PI * sin_theta) : 0.0;
+}
+
+vec3 env_radiance(vec3 d) {
+    uvec2 c = env_cell(env_dir_to_uv(d));
+    return env_texel(c.x, c.y);
+}
+
+// Importance-samples a direction; returns its radiance, with its solid-angle pdf.
+vec3 env_sample(float u1, float u2, out vec3 d, out float pdf) {
+    uint base = params.tables.w;
+    uint y = cdf_search(base, 0u, ENV_HEIGHT, u1);
+    float c0 = shading_float(base, y);
+    float c1 = shading_float(base, y + 1u);
+    float dy = c1 > c0 ? (u1 - c0) / (c1 - c0) : 0.5;
+    uint row = env_row_cdf(y);
+    uint x = cdf_search(base, row, ENV_WIDTH, u2);
+    float r0 = shading_float(base, row + x);
+    float r1 = shading_float(base, row + x + 1u);
+    float dx = r1 > r0 ? (u2 - r0) / (r1 - r0) : 0.5;
+    vec2 uv = vec2((float(x) + clamp(dx, 0.0, 1.0)) / float(ENV_WIDTH), (float(y) + clamp(dy, 0.0, 1.0)) / float(ENV_HEIGHT));
+    float sin_theta;
+    d = env_uv_to_dir(uv, sin_theta);
+    float pdf_uv = (c1 - c0) * float(ENV_HEIGHT) * (r1 - r0) * float(ENV_WIDTH);
+    pdf = sin_theta > 0.0 ? pdf_uv / (2.0 * PI * PI * sin_theta) : 0.0;
+    return env_texel(x, y);
+}
+
+// Radiance arriving along d from outside the scene.
+vec3 escaped(vec3 d) {
+    if (ENV_WIDTH > 0u) return env_radiance(d);
+    return params.background.rgb;
+}
+
+// --- area lights ---------------------------------------------------------------
+
+// Emitted radiance of material m leaving a surface of geometric normal gn toward -dir.
+vec3 emitted(Material m, vec3 gn, vec3 dir) {
+    if ((m.flags & MAT_FLAG_TWO_SIDED) != 0u || dot(gn, dir) < 0.0) return m.emission;
+    return vec3(0.0);
+}
+
+float emitter_power(uint prim, Material m) {
+    float area = 0.0;
+#if HAS_TRIANGLES
+    if (prim < params.dims.z) {
+        uvec4 tri = triangles[prim];
+        vec3 a = vertices[tri.x].position.xyz;
+        area = 0.5 * length(cross(vertices[tri.y].position.xyz - a, vertices[tri.z].position.xyz - a));
+    }
+#endif
+#if HAS_SPHERES
+    if (prim >= params.dims.z) {
+        float r = spheres[prim - params.dims.z].center_radius.w;
+        area = 4.0 * PI * r * r;
+    }
+#endif
+    float sides = (m.flags & MAT_FLAG_TWO_SIDED) != 0u ? 2.0 : 1.0;
+    return luminance(m.emission) * area * sides;
+}
+
+// Solid-angle pdf, from point p, of sampling a sphere by its cone (outside) or by
+// area (inside), for a point at distance t along unit d with the sphere normal gn.
+float sphere_light_pdf(vec3 p, vec3 c, float r, float t, vec3 d, vec3 gn) {
+    vec3 pc = c - p;
+    float d2 = dot(pc, pc);
+    if (d2 > r * r) {
+        float sin2 = r * r / d2;
+        float cos_max = sqrt(max(0.0, 1.0 - sin2));
+        float one_minus = sin2 / (1.0 + cos_max);
+        return 1.0 / (2.0 * PI * one_minus);
+    }
+    float cos_l = abs(dot(gn, d));
+    return cos_l > 0.0 ? t * t / (4.0 * PI * r * r * cos_l) : 0.0;
+}
+
+// Pdf with which next-event estimation from p would have chosen the point where the
+// ray (p, d) hit primitive `prim` at distance t with geometric normal gn.
+float light_pdf(uint prim, Material m, vec3 p, vec3 d, float t, vec3 gn) {
+    float pmf = emitter_power(prim, m) / params.env.z;
+#if HAS_TRIANGLES
+    if (prim < params.dims.z) {
+        uvec4 tri = triangles[prim];
+        vec3 a = vertices[tri.x].position.xyz;
+        float area = 0.5 * length(cross(vertices[tri.y].position.xyz - a, vertices[tri.z].position.xyz - a));
+        float cos_l = abs(dot(gn, d));
+        return area > 0.0 && cos_l > 0.0 ? pmf * t * t / (area * cos_l) : 0.0;
+    }
+#endif
+#if HAS_SPHERES
+    vec4 s = spheres[prim - params.dims.z].center_radius;
+    return pmf * sphere_light_pdf(p, s.xyz, s.w, t, d, gn);
+#else
+    return 0.0;
+#endif
+}
+
+// Samples a point on an emitter seen from p: direction wi, distance, radiance and
+// solid-angle pdf (the emitter's probability included). False when it sends nothing.
+bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, out float pdf) {
+    le = vec3(0.0);
+    pdf = 0.0;
+    wi = vec3(0.0, 1.0, 0.0);
+    dist = 0.0;
+    uint base = params.tables.x;
+    uint lo = 0u;
+    uint hi = EMITTER_COUNT;
+    for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
+        uint mid = (lo + hi) >> 1u;
+        if (shading[base + mid].y <= u.x) lo = mid; else hi = mid;
+    }
+    vec4 row = shading[base + lo];
+    uint prim = floatBitsToUint(row.x);
+    float pmf = row.z;
+    if (pmf <= 0.0) return false;
+    vec3 gn;
+    uint mat;
+#if HAS_TRIANGLES
+    if (prim < params.dims.z) {
+        uvec4 tri = triangles[prim];
+        vec3 a = vertices[tri.x].position.xyz;
+        vec3 b = vertices[tri.y].position.xyz;
+        vec3 c = vertices[tri.z].position.xyz;
+        vec3 cr = cross(b - a, c - a);
+        float area = 0.5 * length(cr);
+        if (area <= 0.0) return false;
+        gn = normalize(cr);
+        float su = sqrt(u.y);
+        vec3 q = a * (1.0 - su) + b * (su * (1.0 - u.z)) + c * (su * u.z);
+        vec3 to = q - p;
+        float d2 = dot(to, to);
+        dist = sqrt(d2);
+        if (!(dist > 0.0)) return false;
+        wi = to / dist;
+        float cos_l = abs(dot(gn, wi));
+        if (cos_l <= 0.0) return false;
+        pdf = pmf * d2 / (area * cos_l);
+        mat = tri.w;
+    }
+#endif
+#if HAS_SPHERES
+    if (prim >= params.dims.z) {
+        Sphere s = spheres[prim - params.dims.z];
+        vec3 c = s.center_radius.xyz;
+        float r = s.center_radius.w;
+        vec3 pc = c - p;
+        float d2 = dot(pc, pc);
+        mat = s.material.x;
+        if (d2 > r * r) {
+            float dc = sqrt(d2);
+            float sin2 = r * r / d2;
+            float cos_max = sqrt(max(0.0, 1.0 - sin2));
+            float one_minus = sin2 / (1.0 + cos_max);
+            float cos_t = 1.0 - u.y * one_minus;
+            wi = around(pc / dc, cos_t, u.z);
+            // Distance to the near intersection along wi.
+            float b = dot(pc, wi);
+            float disc = max(0.0, r * r - (d2 - b * b));
+            dist = b - sqrt(disc);
+            if (!(dist > 0.0)) return false;
+            gn = normalize(p + wi * dist - c);
+            pdf = pmf / (2.0 * PI * one_minus);
+        } else {
+            vec3 n = uniform_sphere(u.y, u.z);
+            vec3 q = c + n * r;
+            vec3 to = q - p;
+            float qd2 = dot(to, to);
+            dist = sqrt(qd2);
+            if (!(dist > 0.0)) return false;
+            wi = to / dist;
+            gn = n;
+            float cos_l = abs(dot(gn, wi));
+            if (cos_l <= 0.0) return false;
+            pdf = pmf * qd2 / (4.0 * PI * r * r * cos_l);
+        }
+    }
+#endif
+    Material m = material_at(mat);
+    le = emitted(m, gn, wi);
+    return pdf > 0.0 && (le.r > 0.0 || le.g > 0.0 || le.b > 0.0);
+}
+
+// --- the integrator -------------------------------------------------------------
+
+// Light from point and directional lights at p toward wo (no MIS: a BSDF sample never
+// hits a delta light).
+vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo) {
+    vec3 total = vec3(0.0);
+    if (LIGHT_COUNT == 0u) return total;
+    uint base = params.counts.y * MATERIAL_ROWS;
+    for (uint l = 0u; l < LIGHT_COUNT; l++) {
+        vec4 a = shading[base + l * LIGHT_ROWS];
+        vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
+        vec3 wi;
+        float dist;
+        if (a.w > 0.5) {
+            vec3 to = a.xyz - p;
+            dist = length(to);
+            wi = to / dist;
+            li /= max(dist * dist, 1e-30);
+        } else {
+            wi = -a.xyz;
+            dist = 3.0e38;
+        }
+        if (dot(gnf, wi) <= 0.0) continue;
+        float bpdf;
+        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+        if (f == vec3(0.0)) continue;
+        Ray sr;
+        sr.origin = offset_ray_origin(p, err, gnf, wi); sr.dir = wi; sr.tmin = 0.0;
+        sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
+        g_rays += 1u;
+        if (trace_any(sr)) continue;
+        total += f * li * abs(dot(n, wi));
+    }
+    return total;
+}
+
+// Whether a shadow ray from p (error err, geometric normal gnf facing wi) along wi
+// reaches distance dist unblocked.
+bool unoccluded(vec3 p, vec3 err, vec3 gnf, vec3 wi, float dist) {
+    Ray sr;
+    sr.origin = offset_ray_origin(p, err, gnf, wi); sr.dir = wi; sr.tmin = 0.0;
+    sr.tmax = dist * (1.0 - 1.0 / 1024.0);
+    g_rays += 1u;
+    return !trace_any(sr);
+}
+
+void path_main() {
+    uint gid = gl_GlobalInvocationID.x;
+    if (gid >= dispatch_range.y) return;
+    uint pixel = dispatch_range.x + gid;
+    uint slot = pixel - dispatch_chunk.x;
+    uint width = params.dims.x;
+    uint i = pixel % width;
+    uint j = pixel / width;
+
+    Pixel out_px;
+    if (dispatch_range.z == 0u) {
+        out_px.radiance = vec4(0.0);
+        out_px.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+        out_px.prim_cost = uvec4(NO_PRIM, 0u, 0u, 0u);
+        out_px.albedo_m2 = vec4(0.0);
+    } else {
+        out_px = pixels[slot];
+    }
+
+    g_rays = 0u;
+    for (uint s = dispatch_range.z; s < dispatch_range.w; s++) {
+        uint rng = rng_init(pixel, s, params.counts.z);
+        Ray r;
+        r.origin = params.cam_eye.xyz;
+        r.dir = camera_ray_dir(i, j, rng_next(rng), rng_next(rng));
+        r.tmin = 0.0;
+        r.tmax = uintBitsToFloat(0x7f800000u);
+        vec3 L = vec3(0.0);
+        vec3 beta = vec3(1.0);
+        bool prev_delta = true;  // the camera ray counts as a delta lobe: no MIS
+        float prev_pdf = 0.0;
+        vec3 prev_p = r.origin;
+        vec3 sigma = vec3(0.0);  // absorption of the medium the ray travels in
+        for (uint depth = 0u; depth < MAX_DEPTH; depth++) {
+            Hit h;
+            h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+            g_nodes = 0u; g_tests = 0u;
+            g_rays += 1u;
+            bool hit = trace_closest(r, h);
+            vec3 p, err, gn, sn;
+            uint mat;
+            vec2 uv = vec2(0.0);
+            if (hit) surface(h, r, p, err, gn, sn, mat, uv);
+            Material m;
+            if (hit) {
+                m = material_at(mat);
+                if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
+                    m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
+            }
+            if (s == 0u && depth == 0u) {
+                out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+                out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+                out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
+            }
+            if (sigma != vec3(0.0)) beta *= exp(-sigma * h.t);
+            if (!hit) {
+                vec3 le = escaped(r.dir);
+                float w = 1.0;
+                if (ENV_WIDTH > 0u && !prev_delta) {
+                    if (MIS_MODE == MIS_LIGHT) w = 0.0;
+                    else if (MIS_MODE == MIS_BOTH) w = power_heuristic(prev_pdf, env_pdf(r.dir));
+                }
+                L += beta * le * w;
+                break;
+            }
+            vec3 le = emitted(m, gn, r.dir);
+            if (le != vec3(0.0)) {
+                float w = 1.0;
+                if (EMITTER_COUNT > 0u && !prev_delta) {
+                    if (MIS_MODE == MIS_LIGHT) w = 0.0;
+                    else if (MIS_MODE == MIS_BOTH) w = power_heuristic(prev_pdf, light_pdf(h.prim, m, prev_p, r.dir, h.t, gn));
+                }
+                L += beta * le * w;
+            }
+            if (m.kind == MAT_EMISSIVE || depth + 1u >= MAX_DEPTH) break;
+            bool front = dot(gn, r.dir) < 0.0;
+            vec3 gnf = front ? gn : -gn;
+            vec3 n = dot(sn, r.dir) < 0.0 ? sn : -sn;
+            vec3 wo = -r.dir;
+            bool delta = bsdf_is_delta(m);
+            if (!delta) {
+                L += beta * delta_lights(m, p, err, n, gnf, wo);
+                if (EMITTER_COUNT > 0u && MIS_MODE != MIS_BSDF) {
+                    vec3 wi, lle;
+                    float dist, lpdf;
+                    vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
+                    if (sample_emitter(p, u3, wi, dist, lle, lpdf) && dot(gnf, wi) > 0.0) {
+                        float bpdf;
+                        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+                        if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, dist)) {
+                            float w = MIS_MODE == MIS_BOTH ? power_heuristic(lpdf, bpdf) : 1.0;
+                            L += beta * f * lle * (abs(dot(n, wi)) * w / lpdf);
+                        }
+                    }
+                } else if (EMITTER_COUNT > 0u) {
+                    rng_next(rng); rng_next(rng); rng_next(rng);
+                }
+                if (ENV_WIDTH > 0u && MIS_MODE != MIS_BSDF) {
+                    vec3 wi;
+                    float epdf;
+                    vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf);
+                    if (epdf > 0.0 && dot(gnf, wi) > 0.0) {
+                        float bpdf;
+                        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+                        if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, 3.0e38)) {
+                            float w = MIS_MODE == MIS_BOTH ? power_heuristic(epdf, bpdf) : 1.0;
+                            L += beta * f * ele * (abs(dot(n, wi)) * w / epdf);
+                        }
+                    }
+                } else if (ENV_WIDTH > 0u) {
+                    rng_next(rng); rng_next(rng);
+                }
+            }
+            vec3 wi, weight;
+            float bpdf;
+            bool sdelta, transmit;
+            vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
+            if (!bsdf_sample(m, n, wo, front, u3, wi, weight, bpdf, sdelta, transmit)) break;
+            // A reflected ray must leave on the viewer's side of the true surface, a
+            // transmitted one on the other.
+            if ((dot(gnf, wi) > 0.0) == transmit) break;
+            beta *= weight;
+            if (transmit && m.kind == MAT_GLASS) sigma = front ? m.absorption : vec3(0.0);
+            prev_delta = sdelta;
+            prev_pdf = bpdf;
+            prev_p = p;
+            r.origin = offset_ray_origin(p, err, gnf, wi);
+            r.dir = wi;
+            r.tmin = 0.0;
+            r.tmax = uintBitsToFloat(0x7f800000u);
+            if (depth + 1u >= RR_DEPTH) {
+                float q = min(max(max(beta.r, beta.g), beta.b), 0.95);
+                if (rng_next(rng) >= q) break;
+                beta /= q;
+            }
+        }
+        // A sample that went non-finite (a degenerate configuration) counts as black.
+        if (any(isnan(L)) || any(isinf(L))) L = vec3(0.0);
+        out_px.radiance += vec4(L, 1.0);
+        float y = luminance(L);
+        out_px.albedo_m2.w += y * y;
+    }
+    out_px.prim_cost.w += g_rays;
+    if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
+    pixels[slot] = out_px;
+}
+
+#endif

@@ -1,0 +1,394 @@
+//! The path integrator (`shaders/common/path.glsl`): unidirectional path tracing with
+//! next-event estimation toward point and directional lights, area lights (emissive
+//! triangles and spheres) and the environment map, multiple importance sampling with
+//! the power heuristic, Russian roulette, Beer-Lambert absorption in glass, textures.
+//!
+//! This module writes what the kernel reads beyond the scene: the emitter table
+//! (power-proportional CDF), the texture table and texels, the environment's texels
+//! and its sampling distribution, all as extra rows of the shading buffer (layout in
+//! `shaders/common/path.glsl`), so that the kernel binds no buffer more than the
+//! Whitted one; and it runs the dispatches progressively (whole sample waves), so that
+//! a time budget, an interruption or a checkpoint always sees every pixel of a chunk
+//! with the same number of samples.
+
+use std::time::Instant;
+
+use glam::Vec3;
+
+use super::dispatch::{self, Next, Waves};
+use super::kernel::{LoopBounds, Variant};
+use super::upload::{self, GpuScene};
+use super::{Frame, RenderSettings, RenderStats};
+use crate::accel::gpu_layout::{GpuParams, GpuPixel, PIXEL_HEADER_BYTES};
+use crate::accel::{Accel, GpuImage};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::Context;
+use crate::scene::{Material, Scene};
+
+/// Most pixels held on the device at once (64 bytes each).
+const MAX_CHUNK_PIXELS: u64 = 1 << 21;
+
+/// The depth from which Russian roulette may end a path (Mitsuba's default).
+pub const RR_DEPTH: u32 = 5;
+
+/// Luminance of linear Rec. 709 RGB (the kernel's `luminance`).
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// One area light: a primitive (global numbering: triangles, then spheres) and its
+/// emitted power up to a constant factor (luminance x area x sides).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Emitter {
+    pub prim: u32,
+    pub power: f32,
+}
+
+fn sides(m: &Material) -> f32 {
+    if m.two_sided {
+        2.0
+    } else {
+        1.0
+    }
+}
+
+/// Every primitive that emits (non-zero luminance of emission, non-zero area), with
+/// the power the kernel's `emitter_power` computes for it.
+pub fn emitters(scene: &Scene) -> Vec<Emitter> {
+    let mut out = Vec::new();
+    let emits = |m: u32| {
+        let m = &scene.materials[m as usize];
+        let l = luminance(m.emission);
+        (l > 0.0 && l.is_finite()).then(|| l * sides(m))
+    };
+    for (k, t) in scene.triangles.iter().enumerate() {
+        if let Some(l) = emits(scene.tri_material[k]) {
+            let [a, b, c] = t.map(|i| scene.positions[i as usize]);
+            let area = 0.5 * (b - a).cross(c - a).length();
+            if area > 0.0 && area.is_finite() {
+                out.push(Emitter { prim: k as u32, power: l * area });
+            }
+        }
+    }
+    let nt = scene.triangles.len() as u32;
+    for (k, s) in scene.spheres.iter().enumerate() {
+        if let Some(l) = emits(s.material) {
+            let area = 4.0 * std::f32::consts::PI * s.radius * s.radius;
+            if area > 0.0 && area.is_finite() {
+                out.push(Emitter { prim: nt + k as u32, power: l * area });
+            }
+        }
+    }
+    out
+}
+
+/// The emitter table rows: (prim bits, CDF at its start, probability, 0), and the
+/// total power. The CDF is summed in f64 and each probability is the difference of
+/// consecutive CDF values as f32, so that sampling and its pdf agree exactly.
+pub fn emitter_rows(list: &[Emitter]) -> (Vec<[f32; 4]>, f32) {
+    let total: f64 = list.iter().map(|e| f64::from(e.power)).sum();
+    let mut rows = Vec::with_capacity(list.len());
+    let mut acc = 0f64;
+    for (k, e) in list.iter().enumerate() {
+        let start = (acc / total) as f32;
+        acc += f64::from(e.power);
+        let end = if k + 1 == list.len() { 1.0 } else { (acc / total) as f32 };
+        rows.push([f32::from_bits(e.prim), start, end - start, 0.0]);
+    }
+    (rows, total as f32)
+}
+
+/// Texture table rows then texels (4 per row, 0x00BBGGRR), given the first row the
+/// section starts at. Returns (rows, table base row).
+fn texture_rows(scene: &Scene, base: u32) -> Vec<[f32; 4]> {
+    let n = scene.textures.len() as u32;
+    let mut rows: Vec<[f32; 4]> = Vec::new();
+    let mut next = base + n;
+    let mut texel_rows: Vec<[f32; 4]> = Vec::new();
+    for t in &scene.textures {
+        rows.push([f32::from_bits(next), f32::from_bits(t.width), f32::from_bits(t.height), 0.0]);
+        let words: Vec<u32> =
+            t.texels.iter().map(|p| u32::from(p[0]) | u32::from(p[1]) << 8 | u32::from(p[2]) << 16).collect();
+        for chunk in words.chunks(4) {
+            let mut row = [0f32; 4];
+            for (k, w) in chunk.iter().enumerate() {
+                // The top byte is zero, so the bits are never a NaN.
+                row[k] = f32::from_bits(*w);
+            }
+            texel_rows.push(row);
+        }
+        next = base + n + texel_rows.len() as u32;
+    }
+    rows.extend(texel_rows);
+    rows
+}
+
+/// Environment texels as half floats, two texels per row (`packHalf2x16(r, g)`,
+/// `packHalf2x16(b, 0)` each), values clamped to the largest half (65504).
+fn env_texel_rows(texels: &[[f32; 3]]) -> Vec<[f32; 4]> {
+    let h = |x: f32| u32::from(half::f16::from_f32(x.min(65504.0)).to_bits());
+    let words: Vec<u32> = texels.iter().flat_map(|t| [h(t[0]) | h(t[1]) << 16, h(t[2])]).collect();
+    words
+        .chunks(4)
+        .map(|c| {
+            let mut row = [0f32; 4];
+            for (k, w) in c.iter().enumerate() {
+                row[k] = f32::from_bits(*w);
+            }
+            row
+        })
+        .collect()
+}
+
+/// Environment texels as the kernel sees them (half precision), for building the
+/// sampling distribution from exactly the values it looks up.
+pub fn env_texels_as_seen(texels: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    let h = |x: f32| half::f16::from_f32(x.min(65504.0)).to_f32();
+    texels.iter().map(|t| [h(t[0]), h(t[1]), h(t[2])]).collect()
+}
+
+/// Floats packed 4 per row.
+fn float_rows(values: &[f32]) -> Vec<[f32; 4]> {
+    values
+        .chunks(4)
+        .map(|c| {
+            let mut row = [0f32; 4];
+            row[..c.len()].copy_from_slice(c);
+            row
+        })
+        .collect()
+}
+
+/// What the path kernel reads beyond the Whitted scene data.
+#[derive(Debug, Clone, Default)]
+pub struct Extras {
+    /// Rows appended to the shading buffer.
+    pub rows: Vec<[f32; 4]>,
+    /// `GpuParams::tables`.
+    pub tables: [u32; 4],
+    pub emitter_count: u32,
+    pub total_power: f32,
+    /// Environment map size (0 x 0 without one).
+    pub env_size: (u32, u32),
+}
+
+/// The extra shading rows for `scene`, whose Whitted rows number `base`.
+pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
+    let mut ex = Extras::default();
+    let list = emitters(scene);
+    let mut next = base;
+    if !list.is_empty() {
+        let (rows, total) = emitter_rows(&list);
+        ex.tables[0] = next;
+        ex.emitter_count = list.len() as u32;
+        ex.total_power = total;
+        next += rows.len() as u32;
+        ex.rows.extend(rows);
+    }
+    if !scene.textures.is_empty() {
+        ex.tables[1] = next;
+        let rows = texture_rows(scene, next);
+        next += rows.len() as u32;
+        ex.rows.extend(rows);
+    }
+    if let Some(env) = &scene.environment {
+        let seen = env_texels_as_seen(&env.texels);
+        let rows = env_texel_rows(&env.texels);
+        ex.tables[2] = next;
+        next += rows.len() as u32;
+        ex.rows.extend(rows);
+        let dist = env_distribution(env.width, env.height, &seen)?;
+        let rows = float_rows(&dist);
+        ex.tables[3] = next;
+        ex.rows.extend(rows);
+        ex.env_size = (env.width, env.height);
+    }
+    Ok(ex)
+}
+
+/// The environment's sampling distribution in the kernel's layout.
+fn env_distribution(_w: u32, _h: u32, _texels: &[[f32; 3]]) -> Result<Vec<f32>> {
+    Err(Error::Usage("environment maps are not wired yet".into()))
+}
+
+/// The scene's maximum depth, or the settings' override.
+pub fn max_depth(scene: &Scene, settings: &RenderSettings) -> u32 {
+    settings.max_depth.unwrap_or(scene.max_depth)
+}
+
+/// Shadow rays one path vertex may trace: one per point or directional light, one
+/// toward an area light, one toward the environment map.
+fn shadow_rays(scene: &Scene, ex: &Extras) -> u64 {
+    scene.lights.len() as u64 + u64::from(ex.emitter_count > 0) + u64::from(ex.env_size.0 > 0)
+}
+
+/// Traces one sample may run, plus one whose share of the loop budget covers the
+/// binary searches of light and environment sampling (at most 32 + 2 x 32 steps a
+/// vertex).
+pub fn traces_per_sample(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> u64 {
+    u64::from(max_depth(scene, settings)) * (1 + shadow_rays(scene, ex)) + 1
+}
+
+/// Rays one sample costs when sizing dispatches: a typical path of three segments.
+fn rays_per_sample(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> u64 {
+    u64::from(max_depth(scene, settings).min(3)) * (1 + shadow_rays(scene, ex))
+}
+
+fn specialization(
+    scene: &Scene,
+    settings: &RenderSettings,
+    image: &GpuImage,
+    bounds: &LoopBounds,
+    ex: &Extras,
+) -> Vec<(u32, u32)> {
+    vec![
+        (SPEC_LIGHTS, scene.lights.len() as u32),
+        (SPEC_MAX_DEPTH, max_depth(scene, settings)),
+        (SPEC_STACK_SIZE, image.stack_size),
+        (SPEC_TREE_STEPS, bounds.steps as u32),
+        (SPEC_BRUTE_UNROLL, bounds.unroll),
+        (SPEC_INTERSECT, settings.intersect.spec()),
+        (SPEC_DIFFUSE_PROBE, 0),
+        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
+        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
+        (SPEC_INTEGRATOR, 1),
+        (SPEC_EMITTERS, ex.emitter_count),
+        (SPEC_ENV_WIDTH, ex.env_size.0),
+        (SPEC_ENV_HEIGHT, ex.env_size.1.max(1)),
+        (SPEC_TEXTURES, u32::from(!scene.textures.is_empty())),
+        (SPEC_MIS, settings.mis.spec()),
+        (SPEC_RR_DEPTH, RR_DEPTH),
+    ]
+}
+
+fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
+    let (w, h) = (settings.width, settings.height);
+    let basis = scene.camera.basis(w, h);
+    let bounds = accel.bounds();
+    let (intensity, rotation) =
+        scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
+    GpuParams {
+        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
+        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
+        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
+        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
+        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
+        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
+        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
+        counts: [scene.lights.len() as u32, scene.materials.len() as u32, settings.seed, 0],
+        background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
+        tables: ex.tables,
+        env: [intensity, rotation, ex.total_power, 0.0],
+    }
+}
+
+/// What a progressive render is told from outside: progress, interruption and
+/// checkpoints.
+pub struct Control<'a> {
+    /// `(done, total)` pixel-samples after every dispatch.
+    pub progress: Box<dyn FnMut(u64, u64) + 'a>,
+    /// Polled after every sample wave: true stops the render; the image so far is
+    /// returned.
+    pub interrupted: Box<dyn Fn() -> bool + 'a>,
+    /// Every so many seconds (checked after each wave), the image so far.
+    pub checkpoint: Option<(f64, Box<dyn FnMut(&Frame) -> Result<()> + 'a>)>,
+}
+
+impl std::fmt::Debug for Control<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Control").field("checkpoint", &self.checkpoint.as_ref().map(|c| c.0)).finish_non_exhaustive()
+    }
+}
+
+impl<'a> Control<'a> {
+    /// Progress only: never interrupted, no checkpoints.
+    pub fn progress_only(progress: impl FnMut(u64, u64) + 'a) -> Control<'a> {
+        Control { progress: Box::new(progress), interrupted: Box::new(|| false), checkpoint: None }
+    }
+}
+
+/// Renders `scene` with an already built structure.
+pub fn render_with(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    accel: &Accel,
+    control: Control<'_>,
+) -> Result<(Frame, RenderStats)> {
+    settings.check()?;
+    let Control { mut progress, interrupted, mut checkpoint } = control;
+    let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
+    let variant = Variant::new("trace", scene, settings, &image)?;
+    let mut gs = GpuScene::new(scene);
+    let ex = extras(scene, gs.shading.len() as u32)?;
+    gs.shading.extend_from_slice(&ex.rows);
+    let traces = traces_per_sample(scene, settings, &ex);
+    let bounds = LoopBounds::new(ctx, scene, &image, traces)?;
+    let spec = specialization(scene, settings, &image, &bounds, &ex);
+    let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+
+    let start = Instant::now();
+    let total_pixels = u64::from(settings.width) * u64::from(settings.height);
+    let chunk_pixels = total_pixels.min(MAX_CHUNK_PIXELS).min(
+        (ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64).max(1),
+    );
+    let cost = image.cost_per_ray * rays_per_sample(scene, settings, &ex);
+    let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
+    if let Some(most) = bounds.samples_within_limit(ctx, scene, traces)? {
+        spp_per = spp_per.min(most).max(1);
+    }
+    // Short waves keep a time budget, an interruption and checkpoints responsive.
+    if settings.time_budget.is_some() || checkpoint.is_some() {
+        spp_per = spp_per.min(4);
+    }
+    let waves =
+        Waves { total_pixels, chunk_pixels, pixels_per_dispatch: px_per, spp: settings.spp, samples_per_dispatch: spp_per };
+    let p = params(scene, settings, accel, &ex);
+    let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
+    let mut frame = Frame::new(settings.width, settings.height)?;
+    let mut overflow = 0u64;
+    let mut last_checkpoint = Instant::now();
+    let mut chunk_started = Instant::now();
+    let (totals, stopped) =
+        dispatch::run_progressive(ctx, &kernel, bound.pixels(), &waves, &mut *progress, |first, len, _samples, complete| {
+            if complete {
+                overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
+                chunk_started = Instant::now();
+                return Ok(if interrupted() { Next::Stop } else { Next::Continue });
+            }
+            if interrupted() {
+                return Ok(Next::Stop);
+            }
+            if let Some((every, write)) = checkpoint.as_mut() {
+                if last_checkpoint.elapsed().as_secs_f64() >= *every {
+                    overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
+                    write(&frame)?;
+                    last_checkpoint = Instant::now();
+                }
+            }
+            if let Some(budget) = settings.time_budget {
+                let share = budget * len as f64 / total_pixels as f64;
+                if chunk_started.elapsed().as_secs_f64() >= share {
+                    return Ok(Next::NextChunk);
+                }
+            }
+            Ok(Next::Continue)
+        })?;
+    ctx.check_validation()?;
+    if overflow > 0 {
+        return Err(Error::scene(
+            scene.name.clone(),
+            format!(
+                "{overflow} pixels needed more than {} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
+                bounds.steps,
+                ctx.info().name
+            ),
+        ));
+    }
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let build = accel.stats(scene);
+    let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
+    stats.interrupted = stopped;
+    Ok((frame, stats))
+}
