@@ -1,0 +1,317 @@
+//! The path integrator against analytic values (seeded, deterministic): the white
+//! furnace, three estimators of one integral (light sampling, BSDF sampling, MIS),
+//! an emitter seen directly, in a mirror and through a glass slab (with and without
+//! absorption), and the same bytes for any dispatch split.
+
+mod common;
+
+use arbor::accel::AccelKind;
+use arbor::render::{gpu, Frame, Integrator, Mis, RenderSettings};
+use arbor::scene::procedural::quad;
+use arbor::scene::{Camera, Material, MaterialKind, Scene, SceneBuilder, Sphere};
+use glam::Vec3;
+
+fn settings(w: u32, h: u32, spp: u32) -> RenderSettings {
+    let mut s = RenderSettings::for_size(w, h);
+    s.integrator = Integrator::Path;
+    s.spp = spp;
+    s.seed = 11;
+    s.accel = AccelKind::BvhSah;
+    s
+}
+
+fn render(ctx: &arbor::gpu::Context, scene: &Scene, s: &RenderSettings) -> Frame {
+    gpu::render(ctx, scene, s, |_, _| {}).expect("render").0
+}
+
+fn lum(c: [f32; 3]) -> f64 {
+    f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2])
+}
+
+/// Mean luminance of the pixels `keep` selects, and the standard error of that mean
+/// from the per-pixel variance estimates.
+fn mean_and_error(f: &Frame, keep: impl Fn(usize) -> bool) -> (f64, f64) {
+    let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
+    for k in 0..f.radiance.len() {
+        if keep(k) {
+            sum += lum(f.radiance[k]);
+            var += f64::from(f.variance[k]);
+            n += 1.0;
+        }
+    }
+    assert!(n > 0.0, "no pixel selected");
+    (sum / n, (var / (n * n)).sqrt())
+}
+
+fn lambert(albedo: f32) -> Material {
+    Material::lambert("white", Vec3::splat(albedo))
+}
+
+fn emitter(radiance: f32) -> Material {
+    Material { kind: MaterialKind::Emissive, emission: Vec3::splat(radiance), ..Material::lambert("light", Vec3::ONE) }
+}
+
+/// A closed diffuse sphere of albedo `rho` under a uniform environment of radiance
+/// `l` (the background): every pixel on the sphere converges to rho x l, every other
+/// pixel to l. With a convex object every path escapes after one bounce with the same
+/// weight, so the estimate is exact up to rounding.
+#[test]
+fn white_furnace() {
+    let Some(ctx) = common::gpu() else { return };
+    for rho in [1.0f32, 0.5] {
+        let mut b = SceneBuilder::new("furnace");
+        let m = b.material(lambert(rho));
+        b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: m });
+        b.scene.background = Vec3::splat(0.5);
+        b.scene.camera = Camera { eye: Vec3::new(0.0, 0.0, 4.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 40.0 };
+        let scene = b.finish().expect("scene");
+        let (w, h) = (24usize, 24usize);
+        let f = render(&ctx, &scene, &settings(w as u32, h as u32, 8));
+        let (mut on, mut off) = (0, 0);
+        let miss = |x: usize, y: usize| f.prim[y * w + x] == u32::MAX;
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let k = y * w + x;
+                // Pixels on the silhouette mix both values: only those whose
+                // neighbours all see what they see count.
+                let m = miss(x, y);
+                if [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)].iter().any(|&(a, b)| miss(a, b) != m) {
+                    continue;
+                }
+                let want = if m { 0.5 } else { 0.5 * rho };
+                if m {
+                    off += 1;
+                } else {
+                    on += 1;
+                }
+                for c in f.radiance[k] {
+                    assert!((c - want).abs() < 1e-4, "rho {rho}: pixel ({x}, {y}) = {c}, want {want}");
+                }
+            }
+        }
+        assert!(on > 100 && off > 100, "the view holds sphere and background ({on}, {off})");
+    }
+}
+
+/// A diffuse floor under a one-sided square light: light sampling alone, BSDF sampling
+/// alone and MIS estimate one integral, so their image means agree within their
+/// confidence intervals, for a small and a large light.
+#[test]
+fn light_bsdf_and_mis_sampling_agree() {
+    let Some(ctx) = common::gpu() else { return };
+    for half in [0.08f32, 0.8] {
+        let mut b = SceneBuilder::new("floor and light");
+        let white = b.material(lambert(0.8));
+        let light = b.material(emitter(1.0 / (half * half)));
+        let g = 2.0;
+        let v = Vec3::new;
+        b.mesh(&quad([v(-g, 0.0, g), v(g, 0.0, g), v(g, 0.0, -g), v(-g, 0.0, -g)]), 1.0, Vec3::ZERO, Some(white));
+        // Facing down: cross(b - a, c - a) points to -y.
+        let y = 1.0;
+        b.mesh(
+            &quad([v(-half, y, -half), v(half, y, -half), v(half, y, half), v(-half, y, half)]),
+            1.0,
+            Vec3::ZERO,
+            Some(light),
+        );
+        b.scene.background = Vec3::ZERO;
+        b.scene.camera = Camera { eye: v(0.0, 0.6, 3.0), look_at: v(0.0, 0.0, 0.0), up: Vec3::Y, vfov: 50.0 };
+        let scene = b.finish().expect("scene");
+        let mut results = Vec::new();
+        for mis in [Mis::Both, Mis::Light, Mis::Bsdf] {
+            let mut s = settings(24, 24, 64);
+            s.mis = mis;
+            s.max_depth = Some(2);
+            let f = render(&ctx, &scene, &s);
+            // The floor only (the light's own pixels are exact in every mode).
+            let floor = |k: usize| f.prim[k] < 2;
+            results.push((mis, mean_and_error(&f, floor)));
+        }
+        let (_, (m0, e0)) = results[0];
+        for &(mis, (m, e)) in &results[1..] {
+            let bound = 4.0 * (e0 * e0 + e * e).sqrt();
+            assert!((m - m0).abs() <= bound, "light {half}: {mis:?} mean {m} vs MIS {m0} (bound {bound})");
+        }
+        // MIS is never much noisier than the better single strategy.
+        let best = results[1].1 .1.min(results[2].1 .1);
+        assert!(e0 <= 1.5 * best, "light {half}: MIS error {e0} vs best single {best}");
+    }
+}
+
+/// The test scene of the emitter tests: a one-sided emitter of radiance 2 facing +z,
+/// seen along -z, behind `between`.
+fn emitter_scene(between: impl FnOnce(&mut SceneBuilder)) -> Scene {
+    let mut b = SceneBuilder::new("emitter");
+    let light = b.material(emitter(2.0));
+    let v = Vec3::new;
+    // Counter-clockwise seen from +z: faces the camera.
+    b.mesh(&quad([v(-1.0, -1.0, -3.0), v(1.0, -1.0, -3.0), v(1.0, 1.0, -3.0), v(-1.0, 1.0, -3.0)]), 1.0, Vec3::ZERO, Some(light));
+    between(&mut b);
+    b.scene.background = Vec3::ZERO;
+    b.scene.max_depth = 16;
+    b.scene.camera = Camera { eye: v(0.0, 0.0, 2.0), look_at: v(0.0, 0.0, -3.0), up: Vec3::Y, vfov: 5.0 };
+    b.finish().expect("scene")
+}
+
+/// A box slab of glass between z = -1 and z = -1 - d, faces pointing out.
+fn slab(b: &mut SceneBuilder, d: f32, absorption: f32) {
+    let glass = b.material(Material {
+        kind: MaterialKind::Glass,
+        ior: 1.5,
+        absorption: Vec3::splat(absorption),
+        ..Material::lambert("glass", Vec3::ONE)
+    });
+    let v = Vec3::new;
+    let (z0, z1, s) = (-1.0, -1.0 - d, 2.0);
+    let faces = [
+        [v(-s, -s, z0), v(s, -s, z0), v(s, s, z0), v(-s, s, z0)], // front (+z)
+        [v(-s, -s, z1), v(-s, s, z1), v(s, s, z1), v(s, -s, z1)], // back (-z)
+        [v(-s, -s, z0), v(-s, s, z0), v(-s, s, z1), v(-s, -s, z1)], // -x
+        [v(s, -s, z0), v(s, -s, z1), v(s, s, z1), v(s, s, z0)],   // +x
+        [v(-s, s, z0), v(s, s, z0), v(s, s, z1), v(-s, s, z1)],   // +y
+        [v(-s, -s, z0), v(-s, -s, z1), v(s, -s, z1), v(s, -s, z0)], // -y
+    ];
+    for f in faces {
+        b.mesh(&quad(f), 1.0, Vec3::ZERO, Some(glass));
+    }
+}
+
+#[test]
+fn emitter_seen_directly_in_a_mirror_and_through_glass() {
+    let Some(ctx) = common::gpu() else { return };
+    // Directly: exactly its radiance, and nothing from behind (one-sided).
+    let f = render(&ctx, &emitter_scene(|_| {}), &settings(8, 8, 4));
+    for c in f.radiance.iter().flatten() {
+        assert!((c - 2.0).abs() < 1e-5, "direct {c}");
+    }
+    let mut back = emitter_scene(|_| {});
+    back.camera = Camera { eye: Vec3::new(0.0, 0.0, -8.0), look_at: Vec3::new(0.0, 0.0, -3.0), up: Vec3::Y, vfov: 5.0 };
+    let f = render(&ctx, &back, &settings(8, 8, 4));
+    assert!(f.radiance.iter().flatten().all(|&c| c == 0.0), "a one-sided emitter is dark from behind");
+
+    // In a mirror of reflectance 0.9: the camera looks down -x at a 45-degree mirror.
+    let mut m = emitter_scene(|b| {
+        let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("mirror", Vec3::splat(0.9)) });
+        let v = Vec3::new;
+        // The plane x + z = 0, normal (-1, 0, -1) / sqrt 2: it turns +x into -z.
+        b.mesh(&quad([v(-1.0, -2.0, 1.0), v(-1.0, 2.0, 1.0), v(1.0, 2.0, -1.0), v(1.0, -2.0, -1.0)]), 1.0, Vec3::ZERO, Some(mirror));
+    });
+    m.camera = Camera { eye: Vec3::new(-6.0, 0.0, 0.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 3.0 };
+    let f = render(&ctx, &m, &settings(8, 8, 4));
+    for c in f.radiance.iter().flatten() {
+        assert!((c - 1.8).abs() < 1e-4, "mirror {c}");
+    }
+
+    // Through a lossless slab at normal incidence: transmittance (1 - F) / (1 + F) with
+    // F = 0.04, summed over internal reflections; with absorption sigma over thickness
+    // d: (1 - F)^2 a / (1 - F^2 a^2), a = exp(-sigma d).
+    for (sigma, d) in [(0.0f32, 0.5f32), (0.8, 0.5)] {
+        let scene = emitter_scene(|b| slab(b, d, sigma));
+        let f = render(&ctx, &scene, &settings(8, 8, 2048));
+        let fr = 0.04f64;
+        let a = (-f64::from(sigma) * f64::from(d)).exp();
+        let want = 2.0 * (1.0 - fr).powi(2) * a / (1.0 - fr * fr * a * a);
+        let (mean, err) = mean_and_error(&f, |_| true);
+        // Each sample is 0 or a fixed value, so the mean's error is known; allow 4 sigma.
+        assert!((mean - want).abs() <= 4.0 * err + 1e-4, "slab sigma {sigma}: {mean} vs {want} (error {err})");
+    }
+}
+
+/// The same bytes whatever the dispatch split.
+#[test]
+fn dispatch_split_does_not_change_the_image() {
+    let Some(ctx) = common::gpu() else { return };
+    let scene = Scene::load("builtin:cornell").expect("cornell");
+    let mut a = settings(20, 16, 6);
+    a.max_depth = Some(4);
+    let mut b = a.clone();
+    b.dispatch_budget = 1;
+    let fa = render(&ctx, &scene, &a);
+    let fb = render(&ctx, &scene, &b);
+    assert_eq!(fa.radiance, fb.radiance);
+    assert_eq!(fa.variance, fb.variance);
+    assert!(fa.radiance.iter().flatten().any(|&c| c > 0.0), "the box is lit");
+}
+
+fn arbor_cmd() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_arbor"))
+}
+
+/// Values of a one-channel PFM AOV.
+fn read_pfm(path: &std::path::Path) -> Vec<f32> {
+    arbor::render::output::read_pfm(path).expect("pfm").3
+}
+
+/// SIGINT writes the image so far, every pixel with the same sample count, and the
+/// exit code says the render was interrupted.
+#[test]
+fn interrupt_writes_the_image_so_far() {
+    let Some(_ctx) = common::gpu() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("i.png");
+    let samples = dir.path().join("n.pfm");
+    let aov = format!("samples={}", samples.display());
+    let child = arbor_cmd()
+        .args(["render", "builtin:cornell", "--size", "16x16", "--spp", "1000000", "-o"])
+        .arg(&png)
+        .args(["--aov", &aov])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    // Wait for the first dispatches (the render prints progress lines after 5 s).
+    std::thread::sleep(std::time::Duration::from_secs(6));
+    let pid = child.id().to_string();
+    let kill = std::process::Command::new("kill").args(["-INT", &pid]).status().expect("kill");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted: wrote"), "{err}");
+    let img = image::open(&png).expect("a whole PNG");
+    assert_eq!((img.width(), img.height()), (16, 16));
+    let n = read_pfm(&samples);
+    assert!(n[0] >= 1.0 && n[0] < 1e6, "samples {}", n[0]);
+    assert!(n.iter().all(|&v| v == n[0]), "every pixel holds the same samples");
+    assert!(err.contains(&format!("with {} of 1000000 samples", n[0] as u32)), "{err}");
+}
+
+/// With --time the render ends on its own with fewer samples than asked; checkpoint
+/// files are complete images whenever they are read.
+#[test]
+fn time_budget_and_checkpoints() {
+    let Some(_ctx) = common::gpu() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("t.png");
+    let stats = dir.path().join("t.json");
+    let mut child = arbor_cmd()
+        .args(["render", "builtin:cornell", "--size", "16x16", "--spp", "1000000", "--time", "6", "--checkpoint", "1"])
+        .arg("-o")
+        .arg(&png)
+        .arg("--stats")
+        .arg(&stats)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let mut seen = 0;
+    let start = std::time::Instant::now();
+    while start.elapsed().as_secs() < 60 {
+        if let Some(status) = child.try_wait().expect("poll") {
+            assert!(status.success(), "render failed");
+            break;
+        }
+        if png.exists() {
+            let img = image::open(&png).expect("a checkpoint is always a whole PNG");
+            assert_eq!((img.width(), img.height()), (16, 16));
+            seen += 1;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(150));
+    }
+    let out = child.wait_with_output().expect("wait");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(seen > 0, "no checkpoint was seen");
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+    let done = v["samples_done"].as_u64().expect("samples_done");
+    assert!(done >= 1 && done < 1_000_000, "samples_done {done}");
+    assert_eq!(v["interrupted"], false);
+    assert_eq!(v["integrator"], "path");
+}
