@@ -636,8 +636,8 @@ fn bad_kd_parameters() {
 fn unknown_aov() {
     let fx = Fixture::new();
     let obj = fx.triangle_obj();
-    let albedo = format!("albedo={}", fx.p("out/albedo.pfm"));
-    render_fails(&fx, &obj, &["--aov", &albedo], Device::Absent, &["unknown aov", "albedo"]);
+    let bogus = format!("bogus={}", fx.p("out/bogus.pfm"));
+    render_fails(&fx, &obj, &["--aov", &bogus], Device::Absent, &["unknown aov", "bogus"]);
     let noeq = fx.p("out/depth2.pfm");
     render_fails(&fx, &obj, &["--aov", &noeq], Device::Absent, &["--aov", "name=path"]);
     let twice = format!("depth={}", fx.p("out/d2.pfm"));

@@ -28,7 +28,7 @@ fn render_reports_every_time_and_stats_carry_provenance() {
         ["render", "builtin:cornell", "--size", "16x12", "--spp", "2", "--seed", "7", "-o", &png, "--stats", &stats];
     let out = ok(&args);
     let line = String::from_utf8_lossy(&out.stderr).to_string();
-    for part in ["wrote ", "(16x12, 2 spp", ": load ", " ms, build ", " ms, trace ", "dispatches), total "] {
+    for part in ["wrote ", "(16x12, path 2 spp", ": load ", " ms, build ", " ms, trace ", "dispatches), total "] {
         assert!(line.contains(part), "summary lacks {part:?}: {line}");
     }
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON");
@@ -37,7 +37,7 @@ fn render_reports_every_time_and_stats_carry_provenance() {
     assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
     assert_eq!((p["seed"].as_u64(), p["spp"].as_u64()), (Some(7), Some(2)), "{p}");
     assert_eq!((p["width"].as_u64(), p["height"].as_u64()), (Some(16), Some(12)), "{p}");
-    assert_eq!(p["integrator"], "whitted");
+    assert_eq!(p["integrator"], "path");
     let cmd: Vec<&str> =
         p["command_line"].as_array().expect("command line").iter().filter_map(|a| a.as_str()).collect();
     assert_eq!(&cmd[1..], &args[..], "{p}");

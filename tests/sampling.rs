@@ -1,0 +1,238 @@
+//! The path integrator's samplers, run on the device through `sample_probe.comp`
+//! (the kernel's own GLSL): per material, the pdf a sample reports is the pdf its
+//! evaluation reports, the pdf integrates to 1 over the sphere (less what a lobe
+//! loses below the horizon), the mean sample weight is the reflectance that the
+//! evaluation integrates to, reflectance is at most 1, and exactly 1 for the mirror
+//! and lossless glass; glass reflects with the Fresnel probability. Seeded.
+
+mod common;
+
+use arbor::gpu::bindings::*;
+use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind, Context};
+use arbor::render::upload::GpuScene;
+use arbor::scene::{Material, MaterialKind, SceneBuilder, Sphere};
+use glam::Vec3;
+
+/// Runs `mode` of the probe on `input` (two vec4 per record) with `shading` rows and
+/// `params`; returns three vec4 per record.
+fn probe(
+    ctx: &Context,
+    mode: u32,
+    input: &[[f32; 4]],
+    shading: &[[f32; 4]],
+    params: &arbor::accel::gpu_layout::GpuParams,
+    env: (u32, u32),
+) -> Vec<[f32; 4]> {
+    let records = input.len() / 2;
+    let bindings = [
+        BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
+        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" },
+        BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_in" },
+        BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "probe_out" },
+    ];
+    let spv = spirv::get("sample_probe").expect("probe kernel compiled");
+    let spec = [(SPEC_ENV_WIDTH, env.0.max(1)), (SPEC_ENV_HEIGHT, env.1.max(1))];
+    let mut k = ctx.create_kernel("sample_probe", spv, &bindings, &spec, 32).expect("kernel");
+    let u = ctx.upload_uniform("params", bytemuck::bytes_of(params)).expect("uniform");
+    let sh = ctx.upload_storage("shading", bytemuck::cast_slice(shading)).expect("shading");
+    let inb = ctx.upload_storage("probe_in", bytemuck::cast_slice(input)).expect("in");
+    let bytes = (records * 3 * 16) as u64;
+    let out = ctx.create_buffer("probe_out", bytes, BufferKind::Storage).expect("out");
+    ctx.bind(&mut k, BINDING_PARAMS, &u).expect("bind");
+    ctx.bind(&mut k, BINDING_SHADING, &sh).expect("bind");
+    ctx.bind(&mut k, BINDING_ACCEL_NODES, &inb).expect("bind");
+    ctx.bind(&mut k, BINDING_ACCEL_INDICES, &out).expect("bind");
+    let push: [u32; 8] = [mode, records as u32, 0, 0, 0, 0, 0, 0];
+    ctx.dispatch(&k, bytemuck::cast_slice(&push), [(records as u32).div_ceil(64), 1, 1], "sample probe")
+        .expect("dispatch");
+    ctx.check_validation().expect("no validation errors");
+    let back = ctx.read_storage(&out, 0, bytes).expect("read");
+    bytemuck::cast_slice::<u8, [f32; 4]>(&back).to_vec()
+}
+
+/// A small counter-based generator (splitmix64), seeded.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// The materials under test, in the shading rows of a scene (index 0 is the default).
+fn materials() -> (Vec<(&'static str, u32)>, Vec<[f32; 4]>) {
+    let mut b = SceneBuilder::new("materials");
+    let list = vec![
+        ("lambert", b.material(Material::lambert("lambert", Vec3::splat(0.8)))),
+        ("white lambert", b.material(Material::lambert("white", Vec3::ONE))),
+        (
+            "phong",
+            b.material(Material {
+                kind: MaterialKind::Phong,
+                specular: Vec3::splat(0.5),
+                shininess: 20.0,
+                ..Material::lambert("phong", Vec3::splat(0.4))
+            }),
+        ),
+        (
+            "sharp phong",
+            b.material(Material {
+                kind: MaterialKind::Phong,
+                specular: Vec3::splat(0.9),
+                shininess: 400.0,
+                ..Material::lambert("sharp", Vec3::splat(0.05))
+            }),
+        ),
+        ("mirror", b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("mirror", Vec3::ONE) })),
+        (
+            "glass",
+            b.material(Material { kind: MaterialKind::Glass, ior: 1.5, ..Material::lambert("glass", Vec3::ONE) }),
+        ),
+    ];
+    b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: 0 });
+    let scene = b.finish().expect("scene");
+    (list, GpuScene::new(&scene).shading)
+}
+
+fn dir(theta_deg: f32) -> Vec3 {
+    let t = theta_deg.to_radians();
+    Vec3::new(t.sin(), 0.0, t.cos())
+}
+
+fn fresnel(cos_i: f64, eta: f64) -> f64 {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
+#[test]
+fn bsdf_sampling_and_evaluation_agree() {
+    let Some(ctx) = common::gpu() else { return };
+    let (list, shading) = materials();
+    let params = arbor::accel::gpu_layout::GpuParams::default();
+    let n = 8192;
+    let mut rng = Rng(7);
+    for &(name, id) in &list {
+        for theta in [0.0f32, 30.0, 60.0, 85.0] {
+            let wo = dir(theta);
+            // Samples.
+            let mut input = Vec::with_capacity(2 * n);
+            for _ in 0..n {
+                input.push([wo.x, wo.y, wo.z, id as f32]);
+                input.push([rng.next(), rng.next(), rng.next(), 1.0]);
+            }
+            let out = probe(&ctx, 0, &input, &shading, &params, (0, 0));
+            let (mut mean_weight, mut reflected) = (0.0f64, 0.0f64);
+            for r in out.chunks_exact(3) {
+                let (wi, pdf, weight, epdf, flags) = (r[0], r[0][3], r[1], r[1][3], r[2][3] as u32);
+                let ok = flags & 1 != 0;
+                let delta = flags & 2 != 0;
+                if !ok {
+                    continue;
+                }
+                assert!(weight.iter().take(3).all(|w| w.is_finite() && *w >= 0.0), "{name}: weight {weight:?}");
+                if delta {
+                    if flags & 4 == 0 {
+                        reflected += 1.0;
+                        let want = 2.0 * wo.z * Vec3::Z - wo;
+                        assert!((Vec3::new(wi[0], wi[1], wi[2]) - want).length() < 1e-4, "{name}: mirror direction");
+                    }
+                    // Lossless: the weight times the radiance scale eta^2 of a
+                    // refraction is 1 (reflection: 1).
+                    let scale = if flags & 4 != 0 { 1.5f64 * 1.5 } else { 1.0 };
+                    mean_weight += f64::from(weight[0]) * scale;
+                    continue;
+                }
+                assert!(
+                    (pdf - epdf).abs() <= 1e-3 * pdf.max(epdf),
+                    "{name} at {theta} degrees: sampled pdf {pdf} but evaluation reports {epdf}"
+                );
+                mean_weight += f64::from(weight[0]);
+            }
+            mean_weight /= n as f64;
+            // The reflectance by quadrature of f cos over the hemisphere, and the
+            // integral of the pdf over the sphere.
+            let (steps_t, steps_p) = (256usize, 512usize);
+            let mut q = Vec::with_capacity(2 * steps_t * steps_p);
+            let mut weights = Vec::with_capacity(steps_t * steps_p);
+            for a in 0..steps_t {
+                let ct = (a as f64 + 0.5) / steps_t as f64; // cos theta, uniform in [0, 1)
+                let st = (1.0 - ct * ct).sqrt();
+                for b in 0..steps_p {
+                    let ph = 2.0 * std::f64::consts::PI * (b as f64 + 0.5) / steps_p as f64;
+                    q.push([wo.x, wo.y, wo.z, id as f32]);
+                    q.push([(st * ph.cos()) as f32, (st * ph.sin()) as f32, ct as f32, 0.0]);
+                    weights.push(ct);
+                }
+            }
+            let out = probe(&ctx, 1, &q, &shading, &params, (0, 0));
+            let cell = 2.0 * std::f64::consts::PI / (steps_t * steps_p) as f64; // d(cos) d(phi)
+            let (mut refl, mut pdf_int) = (0.0f64, 0.0f64);
+            for (r, &ct) in out.chunks_exact(3).zip(&weights) {
+                refl += f64::from(r[0][0]) * ct * cell;
+                pdf_int += f64::from(r[0][3]) * cell;
+            }
+            match name {
+                "mirror" => assert!((mean_weight - 1.0).abs() < 1e-6, "mirror reflectance {mean_weight}"),
+                "glass" => {
+                    assert!((mean_weight - 1.0).abs() < 1e-4, "lossless glass reflectance {mean_weight}");
+                    let f = fresnel(f64::from(wo.z), 1.5);
+                    let frac = reflected / n as f64;
+                    let sd = (f * (1.0 - f) / n as f64).sqrt();
+                    assert!((frac - f).abs() <= 5.0 * sd + 1e-3, "glass at {theta}: reflects {frac}, Fresnel {f}");
+                }
+                _ => {
+                    assert!(refl <= 1.0 + 1e-3, "{name} at {theta}: reflectance {refl} > 1");
+                    assert!(pdf_int <= 1.0 + 2e-3, "{name} at {theta}: pdf integrates to {pdf_int}");
+                    if name.contains("lambert") {
+                        assert!((pdf_int - 1.0).abs() < 2e-3, "{name}: pdf integrates to {pdf_int}");
+                    }
+                    // What sampling estimates is what evaluation integrates to.
+                    let tol = 0.02 + 0.02 * refl;
+                    assert!(
+                        (mean_weight - refl).abs() <= tol,
+                        "{name} at {theta}: mean sample weight {mean_weight} vs integrated reflectance {refl}"
+                    );
+                    if name == "white lambert" {
+                        assert!((refl - 1.0).abs() < 2e-3, "white Lambert reflectance {refl}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Glass seen from inside: total internal reflection beyond the critical angle.
+#[test]
+fn glass_reflects_totally_beyond_the_critical_angle() {
+    let Some(ctx) = common::gpu() else { return };
+    let (list, shading) = materials();
+    let id = list.iter().find(|(n, _)| *n == "glass").expect("glass").1;
+    let params = arbor::accel::gpu_layout::GpuParams::default();
+    let mut rng = Rng(3);
+    // Critical angle asin(1 / 1.5) = 41.8 degrees.
+    for (theta, total) in [(30.0f32, false), (50.0, true), (80.0, true)] {
+        let wo = dir(theta);
+        let mut input = Vec::new();
+        for _ in 0..512 {
+            input.push([wo.x, wo.y, wo.z, id as f32]);
+            input.push([rng.next(), rng.next(), rng.next(), 0.0]);
+        }
+        let out = probe(&ctx, 0, &input, &shading, &params, (0, 0));
+        let transmitted = out.chunks_exact(3).filter(|r| r[2][3] as u32 & 4 != 0).count();
+        if total {
+            assert_eq!(transmitted, 0, "{theta} degrees from inside must reflect totally");
+        } else {
+            assert!(transmitted > 400, "{theta} degrees from inside mostly transmits ({transmitted})");
+        }
+    }
+}
