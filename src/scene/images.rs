@@ -34,13 +34,18 @@ pub fn load_texture(path: &Path) -> Result<Texture> {
 /// linear RGB. `rotation` (degrees about +y) and `intensity` (a multiplier) are stored
 /// as given; both must be finite and `intensity` >= 0.
 pub fn load_environment(path: &Path, rotation: f32, intensity: f32) -> Result<Environment> {
-    if !rotation.is_finite() || !(intensity.is_finite() && intensity >= 0.0) {
+    if !(rotation.is_finite() && intensity.is_finite() && intensity >= 0.0) {
         return Err(Error::invalid(
             path,
             format!("environment rotation {rotation} and intensity {intensity}: both must be finite, intensity >= 0"),
         ));
     }
-    let image = decode(path, FileKind::Environment, &[ImageFormat::Hdr, ImageFormat::OpenExr], "Radiance .hdr or OpenEXR .exr")?;
+    let image = decode(
+        path,
+        FileKind::Environment,
+        &[ImageFormat::Hdr, ImageFormat::OpenExr],
+        "Radiance .hdr or OpenEXR .exr",
+    )?;
     let rgb = image.into_rgb32f();
     let (width, height) = rgb.dimensions();
     let mut texels = Vec::with_capacity(rgb.as_raw().len() / 3);

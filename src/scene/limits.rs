@@ -178,11 +178,15 @@ pub fn image_size_error(width: u32, height: u32, max_texels: u64) -> Option<Stri
         return Some(format!("the image is {width}x{height}; it has no texels"));
     }
     if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-        return Some(format!("the image is {width}x{height}; each side may be at most {MAX_IMAGE_SIDE} (docs/limits.md)"));
+        return Some(format!(
+            "the image is {width}x{height}; each side may be at most {MAX_IMAGE_SIDE} (docs/limits.md)"
+        ));
     }
     let texels = u64::from(width) * u64::from(height);
     if texels > max_texels {
-        return Some(format!("the image is {width}x{height} = {texels} texels; at most {max_texels} are supported (docs/limits.md)"));
+        return Some(format!(
+            "the image is {width}x{height} = {texels} texels; at most {max_texels} are supported (docs/limits.md)"
+        ));
     }
     None
 }

@@ -114,11 +114,9 @@ impl MeshData {
         }
         let textured = match material {
             Some(m) => m.texture.is_some().then_some(m),
-            None => self
-                .tri_material
-                .iter()
-                .filter_map(|&i| self.materials.get(i as usize))
-                .find(|m| m.texture.is_some()),
+            None => {
+                self.tri_material.iter().filter_map(|&i| self.materials.get(i as usize)).find(|m| m.texture.is_some())
+            }
         };
         textured.map(|m| {
             format!(

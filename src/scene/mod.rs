@@ -251,11 +251,7 @@ impl SceneBuilder {
                 return Err(err(format!("material {k} ('{}'): absorption must be finite and >= 0", m.name)));
             }
             if let Some(t) = m.texture.filter(|&t| t as usize >= s.textures.len()) {
-                return Err(err(format!(
-                    "material {k} ('{}') has texture index {t} of {}",
-                    m.name,
-                    s.textures.len()
-                )));
+                return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
             }
         }
         for (k, t) in s.textures.iter().enumerate() {

@@ -126,6 +126,9 @@ pub fn load(path: &Path) -> Result<MeshData> {
     Ok(mesh)
 }
 
+/// A texture coordinate transform, `uv * .0 + .1` (`map_Kd -s` and `-o`).
+type UvMap = (Vec2, Vec2);
+
 /// A `map_Kd` value: the texture file and the transform of texture coordinates its
 /// `-s` and `-o` options give (`uv * scale + offset`).
 #[derive(Debug, Clone, PartialEq)]
@@ -207,10 +210,8 @@ fn parse_map_kd(value: &str) -> std::result::Result<TextureRef, String> {
                     }
                 }
                 None => {
-                    return bad(
-                        "is not supported (supported: -s, -o, -blendu, -blendv, -boost, -texres, -bm, -cc, \
-                         -clamp off, -mm 0 1, -t 0 0 0)",
-                    )
+                    return bad("is not supported (supported: -s, -o, -blendu, -blendv, -boost, -texres, -bm, -cc, \
+                         -clamp off, -mm 0 1, -t 0 0 0)")
                 }
             },
         }
@@ -245,7 +246,7 @@ fn load_textures(
     tobj_materials: &[tobj::Material],
     origins: &[PathBuf],
     materials: &mut [Material],
-) -> Result<(Vec<Texture>, Vec<Option<(Vec2, Vec2)>>)> {
+) -> Result<(Vec<Texture>, Vec<Option<UvMap>>)> {
     let mut uv_maps = vec![None; tobj_materials.len()];
     let mut textures: Vec<Texture> = Vec::new();
     let mut by_path: HashMap<PathBuf, u32> = HashMap::new();
@@ -770,7 +771,7 @@ fn assemble(
     models: &[tobj::Model],
     mut materials: Vec<Material>,
     uses_materials: bool,
-    uv_maps: &[Option<(Vec2, Vec2)>],
+    uv_maps: &[Option<UvMap>],
 ) -> Result<MeshData> {
     let mut mesh = MeshData::default();
     let mut normals: Vec<Vec3> = Vec::new();

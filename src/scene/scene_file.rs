@@ -16,9 +16,9 @@ use glam::Vec3;
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::images::{load_environment, load_texture};
 use super::limits::{self, FileKind};
 use super::mesh::{Material, MaterialKind, MeshData};
-use super::images::{load_environment, load_texture};
 use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
 use crate::error::{Error, Result};
 
