@@ -27,6 +27,16 @@ pub const MAX_MATERIALS: u64 = 1 << 20;
 pub const MAX_SPHERES: u64 = 1 << 20;
 /// Most distinct MTL libraries one OBJ file may name (repeats of a name are read once).
 pub const MAX_MTLLIBS: usize = 64;
+/// Largest texture or environment image file read, in bytes: 1 GiB.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
+/// Longest side of a texture or environment image, in texels.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// Most texels one texture may have: 2^26 (256 MiB as RGBA8).
+pub const MAX_TEXTURE_TEXELS: u64 = 1 << 26;
+/// Most texels an environment map may have: 2^24 (192 MiB as RGB f32).
+pub const MAX_ENVIRONMENT_TEXELS: u64 = 1 << 24;
+/// Most bytes an image decoder may allocate at once (the decoded image included).
+pub const MAX_IMAGE_DECODE_BYTES: u64 = 1 << 30;
 
 /// What kind of file is being read, for its size limit and messages.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,6 +47,10 @@ pub enum FileKind {
     MaterialLibrary,
     /// A TOML scene file.
     SceneFile,
+    /// A texture image (PNG, JPEG).
+    Texture,
+    /// An environment map (Radiance HDR, OpenEXR).
+    Environment,
 }
 
 impl FileKind {
@@ -45,6 +59,7 @@ impl FileKind {
         match self {
             FileKind::Mesh => MAX_MESH_FILE_BYTES,
             FileKind::MaterialLibrary | FileKind::SceneFile => MAX_TEXT_FILE_BYTES,
+            FileKind::Texture | FileKind::Environment => MAX_IMAGE_FILE_BYTES,
         }
     }
 
@@ -53,6 +68,8 @@ impl FileKind {
             FileKind::Mesh => "mesh file",
             FileKind::MaterialLibrary => "material library",
             FileKind::SceneFile => "scene file",
+            FileKind::Texture => "texture",
+            FileKind::Environment => "environment map",
         }
     }
 }
@@ -152,6 +169,26 @@ pub fn read_file(path: &Path, kind: FileKind) -> Result<Vec<u8>> {
         return Err(too_big(path, kind, None));
     }
     Ok(bytes)
+}
+
+/// What is wrong with an image of `width` x `height` texels when it exceeds
+/// [`MAX_IMAGE_SIDE`] or `max_texels`, or is empty; None when it fits.
+pub fn image_size_error(width: u32, height: u32, max_texels: u64) -> Option<String> {
+    if width == 0 || height == 0 {
+        return Some(format!("the image is {width}x{height}; it has no texels"));
+    }
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        return Some(format!(
+            "the image is {width}x{height}; each side may be at most {MAX_IMAGE_SIDE} (docs/limits.md)"
+        ));
+    }
+    let texels = u64::from(width) * u64::from(height);
+    if texels > max_texels {
+        return Some(format!(
+            "the image is {width}x{height} = {texels} texels; at most {max_texels} are supported (docs/limits.md)"
+        ));
+    }
+    None
 }
 
 /// What is wrong when a scene's running totals exceed [`MAX_TRIANGLES`] or

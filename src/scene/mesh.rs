@@ -104,6 +104,29 @@ pub struct Environment {
     pub intensity: f32,
 }
 
+impl MeshData {
+    /// None when every material this mesh's triangles use (or `material`, an override
+    /// used for all of them) can be textured: it has no texture, or the mesh has UVs.
+    /// Otherwise what is wrong, naming the material.
+    pub fn texture_uv_error(&self, material: Option<&Material>) -> Option<String> {
+        if self.uvs.is_some() || self.triangles.is_empty() {
+            return None;
+        }
+        let textured = match material {
+            Some(m) => m.texture.is_some().then_some(m),
+            None => {
+                self.tri_material.iter().filter_map(|&i| self.materials.get(i as usize)).find(|m| m.texture.is_some())
+            }
+        };
+        textured.map(|m| {
+            format!(
+                "material '{}' has a texture but the mesh has no texture coordinates (every vertex needs one)",
+                m.name
+            )
+        })
+    }
+}
+
 /// Appends the fan `(i0, ik, ik+1)` of a polygon; polygons with < 3 vertices add nothing.
 pub(crate) fn push_fan(triangles: &mut Vec<[u32; 3]>, polygon: &[u32]) {
     if let Some((&first, rest)) = polygon.split_first() {

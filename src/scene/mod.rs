@@ -6,6 +6,7 @@
 
 pub mod builtin;
 pub mod camera;
+pub mod images;
 pub mod limits;
 pub mod mesh;
 pub mod obj;
@@ -16,9 +17,10 @@ pub mod scene_file;
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 pub use camera::{Camera, CameraBasis};
+pub use images::{load_environment, load_texture};
 pub use mesh::{Environment, Material, MaterialKind, MeshData, Texture};
 
 use crate::error::{Error, Result};
@@ -128,7 +130,14 @@ impl SceneBuilder {
     }
 
     /// Appends a mesh transformed by `scale` then `translate`. `material` overrides the
-    /// mesh's own materials; without either, triangles get the default material.
+    /// mesh's own materials (and its textures); without either, triangles get the
+    /// default material.
+    ///
+    /// Texture coordinates: `scene.uvs` stays empty until a mesh with UVs arrives, and
+    /// from then on holds one per position (`Vec2::ZERO` for vertices of meshes without
+    /// them, earlier ones included). The mesh's textures join `scene.textures` (one with
+    /// the same name as a texture already there is that texture) and its materials'
+    /// texture indices are remapped.
     pub fn mesh(&mut self, mesh: &MeshData, scale: f32, translate: Vec3, material: Option<u32>) {
         let s = &mut self.scene;
         let base = s.positions.len() as u32;
@@ -140,9 +149,33 @@ impl SceneBuilder {
             }
             _ => s.normals.extend(std::iter::repeat_n(Vec3::ZERO, mesh.positions.len())),
         }
+        match &mesh.uvs {
+            Some(uv) if uv.len() == mesh.positions.len() => {
+                s.uvs.resize(base as usize, Vec2::ZERO);
+                s.uvs.extend_from_slice(uv);
+            }
+            _ if !s.uvs.is_empty() => s.uvs.resize(s.positions.len(), Vec2::ZERO),
+            _ => {}
+        }
         let mat_base = s.materials.len() as u32;
         if material.is_none() {
-            s.materials.extend(mesh.materials.iter().cloned());
+            // Where each of the mesh's textures is in the scene.
+            let mut remap = Vec::with_capacity(mesh.textures.len());
+            for t in &mesh.textures {
+                let at = match s.textures.iter().position(|old| old.name == t.name) {
+                    Some(i) => i,
+                    None => {
+                        s.textures.push(t.clone());
+                        s.textures.len() - 1
+                    }
+                };
+                remap.push(at as u32);
+            }
+            s.materials.extend(mesh.materials.iter().map(|m| Material {
+                // An index past the mesh's textures stays past the scene's: finish() reports it.
+                texture: m.texture.map(|i| remap.get(i as usize).copied().unwrap_or(u32::MAX)),
+                ..m.clone()
+            }));
         }
         for (k, t) in mesh.triangles.iter().enumerate() {
             s.triangles.push(t.map(|i| i + base));
@@ -214,6 +247,50 @@ impl SceneBuilder {
             if !ok || m.ior <= 0.0 {
                 return Err(err(format!("material {k} ('{}') has a non-finite value or ior <= 0", m.name)));
             }
+            if !(m.absorption.is_finite() && m.absorption.min_element() >= 0.0) {
+                return Err(err(format!("material {k} ('{}'): absorption must be finite and >= 0", m.name)));
+            }
+            if let Some(t) = m.texture.filter(|&t| t as usize >= s.textures.len()) {
+                return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
+            }
+        }
+        for (k, t) in s.textures.iter().enumerate() {
+            let size = limits::image_size_error(t.width, t.height, limits::MAX_TEXTURE_TEXELS);
+            if let Some(msg) = size.or_else(|| {
+                (t.texels.len() as u64 != u64::from(t.width) * u64::from(t.height))
+                    .then(|| format!("{} texels for {}x{}", t.texels.len(), t.width, t.height))
+            }) {
+                return Err(err(format!("texture {k} ('{}'): {msg}", t.name)));
+            }
+        }
+        if !s.uvs.is_empty() && s.uvs.len() != s.positions.len() {
+            return Err(err(format!(
+                "{} texture coordinates for {} vertices: there must be none or one per vertex",
+                s.uvs.len(),
+                s.positions.len()
+            )));
+        }
+        for uv in &mut s.uvs {
+            if !uv.is_finite() {
+                *uv = Vec2::ZERO;
+            }
+        }
+        if let Some(env) = &s.environment {
+            let size = limits::image_size_error(env.width, env.height, limits::MAX_ENVIRONMENT_TEXELS);
+            let bad = size.or_else(|| {
+                if env.texels.len() as u64 != u64::from(env.width) * u64::from(env.height) {
+                    Some(format!("{} texels for {}x{}", env.texels.len(), env.width, env.height))
+                } else if !env.texels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0) {
+                    Some("every texel must be finite and >= 0".into())
+                } else if !(env.rotation.is_finite() && env.intensity.is_finite() && env.intensity >= 0.0) {
+                    Some("rotation and intensity must be finite, intensity >= 0".into())
+                } else {
+                    None
+                }
+            });
+            if let Some(msg) = bad {
+                return Err(err(format!("environment '{}': {msg}", env.name)));
+            }
         }
         for (k, l) in s.lights.iter_mut().enumerate() {
             match l {
@@ -276,6 +353,9 @@ impl Scene {
     /// the box centre looking down -z, vfov 45°, the bounding sphere fitting the
     /// image height) and one directional light.
     pub fn from_mesh(name: &str, mesh: &MeshData) -> Result<Scene> {
+        if let Some(msg) = mesh.texture_uv_error(None) {
+            return Err(Error::scene(name, msg));
+        }
         let mut b = SceneBuilder::new(name);
         b.mesh(mesh, 1.0, Vec3::ZERO, None);
         let mut bounds = Aabb::EMPTY;

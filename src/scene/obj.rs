@@ -44,18 +44,32 @@
 //!
 //! Per-vertex normals are returned only when every vertex of every model has one, all
 //! non-zero and finite; they are normalised. Otherwise `normals` is `None`.
+//!
+//! # Texture coordinates and textures
+//!
+//! `uvs` is returned only when every vertex of every model has a `vt` (v = 0 at the bottom
+//! of the image). `map_Kd` gives a material a texture ([`images::load_texture`]); only
+//! materials some face uses are looked at. The file is found relative to the MTL file's
+//! folder, else the OBJ file's, also trying `\` as a folder separator; each file is read
+//! once. Options before the file name: `-s u [v [w]]` and `-o u [v [w]]` transform the
+//! coordinates of the faces using that material (`uv * s + o`; `w` ignored); `-blendu`,
+//! `-blendv`, `-boost`, `-texres`, `-bm`, `-cc` are ignored; `-clamp off`, `-mm 0 1` and
+//! `-t 0 0 0` (the defaults) are accepted; any other option is an error naming the MTL
+//! file, the material and the option. A texture that cannot be read or decoded is an
+//! error naming the texture file, the material and the MTL file.
 
 use std::cell::RefCell;
-use std::collections::HashSet;
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fmt::Write as _;
 use std::io::{BufRead, Read};
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::error::{Error, Result};
+use crate::scene::images;
 use crate::scene::limits::{self, FileKind};
-use crate::scene::mesh::{Material, MaterialKind, MeshData};
+use crate::scene::mesh::{Material, MaterialKind, MeshData, Texture};
 
 /// Name and albedo of the material given to faces without a (loadable) material.
 pub const DEFAULT_MATERIAL_NAME: &str = "default";
@@ -88,7 +102,8 @@ pub fn load(path: &Path) -> Result<MeshData> {
     let parsed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut reader, &options, |mtl| libraries.borrow_mut().load(&dir.join(mtl)))
     }));
-    if let Some(e) = libraries.into_inner().error {
+    let libraries = libraries.into_inner();
+    if let Some(e) = libraries.error {
         return Err(e);
     }
     let (models, materials) = match parsed {
@@ -102,9 +117,164 @@ pub fn load(path: &Path) -> Result<MeshData> {
         }
     };
     // A failed MTL only loses its materials; faces using them fall back to the default.
-    let materials: Vec<Material> = materials.unwrap_or_default().iter().map(convert_material).collect();
+    let tobj_materials = materials.unwrap_or_default();
+    let mut materials: Vec<Material> = tobj_materials.iter().map(convert_material).collect();
     let uses_materials = pre.mentions_materials || !materials.is_empty();
-    assemble(path, &models, materials, uses_materials)
+    let (textures, uv_maps) = load_textures(path, &dir, &models, &tobj_materials, &libraries.origins, &mut materials)?;
+    let mut mesh = assemble(path, &models, materials, uses_materials, &uv_maps)?;
+    mesh.textures = textures;
+    Ok(mesh)
+}
+
+/// A texture coordinate transform, `uv * .0 + .1` (`map_Kd -s` and `-o`).
+type UvMap = (Vec2, Vec2);
+
+/// A `map_Kd` value: the texture file and the transform of texture coordinates its
+/// `-s` and `-o` options give (`uv * scale + offset`).
+#[derive(Debug, Clone, PartialEq)]
+struct TextureRef {
+    file: String,
+    scale: Vec2,
+    offset: Vec2,
+}
+
+/// `map_Kd` options accepted without effect (the renderer samples one bilinear texel
+/// set, repeating) and how many values each takes.
+const IGNORED_MAP_OPTIONS: [(&str, usize); 6] =
+    [("-blendu", 1), ("-blendv", 1), ("-boost", 1), ("-texres", 1), ("-bm", 1), ("-cc", 1)];
+
+/// Parses a `map_Kd` value: options, then the file name (the rest of the line, spaces
+/// included). `-s u [v [w]]` and `-o u [v [w]]` transform texture coordinates (w is
+/// ignored); `-clamp off`, `-mm 0 1` and `-t 0 0 0` are the defaults; the options in
+/// [`IGNORED_MAP_OPTIONS`] are ignored; any other option is an error naming it.
+fn parse_map_kd(value: &str) -> std::result::Result<TextureRef, String> {
+    let mut rest = value.trim();
+    let mut tex = TextureRef { file: String::new(), scale: Vec2::ONE, offset: Vec2::ZERO };
+    // Splits off the first word of `rest`.
+    let word = |rest: &mut &str| -> Option<String> {
+        let r = rest.trim_start();
+        let end = r.find(char::is_whitespace).unwrap_or(r.len());
+        let (w, tail) = r.split_at(end);
+        *rest = tail.trim_start();
+        (!w.is_empty()).then(|| w.to_string())
+    };
+    // Up to `max` numbers following an option.
+    let numbers = |rest: &mut &str, max: usize| -> Vec<f32> {
+        let mut out = Vec::new();
+        while out.len() < max {
+            let r = rest.trim_start();
+            let end = r.find(char::is_whitespace).unwrap_or(r.len());
+            match r.get(..end).and_then(|w| w.parse::<f32>().ok()) {
+                Some(v) if end < r.len() => {
+                    out.push(v);
+                    *rest = r.get(end..).unwrap_or_default().trim_start();
+                }
+                _ => break, // the last word is the file name, even when it looks like a number
+            }
+        }
+        out
+    };
+    while rest.starts_with('-') {
+        let option = word(&mut rest).unwrap_or_default();
+        let bad = |why: &str| Err(format!("map_Kd option '{option}' {why}"));
+        match option.as_str() {
+            "-s" | "-o" | "-t" => {
+                let v = numbers(&mut rest, 3);
+                let Some(&u) = v.first() else { return bad("needs 1 to 3 numbers") };
+                if !v.iter().all(|x| x.is_finite()) {
+                    return bad("needs finite numbers");
+                }
+                let uv = Vec2::new(u, v.get(1).copied().unwrap_or(if option == "-s" { 1.0 } else { 0.0 }));
+                match option.as_str() {
+                    "-s" => tex.scale = uv,
+                    "-o" => tex.offset = uv,
+                    _ if v.iter().all(|x| *x == 0.0) => {}
+                    _ => return bad("(turbulence) is not supported; only -t 0 0 0"),
+                }
+            }
+            "-mm" => {
+                if numbers(&mut rest, 2) != [0.0, 1.0] {
+                    return bad("(value range) is not supported; only -mm 0 1");
+                }
+            }
+            "-clamp" => match word(&mut rest).as_deref() {
+                Some("off") => {}
+                _ => return bad("is not supported except as '-clamp off': textures repeat"),
+            },
+            _ => match IGNORED_MAP_OPTIONS.iter().find(|(name, _)| *name == option) {
+                Some(&(_, n)) => {
+                    for _ in 0..n {
+                        if word(&mut rest).is_none() {
+                            return bad("needs a value");
+                        }
+                    }
+                }
+                None => {
+                    return bad("is not supported (supported: -s, -o, -blendu, -blendv, -boost, -texres, -bm, -cc, \
+                         -clamp off, -mm 0 1, -t 0 0 0)")
+                }
+            },
+        }
+    }
+    if rest.is_empty() {
+        return Err("map_Kd names no file".into());
+    }
+    tex.file = rest.to_string();
+    Ok(tex)
+}
+
+/// Where a `map_Kd` file is: relative to the MTL file's folder, else to the OBJ file's
+/// folder, trying `\` as a folder separator too; the first candidate that exists, or the
+/// first one (for its "not found" message).
+fn resolve_texture(file: &str, mtl_dir: &Path, obj_dir: &Path) -> PathBuf {
+    let mut candidates = vec![mtl_dir.join(file), obj_dir.join(file)];
+    if std::path::MAIN_SEPARATOR == '/' && file.contains('\\') {
+        let slashed = file.replace('\\', "/");
+        candidates.push(mtl_dir.join(&slashed));
+        candidates.push(obj_dir.join(&slashed));
+    }
+    candidates.iter().find(|c| c.exists()).unwrap_or(&candidates[0]).clone()
+}
+
+/// Loads the `map_Kd` textures of the materials the models use (each file once), sets
+/// those materials' `texture`, and returns the textures and, per material, the texture
+/// coordinate transform (`scale`, `offset`) of its `map_Kd` options.
+fn load_textures(
+    path: &Path,
+    obj_dir: &Path,
+    models: &[tobj::Model],
+    tobj_materials: &[tobj::Material],
+    origins: &[PathBuf],
+    materials: &mut [Material],
+) -> Result<(Vec<Texture>, Vec<Option<UvMap>>)> {
+    let mut uv_maps = vec![None; tobj_materials.len()];
+    let mut textures: Vec<Texture> = Vec::new();
+    let mut by_path: HashMap<PathBuf, u32> = HashMap::new();
+    let used: BTreeSet<usize> =
+        models.iter().filter(|m| !m.mesh.indices.is_empty()).filter_map(|m| m.mesh.material_id).collect();
+    for id in used {
+        let (Some(tm), Some(material)) = (tobj_materials.get(id), materials.get_mut(id)) else { continue };
+        let Some(value) = &tm.diffuse_texture else { continue };
+        let mtl = origins.get(id).map_or(path, PathBuf::as_path);
+        let tex = parse_map_kd(value).map_err(|msg| Error::invalid(mtl, format!("material '{}': {msg}", tm.name)))?;
+        let mtl_dir = mtl.parent().unwrap_or(obj_dir);
+        let file = resolve_texture(&tex.file, mtl_dir, obj_dir);
+        let index = match by_path.get(&file) {
+            Some(&i) => i,
+            None => {
+                let context = format!("texture of material '{}' (map_Kd in {})", tm.name, mtl.display());
+                textures.push(images::load_texture(&file).map_err(|e| images::with_context(e, &context))?);
+                let i = textures.len() as u32 - 1;
+                by_path.insert(file, i);
+                i
+            }
+        };
+        material.texture = Some(index);
+        if let Some(slot) = uv_maps.get_mut(id) {
+            *slot = Some((tex.scale, tex.offset));
+        }
+    }
+    Ok((textures, uv_maps))
 }
 
 /// The MTL libraries an OBJ file names, as tobj asks for them: each distinct path is
@@ -114,6 +284,9 @@ pub fn load(path: &Path) -> Result<MeshData> {
 struct Libraries {
     seen: HashSet<PathBuf>,
     materials: u64,
+    /// The library each material came from, in tobj's order (it appends each library's
+    /// materials as it reads them).
+    origins: Vec<PathBuf>,
     error: Option<Error>,
 }
 
@@ -152,7 +325,11 @@ impl Libraries {
             ));
             return Err(tobj::LoadError::OpenFileFailed);
         }
-        parse_mtl(&text)
+        let parsed = parse_mtl(&text);
+        if let Ok((mats, _)) = &parsed {
+            self.origins.extend(std::iter::repeat_n(path.to_path_buf(), mats.len()));
+        }
+        parsed
     }
 }
 
@@ -520,7 +697,8 @@ fn parse_mtl(text: &str) -> tobj::MTLLoadResult {
                     _ => fixed.push_str(line),
                 }
             }
-            _ => fixed.push_str(line),
+            // tobj takes a name or file as the line from a fixed offset: no indentation.
+            _ => fixed.push_str(line.trim_start()),
         }
         fixed.push('\n');
     }
@@ -593,10 +771,13 @@ fn assemble(
     models: &[tobj::Model],
     mut materials: Vec<Material>,
     uses_materials: bool,
+    uv_maps: &[Option<UvMap>],
 ) -> Result<MeshData> {
     let mut mesh = MeshData::default();
     let mut normals: Vec<Vec3> = Vec::new();
     let mut all_have_normals = true;
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut all_have_uvs = true;
     let mut default_index = None;
 
     for model in models {
@@ -614,6 +795,17 @@ fn assemble(
             }));
         } else if count > 0 {
             all_have_normals = false;
+        }
+        // tobj gives a model texture coordinates only for the vertices that have one.
+        if m.texcoords.len() == 2 * count {
+            let (scale, offset) =
+                m.material_id.and_then(|id| uv_maps.get(id).copied().flatten()).unwrap_or((Vec2::ONE, Vec2::ZERO));
+            uvs.extend(m.texcoords.chunks_exact(2).filter_map(|c| match *c {
+                [u, v] => Some(Vec2::new(u, v) * scale + offset),
+                _ => None,
+            }));
+        } else {
+            all_have_uvs = false;
         }
 
         let material = if uses_materials {
@@ -660,6 +852,9 @@ fn assemble(
                 (len.is_finite() && len > 0.0).then(|| n / len)
             })
             .collect();
+    }
+    if all_have_uvs && !mesh.positions.is_empty() && uvs.len() == mesh.positions.len() {
+        mesh.uvs = Some(uvs);
     }
     if uses_materials {
         mesh.materials = materials;

@@ -21,8 +21,10 @@
 //!
 //! # What is read
 //!
-//! * Element `vertex`: `x`, `y`, `z` (required, any numeric type) and `nx`, `ny`, `nz`
-//!   (normals, used only when all three are present).
+//! * Element `vertex`: `x`, `y`, `z` (required, any numeric type), `nx`, `ny`, `nz`
+//!   (normals, used only when all three are present) and texture coordinates: the first
+//!   pair present of `u`/`v`, `s`/`t`, `texture_u`/`texture_v`, `texture_s`/`texture_t`
+//!   (any numeric type; v = 0 at the bottom of the image, as in OBJ).
 //! * Element `face`: the list property `vertex_indices` (or `vertex_index`), any count and
 //!   index types. Polygons are triangulated as fans `(i0, ik, ik+1)`; faces with fewer than
 //!   three vertices are skipped.
@@ -40,7 +42,7 @@
 use std::borrow::Cow;
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::error::{Error, Result};
 use crate::scene::limits::{self, FileKind};
@@ -446,8 +448,12 @@ fn decode_binary(raw: &[u8], ty: Scalar, big_endian: bool) -> Option<f64> {
 enum VertexSlot {
     Coord(usize),
     Normal(usize),
+    Uv(usize),
     Ignore,
 }
+
+/// Names of the texture coordinate pair on the vertex element, tried in this order.
+const UV_NAMES: [[&str; 2]; 4] = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"], ["texture_s", "texture_t"]];
 
 fn find_scalar(path: &Path, el: &Element, name: &str) -> Result<Option<usize>> {
     match el.props.iter().position(|p| p.name == name) {
@@ -492,6 +498,8 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut mesh = MeshData::default();
     let mut normals: Vec<Vec3> = Vec::new();
     let mut has_normals = false;
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut has_uvs = false;
 
     for el in &header.elements {
         if el.count == 0 {
@@ -534,6 +542,18 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 }
                 normals.reserve(cap);
             }
+            for [un, vn] in UV_NAMES {
+                if let (Some(a), Some(b)) = (find_scalar(path, el, un)?, find_scalar(path, el, vn)?) {
+                    has_uvs = true;
+                    for (k, i) in [a, b].into_iter().enumerate() {
+                        if let Some(s) = slots.get_mut(i) {
+                            *s = VertexSlot::Uv(k);
+                        }
+                    }
+                    uvs.reserve(cap);
+                    break;
+                }
+            }
             mesh.positions.reserve(cap);
         } else if is_face {
             let i = el.props.iter().position(|p| p.name == "vertex_indices" || p.name == "vertex_index").ok_or_else(
@@ -563,6 +583,7 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
             let record_start = body.location();
             let mut coord = [0f64; 3];
             let mut normal = [0f64; 3];
+            let mut uv = [0f64; 2];
             for (pi, prop) in el.props.iter().enumerate() {
                 match prop.kind {
                     PropKind::Scalar(ty) => {
@@ -575,6 +596,11 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                             }
                             Some(VertexSlot::Normal(k)) => {
                                 if let Some(c) = normal.get_mut(*k) {
+                                    *c = v;
+                                }
+                            }
+                            Some(VertexSlot::Uv(k)) => {
+                                if let Some(c) = uv.get_mut(*k) {
                                     *c = v;
                                 }
                             }
@@ -629,6 +655,9 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 if has_normals {
                     normals.push(Vec3::new(normal[0] as f32, normal[1] as f32, normal[2] as f32));
                 }
+                if has_uvs {
+                    uvs.push(Vec2::new(uv[0] as f32, uv[1] as f32));
+                }
             } else if face_list.is_some() {
                 push_fan(&mut mesh.triangles, &indices);
                 if mesh.triangles.len() as u64 > limits::MAX_TRIANGLES {
@@ -647,6 +676,9 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
 
     if has_normals {
         mesh.normals = normalize_all(normals);
+    }
+    if has_uvs && uvs.len() == mesh.positions.len() {
+        mesh.uvs = Some(uvs);
     }
     Ok(mesh)
 }

@@ -5,6 +5,8 @@
 //! distinct mesh file is loaded once however many `[[mesh]]` tables name it, and the
 //! scene's total triangles and vertices (every table counted) are checked against
 //! [`limits::MAX_TRIANGLES`] / [`limits::MAX_VERTICES`] before the scene is assembled.
+//! Texture and environment images go through [`super::images`] (size and texel caps);
+//! each texture file is read once however many materials name it.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -14,6 +16,7 @@ use glam::Vec3;
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::images::{load_environment, load_texture};
 use super::limits::{self, FileKind};
 use super::mesh::{Material, MaterialKind, MeshData};
 use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
@@ -33,6 +36,17 @@ struct SceneFile {
     material: Vec<Spanned<MaterialDef>>,
     #[serde(default)]
     light: Vec<Spanned<LightDef>>,
+    environment: Option<Spanned<EnvironmentDef>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentDef {
+    file: String,
+    #[serde(default)]
+    rotation: f32,
+    #[serde(default = "one")]
+    intensity: f32,
 }
 
 #[derive(Deserialize)]
@@ -100,6 +114,10 @@ struct MaterialDef {
     shininess: Option<f32>,
     ior: Option<f32>,
     emission: Option<[f32; 3]>,
+    #[serde(default)]
+    two_sided: bool,
+    absorption: Option<[f32; 3]>,
+    texture: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -153,6 +171,8 @@ pub fn load(path: &Path) -> Result<Scene> {
 
     // Name -> index; SceneBuilder::find_material is a linear search.
     let mut names: HashMap<String, u32> = HashMap::new();
+    // Texture file -> index into the scene's textures: each file is read once.
+    let mut textures: HashMap<PathBuf, u32> = HashMap::new();
     for m in &file.material {
         let d = m.get_ref();
         if names.contains_key(&d.name) {
@@ -178,6 +198,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             } else {
                 Vec3::ZERO
             }),
+            two_sided: d.two_sided,
+            absorption: d.absorption.map(v3).unwrap_or(Vec3::ZERO),
             ..base
         };
         let bad = !(mat.color.is_finite()
@@ -187,6 +209,28 @@ pub fn load(path: &Path) -> Result<Scene> {
             && mat.ior.is_finite());
         if bad || mat.ior <= 0.0 {
             return Err(at(m.span(), format!("material '{}' has a non-finite value or ior <= 0", d.name)));
+        }
+        if !(mat.absorption.is_finite() && mat.absorption.min_element() >= 0.0) {
+            return Err(at(
+                m.span(),
+                format!("material '{}': absorption must be three finite numbers >= 0 (per unit length)", d.name),
+            ));
+        }
+        let mut mat = mat;
+        if let Some(t) = &d.texture {
+            let tex_path = dir.join(t);
+            let index = match textures.get(&tex_path) {
+                Some(&i) => i,
+                None => {
+                    let tex = load_texture(&tex_path)
+                        .map_err(|e| at(m.span(), format!("material '{}': texture: {e}", d.name)))?;
+                    b.scene.textures.push(tex);
+                    let i = b.scene.textures.len() as u32 - 1;
+                    textures.insert(tex_path, i);
+                    i
+                }
+            };
+            mat.texture = Some(index);
         }
         let index = b.material(mat);
         names.insert(d.name.clone(), index);
@@ -226,6 +270,9 @@ pub fn load(path: &Path) -> Result<Scene> {
                 mesh
             }
         };
+        if let Some(msg) = mesh.texture_uv_error(mat.and_then(|i| b.scene.materials.get(i as usize))) {
+            return Err(at(m.span(), format!("mesh file '{}': {msg}", d.file)));
+        }
         triangles += mesh.triangles.len() as u64;
         vertices += mesh.positions.len() as u64;
         if mat.is_none() {
@@ -305,6 +352,12 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
         b.scene.lights.push(light);
     }
+    if let Some(se) = &file.environment {
+        let e = se.get_ref();
+        let env = load_environment(&dir.join(&e.file), e.rotation, e.intensity)
+            .map_err(|err| at(se.span(), format!("[environment]: {err}")))?;
+        b.scene.environment = Some(env);
+    }
     if let Some(sf) = &file.film {
         let f = sf.get_ref();
         let max = super::MAX_FILM_SIDE;
@@ -354,7 +407,11 @@ pub fn load(path: &Path) -> Result<Scene> {
             }
         }
     }
-    if b.scene.lights.is_empty() && file.light.is_empty() && !b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO)
+    // An environment map lights the scene too: no default light then.
+    if b.scene.lights.is_empty()
+        && file.light.is_empty()
+        && b.scene.environment.is_none()
+        && !b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO)
     {
         b.scene.lights.push(super::default_light());
     }
