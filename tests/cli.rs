@@ -44,7 +44,8 @@ fn render_reports_every_time_and_stats_carry_provenance() {
 }
 
 /// An emissive material as the only light renders black with Whitted: a warning says so
-/// (even with --quiet); a scene with a point or directional light gets none.
+/// (even with --quiet); a scene with a point or directional light, or the path
+/// integrator, gets none.
 #[test]
 fn emissive_only_scene_warns() {
     let Some(_ctx) = common::gpu() else { return };
@@ -54,13 +55,15 @@ fn emissive_only_scene_warns() {
     std::fs::write(&scene, body).expect("write scene");
     let png = dir.path().join("g.png").display().to_string();
     let s = scene.display().to_string();
-    let out = ok(&["render", &s, "--size", "8x8", "-o", &png, "--quiet"]);
+    let out = ok(&["render", &s, "--size", "8x8", "-o", &png, "--quiet", "--integrator", "whitted"]);
     let err = String::from_utf8_lossy(&out.stderr);
     let want = format!("arbor: warning: {s}: emissive materials do not light other surfaces");
     assert!(err.contains(&want), "{err}");
     let lit = format!("{body}\n[[light]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [1, 1, 1]\n");
+    let out = ok(&["render", &s, "--size", "8x8", "-o", &png, "--quiet", "--integrator", "path"]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
     std::fs::write(&scene, lit).expect("write scene");
-    let out = ok(&["render", &s, "--size", "8x8", "-o", &png, "--quiet"]);
+    let out = ok(&["render", &s, "--size", "8x8", "-o", &png, "--quiet", "--integrator", "whitted"]);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
 }
 
