@@ -28,6 +28,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "trace_ms_spread",
     "rays_traced",
     "mrays_per_s",
+    "msamples_per_s",
     "speedup",
     "bytes",
     "sah_cost",

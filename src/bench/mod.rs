@@ -62,7 +62,13 @@ pub enum RayKind {
     Primary,
     Shadow,
     Diffuse,
+    /// Path tracing ([`crate::render::Integrator::Path`]) at [`PATH_SPP`] samples per
+    /// pixel: camera, bounce and shadow rays together.
+    Path,
 }
+
+/// Samples per pixel of the benchmark's path-traced rows.
+pub const PATH_SPP: u32 = 4;
 
 impl RayKind {
     pub fn name(self) -> &'static str {
@@ -70,6 +76,7 @@ impl RayKind {
             RayKind::Primary => "primary",
             RayKind::Shadow => "shadow",
             RayKind::Diffuse => "diffuse",
+            RayKind::Path => "path",
         }
     }
 }

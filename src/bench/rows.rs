@@ -104,6 +104,8 @@ pub(super) struct Row {
     pub trace_ms_spread: f64,
     pub rays_traced: u64,
     pub mrays_per_s: f64,
+    /// Path-traced rows: million pixel samples per second (median trace time).
+    pub msamples_per_s: Option<f64>,
     pub speedup: Option<f64>,
     pub bytes: u64,
     pub sah_cost: f64,
@@ -156,6 +158,7 @@ impl Row {
             trace_ms_spread: 0.0,
             rays_traced: 0,
             mrays_per_s: 0.0,
+            msamples_per_s: None,
             speedup: None,
             bytes: 0,
             sah_cost: 0.0,
@@ -186,6 +189,9 @@ impl Row {
         self.trace_ms_spread = spread(&c.trace_ms);
         self.rays_traced = st.rays;
         self.mrays_per_s = rate;
+        if st.integrator == "path" && self.trace_ms > 0.0 {
+            self.msamples_per_s = Some((pixels * u64::from(st.spp)) as f64 / (self.trace_ms * 1e3));
+        }
         self.speedup = brute_rate.map(|b| rate / b);
         self.bytes = st.build.bytes;
         self.sah_cost = st.build.sah_cost;

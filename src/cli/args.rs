@@ -128,8 +128,9 @@ pub(crate) struct BenchArgs {
     pub(crate) intersect: Vec<arbor::math::intersect::IntersectMode>,
     /// Ray kinds, one set of rows each: primary (camera rays), shadow (camera rays plus
     /// a shadow ray toward each light from every hit), diffuse (camera rays plus one
-    /// cosine-distributed ray from every hit, seeded: incoherent). Mrays/s counts all.
-    /// Default: primary (primary,diffuse with --quick).
+    /// cosine-distributed ray from every hit, seeded: incoherent), path (path tracing at
+    /// 4 samples per pixel; its rows add million pixel samples per second). Mrays/s
+    /// counts all. Default: primary (primary,diffuse with --quick).
     #[arg(long, value_delimiter = ',', value_name = "KIND,...")]
     pub(crate) rays: Vec<RayKind>,
     /// Same as --rays shadow (kept for older command lines).
