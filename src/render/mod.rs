@@ -4,8 +4,10 @@
 #![forbid(unsafe_code)]
 
 pub mod cpu;
+pub mod compare;
 pub mod cracks;
 pub mod dispatch;
+pub mod envdist;
 pub mod gpu;
 pub mod kernel;
 pub mod memory;

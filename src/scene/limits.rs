@@ -15,6 +15,8 @@ use crate::error::{Error, Result};
 pub const MAX_MESH_FILE_BYTES: u64 = 2 << 30;
 /// Largest TOML scene file or MTL material library read, in bytes: 16 MiB.
 pub const MAX_TEXT_FILE_BYTES: u64 = 16 << 20;
+/// Largest image read (`arbor compare`: EXR, PFM, PNG, HDR, JPEG), in bytes: 1 GiB.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 /// Most triangles a scene (all its meshes together) may have: 2^25 (33.5 million).
 /// `arbor info` peaks at about 300 bytes of host memory per triangle (scene, structure
 /// build, GPU images), so this is about 10 GB.
@@ -37,6 +39,8 @@ pub enum FileKind {
     MaterialLibrary,
     /// A TOML scene file.
     SceneFile,
+    /// An image (EXR, PFM, PNG, HDR, JPEG).
+    Image,
 }
 
 impl FileKind {
@@ -45,6 +49,7 @@ impl FileKind {
         match self {
             FileKind::Mesh => MAX_MESH_FILE_BYTES,
             FileKind::MaterialLibrary | FileKind::SceneFile => MAX_TEXT_FILE_BYTES,
+            FileKind::Image => MAX_IMAGE_FILE_BYTES,
         }
     }
 
@@ -53,6 +58,7 @@ impl FileKind {
             FileKind::Mesh => "mesh file",
             FileKind::MaterialLibrary => "material library",
             FileKind::SceneFile => "scene file",
+            FileKind::Image => "image",
         }
     }
 }
