@@ -379,10 +379,7 @@ fn compare(a: &CompareArgs) -> Result<()> {
     let text = if a.json {
         format!("{}\n", st.to_json(w, h))
     } else {
-        format!(
-            "mse      {}\nrel_mse  {}\npsnr     {} dB\nmax_abs  {}\n",
-            st.mse, st.rel_mse, st.psnr, st.max_abs
-        )
+        format!("mse      {}\nrel_mse  {}\npsnr     {} dB\nmax_abs  {}\n", st.mse, st.rel_mse, st.psnr, st.max_abs)
     };
     Ok(print_out(&text)?)
 }

@@ -74,13 +74,8 @@ pub fn compare(test: &[[f32; 3]], reference: &[[f32; 3]]) -> ErrorStats {
 }
 
 /// The false-colour stops of [`error_image`]: (log10 of the relative error, sRGB colour).
-pub const COLORMAP: [(f32, [u8; 3]); 5] = [
-    (-4.0, [0, 0, 0]),
-    (-3.0, [32, 64, 255]),
-    (-2.0, [0, 200, 64]),
-    (-1.0, [255, 230, 0]),
-    (0.0, [255, 0, 0]),
-];
+pub const COLORMAP: [(f32, [u8; 3]); 5] =
+    [(-4.0, [0, 0, 0]), (-3.0, [32, 64, 255]), (-2.0, [0, 200, 64]), (-1.0, [255, 230, 0]), (0.0, [255, 0, 0])];
 
 /// The colour of a relative error: black at or below 1e-4, then blue (1e-3), green
 /// (1e-2), yellow (0.1), red at or above 1, interpolated linearly in log10 between stops.
@@ -97,7 +92,9 @@ pub fn error_color(rel: f64) -> [u8; 3] {
         let ((l0, c0), (l1, c1)) = (pair[0], pair[1]);
         if l <= l1 {
             let t = (l - l0) / (l1 - l0);
-            return std::array::from_fn(|k| (f32::from(c0[k]) + t * (f32::from(c1[k]) - f32::from(c0[k]))).round() as u8);
+            return std::array::from_fn(|k| {
+                (f32::from(c0[k]) + t * (f32::from(c1[k]) - f32::from(c0[k]))).round() as u8
+            });
         }
     }
     last.1
@@ -144,9 +141,7 @@ pub fn read_linear(path: &Path) -> Result<(u32, u32, Vec<[f32; 3]>)> {
         "png" => Some(image::ImageFormat::Png),
         "jpg" | "jpeg" => Some(image::ImageFormat::Jpeg),
         "pfm" => None,
-        _ => {
-            return Err(Error::invalid(path, "unknown image format; expected .exr, .pfm, .png, .hdr, .jpg or .jpeg"))
-        }
+        _ => return Err(Error::invalid(path, "unknown image format; expected .exr, .pfm, .png, .hdr, .jpg or .jpeg")),
     };
     let bytes = limits::read_file(path, FileKind::Image)?;
     let (w, h, pixels) = match format {
@@ -169,10 +164,7 @@ fn decode_image(path: &Path, bytes: &[u8], format: image::ImageFormat) -> Result
     let linear = matches!(img, image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_));
     let (w, h) = (img.width(), img.height());
     let rgb = img.into_rgb32f();
-    let pixels = rgb
-        .pixels()
-        .map(|p| if linear { p.0 } else { p.0.map(srgb_to_linear) })
-        .collect();
+    let pixels = rgb.pixels().map(|p| if linear { p.0 } else { p.0.map(srgb_to_linear) }).collect();
     Ok((w, h, pixels))
 }
 
@@ -257,7 +249,10 @@ pub fn read_pair(test: &Path, reference: &Path) -> Result<(u32, u32, Vec<[f32; 3
     if (w, h) != (rw, rh) {
         return Err(Error::invalid(
             test,
-            format!("is {w}x{h} but the reference {} is {rw}x{rh}; images must have the same size", reference.display()),
+            format!(
+                "is {w}x{h} but the reference {} is {rw}x{rh}; images must have the same size",
+                reference.display()
+            ),
         ));
     }
     Ok((w, h, a, b))

@@ -3,8 +3,8 @@
 
 #![forbid(unsafe_code)]
 
-pub mod cpu;
 pub mod compare;
+pub mod cpu;
 pub mod cracks;
 pub mod dispatch;
 pub mod envdist;
