@@ -1,4 +1,4 @@
-//! The `arbor` command line: render, info, devices, bench.
+//! The `arbor` command line: render, info, devices, bench, compare.
 
 use std::io::Write;
 use std::time::Instant;
@@ -22,7 +22,7 @@ mod progress;
 #[path = "cli/interrupt.rs"]
 mod interrupt;
 
-use args::{BenchArgs, Cli, Command, DeviceArgs, InfoArgs, RenderArgs};
+use args::{BenchArgs, Cli, Command, CompareArgs, DeviceArgs, InfoArgs, RenderArgs};
 use progress::{BenchProgress, Reporter};
 
 #[global_allocator]
@@ -60,7 +60,7 @@ fn main() {
         Err(e) if is_broken_pipe(&e) => {}
         Err(e) => {
             eprintln!("arbor: error: {e:#}");
-            std::process::exit(1);
+            std::process::exit(if e.is::<BadInput>() { 2 } else { 1 });
         }
     }
 }
@@ -95,6 +95,12 @@ fn clap_error(e: clap::Error) -> ! {
     eprintln!("arbor: error: {what} (see {command} --help)");
     std::process::exit(2);
 }
+
+/// An error in the files a command was given (`arbor compare`): exit status 2, like a
+/// command-line error.
+#[derive(Debug, thiserror::Error)]
+#[error(transparent)]
+struct BadInput(arbor::Error);
 
 /// Whether `e` comes from writing to a pipe whose reader has gone.
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
@@ -158,6 +164,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Info(args) => info(&args),
         Command::Devices => devices(),
         Command::Bench(args) => bench(&args),
+        Command::Compare(args) => compare(&args),
     }
 }
 
@@ -403,6 +410,32 @@ fn bench(args: &BenchArgs) -> Result<()> {
     let done = bench::run(&ctx, &opts, Some(scenes), &progress);
     progress.0.finish();
     Ok(done?)
+}
+
+/// `arbor compare`: both images are read and checked before --diff is written.
+fn compare(a: &CompareArgs) -> Result<()> {
+    use arbor::render::compare as cmp;
+    let checked = || -> arbor::Result<(u32, u32, cmp::ErrorStats, Option<Vec<u8>>)> {
+        if let Some(d) = &a.diff {
+            if !d.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+                return Err(arbor::Error::invalid(d, "--diff must end in .png"));
+            }
+            output::check_writable(d)?;
+        }
+        let (w, h, test, reference) = cmp::read_pair(&a.test, &a.reference)?;
+        let png = a.diff.as_ref().map(|_| cmp::error_png(w, h, &test, &reference)).transpose()?;
+        Ok((w, h, cmp::compare(&test, &reference), png))
+    };
+    let (w, h, st, png) = checked().map_err(BadInput)?;
+    if let (Some(d), Some(png)) = (&a.diff, png) {
+        output::write_atomic(d, &png).map_err(BadInput)?;
+    }
+    let text = if a.json {
+        format!("{}\n", st.to_json(w, h))
+    } else {
+        format!("mse      {}\nrel_mse  {}\npsnr     {} dB\nmax_abs  {}\n", st.mse, st.rel_mse, st.psnr, st.max_abs)
+    };
+    Ok(print_out(&text)?)
 }
 
 #[cfg(test)]

@@ -247,6 +247,25 @@ pub(crate) struct InfoArgs {
     pub(crate) device: DeviceArgs,
 }
 
+#[derive(clap::Args)]
+#[command(after_help = "Exit status: 0 when compared; 2 when an image is missing, unreadable, of an unknown \
+format or of another size, or --diff cannot be written (one line naming the file; nothing is written).")]
+pub(crate) struct CompareArgs {
+    /// The image to measure: .exr, .pfm, .hdr (linear) or .png, .jpg (sRGB, decoded to linear).
+    pub(crate) test: PathBuf,
+    /// The reference image, of the same size and any of the same formats.
+    pub(crate) reference: PathBuf,
+    /// Write the per-pixel relative error (mean over R, G, B of (a-b)^2 / (b^2 + 0.01)) as a
+    /// false-colour PNG, on a log scale: black <= 1e-4, blue 1e-3, green 1e-2, yellow 0.1,
+    /// red >= 1.
+    #[arg(long, value_name = "OUT.png")]
+    pub(crate) diff: Option<PathBuf>,
+    /// Print JSON (width, height, mse, rel_mse, psnr, max_abs; psnr is "inf" for equal
+    /// images) instead of text.
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
 #[derive(Subcommand)]
 pub(crate) enum Command {
     /// Render a scene to PNG (8-bit sRGB) or EXR (linear float).
@@ -260,4 +279,9 @@ pub(crate) enum Command {
     /// p99 nodes and primitives per ray, bytes, SAH cost, cracks and disagreement with
     /// the watertight reference, time to image; CSV, JSON and plots with --out.
     Bench(BenchArgs),
+    /// Compare an image with a reference: MSE, relative MSE (mean over pixels and channels
+    /// of (a-b)^2 / (b^2 + 0.01), the pbrt/Mitsuba convention), PSNR (10 log10(1 / MSE) of
+    /// the values clamped to [0, 1], in dB; inf when equal) and the largest absolute error,
+    /// all on linear values.
+    Compare(CompareArgs),
 }

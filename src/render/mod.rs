@@ -3,9 +3,11 @@
 
 #![forbid(unsafe_code)]
 
+pub mod compare;
 pub mod cpu;
 pub mod cracks;
 pub mod dispatch;
+pub mod envdist;
 pub mod gpu;
 pub mod kernel;
 pub mod memory;

@@ -27,7 +27,8 @@ pub const MAX_MATERIALS: u64 = 1 << 20;
 pub const MAX_SPHERES: u64 = 1 << 20;
 /// Most distinct MTL libraries one OBJ file may name (repeats of a name are read once).
 pub const MAX_MTLLIBS: usize = 64;
-/// Largest texture or environment image file read, in bytes: 1 GiB.
+/// Largest image file read (a texture, an environment map, an image `arbor compare`
+/// reads), in bytes: 1 GiB.
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 /// Longest side of a texture or environment image, in texels.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
@@ -51,6 +52,8 @@ pub enum FileKind {
     Texture,
     /// An environment map (Radiance HDR, OpenEXR).
     Environment,
+    /// An image (EXR, PFM, PNG, HDR, JPEG).
+    Image,
 }
 
 impl FileKind {
@@ -59,7 +62,7 @@ impl FileKind {
         match self {
             FileKind::Mesh => MAX_MESH_FILE_BYTES,
             FileKind::MaterialLibrary | FileKind::SceneFile => MAX_TEXT_FILE_BYTES,
-            FileKind::Texture | FileKind::Environment => MAX_IMAGE_FILE_BYTES,
+            FileKind::Texture | FileKind::Environment | FileKind::Image => MAX_IMAGE_FILE_BYTES,
         }
     }
 
@@ -70,6 +73,7 @@ impl FileKind {
             FileKind::SceneFile => "scene file",
             FileKind::Texture => "texture",
             FileKind::Environment => "environment map",
+            FileKind::Image => "image",
         }
     }
 }
