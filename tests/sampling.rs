@@ -236,3 +236,97 @@ fn glass_reflects_totally_beyond_the_critical_angle() {
         }
     }
 }
+
+/// The environment sampler on the device: the histogram of sampled cells matches the
+/// map's luminance x sin(theta) (chi-square at p = 0.001), every sample's pdf is the
+/// pdf `env_pdf` reports for its direction, and the radiance is the cell's texel.
+#[test]
+fn environment_samples_follow_the_map() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (32usize, 16usize);
+    let mut texels = vec![[0.0f32; 3]; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let g = 0.2 + x as f32 / w as f32;
+            texels[y * w + x] = [g, 0.5 * g, 0.1];
+        }
+    }
+    for (x, y) in [(20, 5), (21, 5), (20, 6)] {
+        texels[y * w + x] = [40.0, 30.0, 20.0];
+    }
+    for x in 0..w {
+        texels[9 * w + x] = [0.0; 3]; // a black row
+    }
+    let mut b = SceneBuilder::new("env");
+    b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: 0 });
+    b.scene.environment = Some(arbor::scene::Environment {
+        name: "test map".into(),
+        width: w as u32,
+        height: h as u32,
+        texels: texels.clone(),
+        rotation: 30.0,
+        intensity: 2.0,
+    });
+    let scene = b.finish().expect("scene");
+    let mut shading = GpuScene::new(&scene).shading;
+    let ex = arbor::render::path::extras(&scene, shading.len() as u32).expect("extras");
+    shading.extend_from_slice(&ex.rows);
+    let params = arbor::accel::gpu_layout::GpuParams {
+        tables: ex.tables,
+        env: [2.0, 30f32.to_radians(), 0.0, 0.0],
+        ..Default::default()
+    };
+    let n = 200_000usize;
+    let mut rng = Rng(5);
+    let mut input = Vec::with_capacity(2 * n);
+    for _ in 0..n {
+        input.push([rng.next(), rng.next(), 0.0, 0.0]);
+        input.push([0.0; 4]);
+    }
+    let out = probe(&ctx, 2, &input, &shading, &params, (w as u32, h as u32));
+    let seen = arbor::render::path::env_texels_as_seen(&texels);
+    let lum = |c: [f32; 3]| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
+    let weight: Vec<f64> = (0..w * h)
+        .map(|i| lum(seen[i]) * (std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64).sin())
+        .collect();
+    let total: f64 = weight.iter().sum();
+    let mut counts = vec![0f64; w * h];
+    for r in out.chunks_exact(3) {
+        let (x, y) = (r[1][1] as usize, r[1][2] as usize);
+        assert!(x < w && y < h, "cell ({x}, {y})");
+        counts[y * w + x] += 1.0;
+        let (pdf, epdf) = (r[0][3], r[1][0]);
+        assert!(pdf > 0.0, "a sample of zero density");
+        // Directions on a cell edge may look up the neighbour: only interior ones.
+        if (pdf - epdf).abs() > 1e-3 * pdf {
+            let same = lum(seen[y * w + x]) > 0.0;
+            assert!(same, "a sample in a black cell");
+        }
+        let texel = seen[y * w + x];
+        for c in 0..3 {
+            assert!((r[2][c] - 2.0 * texel[c]).abs() <= 1e-3 * (1.0 + texel[c]), "radiance of cell ({x}, {y})");
+        }
+    }
+    assert!(counts.iter().zip(&weight).all(|(&c, &f)| f > 0.0 || c == 0.0), "a black cell was sampled");
+    // Chi-square over cells with an expected count of at least 5 (the rest pooled).
+    let (mut chi2, mut cells, mut pooled_e, mut pooled_o) = (0.0f64, 0usize, 0.0f64, 0.0f64);
+    for (o, f) in counts.iter().zip(&weight) {
+        let e = f / total * n as f64;
+        if e >= 5.0 {
+            chi2 += (o - e) * (o - e) / e;
+            cells += 1;
+        } else {
+            pooled_e += e;
+            pooled_o += o;
+        }
+    }
+    if pooled_e >= 5.0 {
+        chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
+        cells += 1;
+    }
+    let df = (cells - 1) as f64;
+    // Wilson-Hilferty: the chi-square quantile at p = 0.001 (z = 3.090).
+    let k = 2.0 / (9.0 * df);
+    let critical = df * (1.0 - k + 3.090 * k.sqrt()).powi(3);
+    assert!(chi2 < critical, "chi-square {chi2:.1} over {df} degrees of freedom (critical {critical:.1})");
+}

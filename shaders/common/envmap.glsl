@@ -6,6 +6,9 @@
 
 #include "common/sampling.glsl"
 
+// The largest float below 1.
+const float ONE_MINUS_EPSILON = 0.99999994;
+
 float shading_float(uint base, uint k) {
     return shading[base + (k >> 2u)][k & 3u];
 }
@@ -28,21 +31,21 @@ uint cdf_search(uint base, uint first, uint n, float u) {
 
 // --- environment ---------------------------------------------------------------
 
-// The map's direction convention (render::envdist): u = phi / 2 pi, v = theta / pi
-// with theta from +y; params.env.y is the rotation about +y in radians.
+// The map's direction convention (render::envdist::uv_to_dir / dir_to_uv): v = theta
+// / pi from +y (row 0 at the top); u = 0.5 looks along -z, 0.75 along +x; the map
+// turns by params.env.y radians about +y (counter-clockwise seen from above).
 vec2 env_dir_to_uv(vec3 d) {
     float theta = acos(clamp(d.y, -1.0, 1.0));
-    float phi = atan(d.x, -d.z) - params.env.y;
-    float u = phi * (0.5 * INV_PI);
+    float u = (atan(-d.x, d.z) + params.env.y) * (0.5 * INV_PI);
     u -= floor(u);
     return vec2(u, theta * INV_PI);
 }
 
 vec3 env_uv_to_dir(vec2 uv, out float sin_theta) {
     float theta = uv.y * PI;
-    float phi = uv.x * 2.0 * PI + params.env.y;
+    float phi = uv.x * 2.0 * PI - params.env.y;
     sin_theta = sin(theta);
-    return vec3(sin_theta * sin(phi), cos(theta), -sin_theta * cos(phi));
+    return vec3(-sin_theta * sin(phi), cos(theta), sin_theta * cos(phi));
 }
 
 vec3 env_texel(uint x, uint y) {
@@ -80,23 +83,29 @@ vec3 env_radiance(vec3 d) {
     return env_texel(c.x, c.y);
 }
 
-// Importance-samples a direction; returns its radiance, with its solid-angle pdf.
-vec3 env_sample(float u1, float u2, out vec3 d, out float pdf) {
+// One dimension of render::envdist's sampler: the cell of u in the n-cell CDF at
+// float `first`, the continuous position in [0, 1) and the cell's density.
+float env_sample_1d(uint first, uint n, float u, out uint cell, out float pdf) {
+    u = clamp(u, 0.0, ONE_MINUS_EPSILON);
     uint base = params.tables.w;
-    uint y = cdf_search(base, 0u, ENV_HEIGHT, u1);
-    float c0 = shading_float(base, y);
-    float c1 = shading_float(base, y + 1u);
-    float dy = c1 > c0 ? (u1 - c0) / (c1 - c0) : 0.5;
-    uint row = env_row_cdf(y);
-    uint x = cdf_search(base, row, ENV_WIDTH, u2);
-    float r0 = shading_float(base, row + x);
-    float r1 = shading_float(base, row + x + 1u);
-    float dx = r1 > r0 ? (u2 - r0) / (r1 - r0) : 0.5;
-    vec2 uv = vec2((float(x) + clamp(dx, 0.0, 1.0)) / float(ENV_WIDTH), (float(y) + clamp(dy, 0.0, 1.0)) / float(ENV_HEIGHT));
+    cell = cdf_search(base, first, n, u);
+    float c0 = shading_float(base, first + cell);
+    float w = shading_float(base, first + cell + 1u) - c0;
+    float du = w > 0.0 ? (u - c0) / w : 0.0;
+    pdf = w * float(n);
+    return min((float(cell) + du) / float(n), ONE_MINUS_EPSILON);
+}
+
+// Importance-samples a direction (u2 picks the row, u1 the column); returns its
+// radiance, with its solid-angle pdf.
+vec3 env_sample(float u1, float u2, out vec3 d, out float pdf) {
+    uint y, x;
+    float pv, pu;
+    float v = env_sample_1d(0u, ENV_HEIGHT, u2, y, pv);
+    float u = env_sample_1d(env_row_cdf(y), ENV_WIDTH, u1, x, pu);
     float sin_theta;
-    d = env_uv_to_dir(uv, sin_theta);
-    float pdf_uv = (c1 - c0) * float(ENV_HEIGHT) * (r1 - r0) * float(ENV_WIDTH);
-    pdf = sin_theta > 0.0 ? pdf_uv / (2.0 * PI * PI * sin_theta) : 0.0;
+    d = env_uv_to_dir(vec2(u, v), sin_theta);
+    pdf = sin_theta > 0.0 ? pu * pv / (2.0 * PI * PI * sin_theta) : 0.0;
     return env_texel(x, y);
 }
 

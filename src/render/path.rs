@@ -198,7 +198,7 @@ pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
         ex.tables[2] = next;
         next += rows.len() as u32;
         ex.rows.extend(rows);
-        let dist = env_distribution(env.width, env.height, &seen)?;
+        let dist = env_distribution(env.width, env.height, &seen, env.intensity)?;
         let rows = float_rows(&dist);
         ex.tables[3] = next;
         ex.rows.extend(rows);
@@ -207,9 +207,18 @@ pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
     Ok(ex)
 }
 
-/// The environment's sampling distribution in the kernel's layout.
-fn env_distribution(_w: u32, _h: u32, _texels: &[[f32; 3]]) -> Result<Vec<f32>> {
-    Err(Error::Usage("environment maps are not wired yet".into()))
+/// The environment's sampling distribution in the kernel's layout
+/// ([`super::envdist`]), from the texels as the kernel sees them.
+fn env_distribution(w: u32, h: u32, texels: &[[f32; 3]], intensity: f32) -> Result<Vec<f32>> {
+    let env = crate::scene::Environment {
+        name: String::new(),
+        width: w,
+        height: h,
+        texels: texels.to_vec(),
+        rotation: 0.0,
+        intensity,
+    };
+    Ok(super::envdist::Distribution2D::from_environment(&env).gpu_rows())
 }
 
 /// The scene's maximum depth, or the settings' override.
