@@ -10,7 +10,8 @@
 //           (weight, pdf that bsdf_eval reports at wi), (f at wi, ok | delta << 1 | transmit << 2)
 //   mode 1, BSDF evaluation: in (wo, material), (wi, unused); out (f, pdf), 0, 0
 //   mode 2, environment sample: in (u1, u2, unused), unused; out (direction, pdf),
-//           (env_pdf at the direction, cell x, cell y, unused), (radiance, unused)
+//           (env_pdf at the direction, the direction's cell x and y, the sampled cell
+//           y * width + x), (radiance, unused)
 // The shading normal is +z; `front` is 1.0 when wo is on the geometric normal's side.
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
@@ -59,10 +60,11 @@ void main() {
     } else {
         vec3 d;
         float pdf;
-        vec3 le = env_sample(a.x, a.y, d, pdf);
+        uvec2 cell;
+        vec3 le = env_sample(a.x, a.y, d, pdf, cell);
         uvec2 c = env_cell(env_dir_to_uv(d));
         o0 = vec4(d, pdf);
-        o1 = vec4(env_pdf(d), float(c.x), float(c.y), 0.0);
+        o1 = vec4(env_pdf(d), float(c.x), float(c.y), float(cell.y * ENV_WIDTH + cell.x));
         o2 = vec4(le, 0.0);
     }
     probe_out[3u * i] = o0;

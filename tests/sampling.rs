@@ -83,7 +83,7 @@ fn materials() -> (Vec<(&'static str, u32)>, Vec<[f32; 4]>) {
             b.material(Material {
                 kind: MaterialKind::Phong,
                 specular: Vec3::splat(0.9),
-                shininess: 400.0,
+                shininess: 200.0,
                 ..Material::lambert("sharp", Vec3::splat(0.05))
             }),
         ),
@@ -160,26 +160,28 @@ fn bsdf_sampling_and_evaluation_agree() {
             }
             mean_weight /= n as f64;
             // The reflectance by quadrature of f cos over the hemisphere, and the
-            // integral of the pdf over the sphere.
-            let (steps_t, steps_p) = (256usize, 512usize);
+            // integral of the pdf over it (midpoint rule in theta and phi, fine enough
+            // for the sharpest lobe: 0.003 rad against its width of about 0.07).
+            let (steps_t, steps_p) = (512usize, 512usize);
             let mut q = Vec::with_capacity(2 * steps_t * steps_p);
             let mut weights = Vec::with_capacity(steps_t * steps_p);
+            let dt = std::f64::consts::FRAC_PI_2 / steps_t as f64;
+            let dp = 2.0 * std::f64::consts::PI / steps_p as f64;
             for a in 0..steps_t {
-                let ct = (a as f64 + 0.5) / steps_t as f64; // cos theta, uniform in [0, 1)
-                let st = (1.0 - ct * ct).sqrt();
+                let t = (a as f64 + 0.5) * dt;
+                let (st, ct) = t.sin_cos();
                 for b in 0..steps_p {
-                    let ph = 2.0 * std::f64::consts::PI * (b as f64 + 0.5) / steps_p as f64;
+                    let ph = (b as f64 + 0.5) * dp;
                     q.push([wo.x, wo.y, wo.z, id as f32]);
                     q.push([(st * ph.cos()) as f32, (st * ph.sin()) as f32, ct as f32, 0.0]);
-                    weights.push(ct);
+                    weights.push((ct, st * dt * dp));
                 }
             }
             let out = probe(&ctx, 1, &q, &shading, &params, (0, 0));
-            let cell = 2.0 * std::f64::consts::PI / (steps_t * steps_p) as f64; // d(cos) d(phi)
             let (mut refl, mut pdf_int) = (0.0f64, 0.0f64);
-            for (r, &ct) in out.chunks_exact(3).zip(&weights) {
-                refl += f64::from(r[0][0]) * ct * cell;
-                pdf_int += f64::from(r[0][3]) * cell;
+            for (r, &(ct, dw)) in out.chunks_exact(3).zip(&weights) {
+                refl += f64::from(r[0][0]) * ct * dw;
+                pdf_int += f64::from(r[0][3]) * dw;
             }
             match name {
                 "mirror" => assert!((mean_weight - 1.0).abs() < 1e-6, "mirror reflectance {mean_weight}"),
@@ -292,15 +294,19 @@ fn environment_samples_follow_the_map() {
     let total: f64 = weight.iter().sum();
     let mut counts = vec![0f64; w * h];
     for r in out.chunks_exact(3) {
-        let (x, y) = (r[1][1] as usize, r[1][2] as usize);
-        assert!(x < w && y < h, "cell ({x}, {y})");
-        counts[y * w + x] += 1.0;
+        let cell = r[1][3] as usize;
+        let (x, y) = (cell % w, cell / w);
+        assert!(cell < w * h, "cell {cell}");
+        counts[cell] += 1.0;
         let (pdf, epdf) = (r[0][3], r[1][0]);
         assert!(pdf > 0.0, "a sample of zero density");
-        // Directions on a cell edge may look up the neighbour: only interior ones.
-        if (pdf - epdf).abs() > 1e-3 * pdf {
-            let same = lum(seen[y * w + x]) > 0.0;
-            assert!(same, "a sample in a black cell");
+        assert!(lum(seen[cell]) > 0.0, "a sample in the black cell ({x}, {y})");
+        // A direction on a cell's edge may look up the neighbour: compare where the
+        // direction falls in the sampled cell. Near the poles, sin(theta) recomputed
+        // from the direction (acos of y) differs from the sampled one by a fraction
+        // of a percent.
+        if (r[1][1] as usize, r[1][2] as usize) == (x, y) {
+            assert!((pdf - epdf).abs() <= 1e-2 * pdf, "cell ({x}, {y}): sampled pdf {pdf}, env_pdf {epdf}");
         }
         let texel = seen[y * w + x];
         for c in 0..3 {

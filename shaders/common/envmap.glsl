@@ -97,8 +97,8 @@ float env_sample_1d(uint first, uint n, float u, out uint cell, out float pdf) {
 }
 
 // Importance-samples a direction (u2 picks the row, u1 the column); returns its
-// radiance, with its solid-angle pdf.
-vec3 env_sample(float u1, float u2, out vec3 d, out float pdf) {
+// radiance, with its solid-angle pdf and the cell it came from.
+vec3 env_sample(float u1, float u2, out vec3 d, out float pdf, out uvec2 cell) {
     uint y, x;
     float pv, pu;
     float v = env_sample_1d(0u, ENV_HEIGHT, u2, y, pv);
@@ -106,6 +106,7 @@ vec3 env_sample(float u1, float u2, out vec3 d, out float pdf) {
     float sin_theta;
     d = env_uv_to_dir(vec2(u, v), sin_theta);
     pdf = sin_theta > 0.0 ? pu * pv / (2.0 * PI * PI * sin_theta) : 0.0;
+    cell = uvec2(x, y);
     return env_texel(x, y);
 }
 

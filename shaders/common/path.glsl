@@ -356,7 +356,8 @@ void path_main() {
                 if (ENV_WIDTH > 0u && MIS_MODE != MIS_BSDF) {
                     vec3 wi;
                     float epdf;
-                    vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf);
+                    uvec2 ecell;
+                    vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf, ecell);
                     if (epdf > 0.0 && dot(gnf, wi) > 0.0) {
                         float bpdf;
                         vec3 f = bsdf_eval(m, n, wo, wi, bpdf);

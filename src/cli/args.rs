@@ -279,9 +279,11 @@ pub(crate) enum Command {
     /// p99 nodes and primitives per ray, bytes, SAH cost, cracks and disagreement with
     /// the watertight reference, time to image; CSV, JSON and plots with --out.
     Bench(BenchArgs),
-    /// Compare an image with a reference: MSE, relative MSE (mean over pixels and channels
-    /// of (a-b)^2 / (b^2 + 0.01), the pbrt/Mitsuba convention), PSNR (10 log10(1 / MSE) of
-    /// the values clamped to [0, 1], in dB; inf when equal) and the largest absolute error,
-    /// all on linear values.
+    /// Compare an image with a reference: MSE, relative MSE, PSNR, largest difference.
+    ///
+    /// All on linear values: MSE; relative MSE, the mean over pixels and channels of
+    /// (a-b)^2 / (b^2 + 0.01) (the pbrt/Mitsuba convention); PSNR, 10 log10(1 / MSE) of
+    /// the values clamped to [0, 1], in dB (inf when equal); and the largest absolute
+    /// difference.
     Compare(CompareArgs),
 }
