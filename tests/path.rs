@@ -51,6 +51,23 @@ fn emitter(radiance: f32) -> Material {
     Material { kind: MaterialKind::Emissive, emission: Vec3::splat(radiance), ..Material::lambert("light", Vec3::ONE) }
 }
 
+/// Pixels whose four neighbours see the same thing (hit or miss) as they do: away
+/// from silhouettes, where jittered samples mix both.
+fn interior(f: &Frame) -> Vec<bool> {
+    let (w, h) = (f.width as usize, f.height as usize);
+    let miss = |x: usize, y: usize| f.prim[y * w + x] == u32::MAX;
+    (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            x > 0
+                && y > 0
+                && x + 1 < w
+                && y + 1 < h
+                && [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)].iter().all(|&(a, b)| miss(a, b) == miss(x, y))
+        })
+        .collect()
+}
+
 /// A closed diffuse sphere of albedo `rho` under a uniform environment of radiance
 /// `l` (the background): every pixel on the sphere converges to rho x l, every other
 /// pixel to l. With a convex object every path escapes after one bounce with the same
@@ -314,4 +331,66 @@ fn time_budget_and_checkpoints() {
     assert!(done >= 1 && done < 1_000_000, "samples_done {done}");
     assert_eq!(v["interrupted"], false);
     assert_eq!(v["integrator"], "path");
+}
+
+/// The white furnace under an environment map of constant radiance: light sampling of
+/// the map, BSDF sampling and MIS together still converge to rho x L on the sphere.
+#[test]
+fn white_furnace_under_an_environment_map() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut b = SceneBuilder::new("furnace map");
+    let m = b.material(lambert(0.5));
+    b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: m });
+    b.scene.environment = Some(arbor::scene::Environment {
+        name: "constant".into(),
+        width: 16,
+        height: 8,
+        texels: vec![[0.25, 0.25, 0.25]; 128],
+        rotation: 40.0,
+        intensity: 2.0,
+    });
+    b.scene.camera = Camera { eye: Vec3::new(0.0, 0.0, 4.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 40.0 };
+    let scene = b.finish().expect("scene");
+    let f = render(&ctx, &scene, &settings(24, 24, 64));
+    let inner = interior(&f);
+    let (on, on_err) = mean_and_error(&f, |k| inner[k] && f.prim[k] != u32::MAX);
+    let (off, _) = mean_and_error(&f, |k| inner[k] && f.prim[k] == u32::MAX);
+    assert!((off - 0.5).abs() < 2e-3, "the map seen directly: {off}");
+    assert!((on - 0.25).abs() <= 4.0 * on_err + 2e-3, "sphere under the map: {on} (error {on_err})");
+}
+
+/// A texture on a quad: the albedo AOV inside each block of equal texels is the texel,
+/// decoded from sRGB; the blocks land where the UVs put them (row 0 at the top).
+#[test]
+fn textured_albedo_is_the_decoded_texel() {
+    let Some(ctx) = common::gpu() else { return };
+    let v = Vec3::new;
+    // 4x4 texels in four blocks of 2x2, so that bilinear filtering inside a block
+    // (where the pixels below look) sees one colour.
+    let colours = [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]];
+    let texels: Vec<[u8; 4]> = (0..16).map(|k| colours[(k % 4) / 2 + 2 * ((k / 4) / 2)]).collect();
+    let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
+    mesh.uvs = Some(vec![glam::Vec2::new(0.0, 0.0), glam::Vec2::new(1.0, 0.0), glam::Vec2::new(1.0, 1.0), glam::Vec2::new(0.0, 1.0)]);
+    mesh.textures = vec![arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels }];
+    mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
+    mesh.tri_material = vec![0, 0];
+    let mut b = SceneBuilder::new("textured");
+    b.mesh(&mesh, 1.0, Vec3::ZERO, None);
+    // An orthographic-like view: far away, narrow.
+    b.scene.camera = Camera { eye: v(0.0, 0.0, 100.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees() };
+    let scene = b.finish().expect("scene");
+    let f = render(&ctx, &scene, &settings(64, 64, 1));
+    let decode = |c: u8| {
+        let c = f32::from(c) / 255.0;
+        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    };
+    // Block (x, y), row 0 at the top, is centred at pixel (16 + 32 x, 16 + 32 y).
+    for (k, t) in [[255u8, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]].iter().enumerate() {
+        let (x, y) = (16 + 32 * (k % 2), 16 + 32 * (k / 2));
+        let got = f.albedo[y * 64 + x];
+        for c in 0..3 {
+            let want = decode(t[c]);
+            assert!((got[c] - want).abs() < 1e-3, "block {k} channel {c}: {} vs {want}", got[c]);
+        }
+    }
 }
