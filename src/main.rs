@@ -325,6 +325,49 @@ fn trace(
     Ok(done?)
 }
 
+/// `bench --reference`: error against time over a ladder of sample counts.
+fn bench_convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()> {
+    let [scene_arg] = args.scene.as_slice() else {
+        bail!("--reference needs exactly one --scene (the scene the reference image shows)");
+    };
+    if let Some(bad) = args.ladder.iter().find(|&&n| n == 0 || n > 1 << 20) {
+        bail!("--ladder {bad}: each sample count must be 1..=1048576");
+    }
+    if let Some(d) = &args.out {
+        std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
+        output::check_outputs(std::iter::once(d.join("convergence.csv").as_path()))?;
+    }
+    let scene = Scene::load(scene_arg)?;
+    let ladder = bench::convergence::Ladder {
+        reference: reference.to_path_buf(),
+        accel: args.accel.iter().copied().filter(|k| !k.is_brute_force() || scene.prim_count() <= 4096).collect(),
+        params: args.structure.params()?,
+        integrators: args.integrator.iter().filter_map(|n| render::Integrator::parse(n)).collect(),
+        spp: args.ladder.clone(),
+        seed: 0,
+    };
+    let ctx = context(&args.device)?;
+    eprintln!(
+        "device: {}; {} at {}x{} against {}; brute force only on scenes of at most 4096 primitives",
+        ctx.info().name,
+        scene.name,
+        scene.width,
+        scene.height,
+        reference.display()
+    );
+    print_out(&format!("{}\n", bench::convergence::HEADER))?;
+    let progress = BenchProgress(Reporter::new("bench", false, true));
+    let rows = bench::convergence::run(&ctx, &scene, &ladder, &progress, |l| {
+        print_out(&format!("{l}\n")).map_err(|e| arbor::error::Error::Usage(e.to_string()))
+    });
+    progress.0.finish();
+    let rows = rows?;
+    if let Some(d) = &args.out {
+        bench::convergence::write(d, &rows)?;
+    }
+    Ok(())
+}
+
 fn info(a: &InfoArgs) -> Result<()> {
     let params = a.structure.single()?;
     let scene = Scene::load(&a.scene)?;
@@ -363,6 +406,9 @@ fn devices() -> Result<()> {
 /// `arbor bench`: every input (sizes, values, scenes, memory, output paths) is checked
 /// before a device is opened and anything is printed.
 fn bench(args: &BenchArgs) -> Result<()> {
+    if let Some(reference) = &args.reference {
+        return bench_convergence(args, reference);
+    }
     let size = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
     let opts = bench::Request {
         tris: args.tris.clone(),

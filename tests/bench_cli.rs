@@ -208,3 +208,37 @@ fn bench_compares_cpu_and_gpu_builds() {
     let text = String::from_utf8_lossy(&ok.stdout);
     assert!(text.contains("built on      GPU") && text.contains("validate      ok"), "{text}");
 }
+
+/// `bench --reference`: a ladder of sample counts per structure, its error against a
+/// reference falling as samples grow, and convergence.csv with the plot.
+#[test]
+fn reference_ladder_reports_error_against_time() {
+    let Some(_ctx) = common::gpu() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[film]\nwidth = 16\nheight = 12\n[camera]\neye = [0, 0.5, 3]\nlook_at = [0, 0, 0]\n\
+         [[material]]\nname = \"glow\"\ntype = \"emissive\"\nemission = [4, 4, 4]\n\
+         [[sphere]]\ncenter = [0, -100.5, 0]\nradius = 100\n\
+         [[sphere]]\ncenter = [0, 1.2, 0]\nradius = 0.3\nmaterial = \"glow\"\n",
+    )
+    .expect("scene");
+    let s = scene.display().to_string();
+    let reference = dir.path().join("ref.exr").display().to_string();
+    run(&["render", &s, "--spp", "512", "-o", &reference, "--quiet"]);
+    let out_dir = dir.path().join("out").display().to_string();
+    let out = run(&[
+        "bench", "--reference", &reference, "--scene", &s, "--accel", "bvh-sah,kdtree", "--ladder", "1,16", "--out", &out_dir,
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split_whitespace().collect()).collect();
+    assert_eq!(rows.len(), 4, "2 structures x 2 sample counts:\n{text}");
+    for pair in rows.chunks(2) {
+        let rel = |r: &[&str]| r[5].parse::<f64>().expect("relMSE");
+        assert!(rel(&pair[1]) < rel(&pair[0]), "more samples, less error:\n{text}");
+    }
+    let csv = std::fs::read_to_string(dir.path().join("out/convergence.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    assert!(dir.path().join("out/convergence.png").exists());
+}

@@ -16,6 +16,7 @@ use crate::accel::{AccelKind, AccelParams};
 use crate::math::intersect::IntersectMode;
 
 mod files;
+pub mod convergence;
 pub mod options;
 pub mod plots;
 mod rows;

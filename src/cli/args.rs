@@ -145,6 +145,19 @@ pub(crate) struct BenchArgs {
     /// is given explicitly).
     #[arg(long)]
     pub(crate) quick: bool,
+    /// Error against time instead of the structure table: render the one --scene at
+    /// each --ladder sample count with each structure and --integrator, and print the
+    /// seconds to image, relative MSE, PSNR against this reference image (EXR, PFM,
+    /// HDR or PNG of the scene's film size) and the efficiency 1 / (relMSE x seconds).
+    /// With --out: convergence.csv and a log-log plot.
+    #[arg(long, value_name = "REF")]
+    pub(crate) reference: Option<PathBuf>,
+    /// Sample counts of the --reference ladder.
+    #[arg(long, value_delimiter = ',', default_values_t = arbor::bench::convergence::DEFAULT_LADDER.to_vec(), value_name = "SPP,...")]
+    pub(crate) ladder: Vec<u32>,
+    /// Integrators of the --reference ladder (path, whitted).
+    #[arg(long, value_delimiter = ',', default_value = "path", value_parser = ["path", "whitted"], value_name = "NAME,...")]
+    pub(crate) integrator: Vec<String>,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
 }
