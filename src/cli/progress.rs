@@ -1,7 +1,7 @@
 //! Progress of long work (included by main.rs only): on a terminal, a bar that appears
 //! after the first second; otherwise (a log file, a pipe, a batch job) a plain line on
-//! stderr every few seconds, `render: 35% (12.3 s, about 22 s left, 1.234 M/s)` (units:
-//! pixel samples for a render). Nothing with
+//! stderr every few seconds, `render: 35% (12.3 s, about 22 s left, 1.234 M samples/s)` (pixel
+//! samples). Nothing with
 //! `--quiet`.
 
 use std::cell::Cell;
@@ -91,7 +91,12 @@ impl Reporter {
 fn line(label: &str, done: u64, total: u64, secs: f64) -> String {
     let frac = if total > 0 { done as f64 / total as f64 } else { 0.0 };
     let left = if done > 0 { format!(", about {:.0} s left", secs * (1.0 - frac) / frac) } else { String::new() };
-    let rate = if secs > 0.0 { format!(", {:.3} M/s", done as f64 / secs / 1e6) } else { String::new() };
+    // A render counts pixel samples: their rate is worth showing.
+    let rate = if secs > 0.0 && label == "render" {
+        format!(", {:.3} M samples/s", done as f64 / secs / 1e6)
+    } else {
+        String::new()
+    };
     format!("{label}: {:.0}% ({secs:.1} s{left}{rate})", frac * 100.0)
 }
 
