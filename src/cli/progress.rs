@@ -127,7 +127,10 @@ impl arbor::bench::Progress for BenchProgress {
 mod tests {
     #[test]
     fn plain_line_has_percent_time_and_estimate() {
-        assert_eq!(super::line("render", 35, 100, 12.3), "render: 35% (12.3 s, about 23 s left)");
+        assert_eq!(
+            super::line("render", 35_000_000, 100_000_000, 12.5),
+            "render: 35% (12.5 s, about 23 s left, 2.800 M samples/s)"
+        );
         assert_eq!(super::line("bench", 0, 10, 1.0), "bench: 0% (1.0 s)");
     }
 }
