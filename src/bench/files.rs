@@ -70,22 +70,24 @@ pub(super) fn to_csv(rows: &[Row]) -> Result<String> {
 pub(super) fn time_to_image(rows: &[Row]) -> Vec<serde_json::Value> {
     let mut list: Vec<&Row> = rows.iter().filter(|r| r.error.is_none() && !r.brute_force && r.trace_ms > 0.0).collect();
     list.sort_by(|a, b| a.build_ms.total_cmp(&b.build_ms));
+    // Path-traced rows trace PATH_SPP samples per pixel; the others one.
+    let per_spp = |r: &Row| if r.rays == RayKind::Path.name() { r.trace_ms / f64::from(super::PATH_SPP) } else { r.trace_ms };
     let mut out = Vec::new();
     for (k, r) in list.iter().enumerate() {
         // Against each faster-building structure: build_r + s trace_r < build_o + s trace_o.
         let mut wins_from: Option<f64> = Some(0.0);
         for o in &list[..k] {
-            if r.trace_ms >= o.trace_ms {
+            if per_spp(r) >= per_spp(o) {
                 wins_from = None;
                 break;
             }
-            let s = (r.build_ms - o.build_ms) / (o.trace_ms - r.trace_ms);
+            let s = (r.build_ms - o.build_ms) / (per_spp(o) - per_spp(r));
             wins_from = wins_from.map(|w| w.max(s));
         }
         let totals: Vec<(u32, f64)> =
-            [1u32, 4, 16, 64, 256].iter().map(|&s| (s, r.build_ms + f64::from(s) * r.trace_ms)).collect();
+            [1u32, 4, 16, 64, 256].iter().map(|&s| (s, r.build_ms + f64::from(s) * per_spp(r))).collect();
         out.push(serde_json::json!({
-            "label": r.label, "build_ms": r.build_ms, "trace_ms_per_spp": r.trace_ms,
+            "label": r.label, "build_ms": r.build_ms, "trace_ms_per_spp": per_spp(r),
             "beats_faster_builders_from_spp": wins_from, "total_ms": totals,
         }));
     }
