@@ -17,10 +17,10 @@ use clap::Parser;
 // `keep_freed_memory` not to give freed memory back: docs/build-notes.md, "Host memory".
 #[path = "cli/args.rs"]
 mod args;
-#[path = "cli/progress.rs"]
-mod progress;
 #[path = "cli/interrupt.rs"]
 mod interrupt;
+#[path = "cli/progress.rs"]
+mod progress;
 
 use args::{BenchArgs, Cli, Command, CompareArgs, DeviceArgs, InfoArgs, RenderArgs};
 use progress::{BenchProgress, Reporter};

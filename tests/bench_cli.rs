@@ -229,7 +229,17 @@ fn reference_ladder_reports_error_against_time() {
     run(&["render", &s, "--spp", "512", "-o", &reference, "--quiet"]);
     let out_dir = dir.path().join("out").display().to_string();
     let out = run(&[
-        "bench", "--reference", &reference, "--scene", &s, "--accel", "bvh-sah,kdtree", "--ladder", "1,16", "--out", &out_dir,
+        "bench",
+        "--reference",
+        &reference,
+        "--scene",
+        &s,
+        "--accel",
+        "bvh-sah,kdtree",
+        "--ladder",
+        "1,16",
+        "--out",
+        &out_dir,
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
     let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split_whitespace().collect()).collect();

@@ -162,7 +162,12 @@ fn emitter_scene(between: impl FnOnce(&mut SceneBuilder)) -> Scene {
     let light = b.material(emitter(2.0));
     let v = Vec3::new;
     // Counter-clockwise seen from +z: faces the camera.
-    b.mesh(&quad([v(-1.0, -1.0, -3.0), v(1.0, -1.0, -3.0), v(1.0, 1.0, -3.0), v(-1.0, 1.0, -3.0)]), 1.0, Vec3::ZERO, Some(light));
+    b.mesh(
+        &quad([v(-1.0, -1.0, -3.0), v(1.0, -1.0, -3.0), v(1.0, 1.0, -3.0), v(-1.0, 1.0, -3.0)]),
+        1.0,
+        Vec3::ZERO,
+        Some(light),
+    );
     between(&mut b);
     b.scene.background = Vec3::ZERO;
     b.scene.max_depth = 16;
@@ -208,10 +213,16 @@ fn emitter_seen_directly_in_a_mirror_and_through_glass() {
 
     // In a mirror of reflectance 0.9: the camera looks down -x at a 45-degree mirror.
     let mut m = emitter_scene(|b| {
-        let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("mirror", Vec3::splat(0.9)) });
+        let mirror =
+            b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("mirror", Vec3::splat(0.9)) });
         let v = Vec3::new;
         // The plane x + z = 0, normal (-1, 0, -1) / sqrt 2: it turns +x into -z.
-        b.mesh(&quad([v(-1.0, -2.0, 1.0), v(-1.0, 2.0, 1.0), v(1.0, 2.0, -1.0), v(1.0, -2.0, -1.0)]), 1.0, Vec3::ZERO, Some(mirror));
+        b.mesh(
+            &quad([v(-1.0, -2.0, 1.0), v(-1.0, 2.0, 1.0), v(1.0, 2.0, -1.0), v(1.0, -2.0, -1.0)]),
+            1.0,
+            Vec3::ZERO,
+            Some(mirror),
+        );
     });
     m.camera = Camera { eye: Vec3::new(-6.0, 0.0, 0.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 3.0 };
     let f = render(&ctx, &m, &settings(8, 8, 4));
@@ -328,7 +339,7 @@ fn time_budget_and_checkpoints() {
     assert!(seen > 0, "no checkpoint was seen");
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
     let done = v["samples_done"].as_u64().expect("samples_done");
-    assert!(done >= 1 && done < 1_000_000, "samples_done {done}");
+    assert!((1..1_000_000).contains(&done), "samples_done {done}");
     assert_eq!(v["interrupted"], false);
     assert_eq!(v["integrator"], "path");
 }
@@ -370,19 +381,33 @@ fn textured_albedo_is_the_decoded_texel() {
     let colours = [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]];
     let texels: Vec<[u8; 4]> = (0..16).map(|k| colours[(k % 4) / 2 + 2 * ((k / 4) / 2)]).collect();
     let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
-    mesh.uvs = Some(vec![glam::Vec2::new(0.0, 0.0), glam::Vec2::new(1.0, 0.0), glam::Vec2::new(1.0, 1.0), glam::Vec2::new(0.0, 1.0)]);
+    mesh.uvs = Some(vec![
+        glam::Vec2::new(0.0, 0.0),
+        glam::Vec2::new(1.0, 0.0),
+        glam::Vec2::new(1.0, 1.0),
+        glam::Vec2::new(0.0, 1.0),
+    ]);
     mesh.textures = vec![arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels }];
     mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
     mesh.tri_material = vec![0, 0];
     let mut b = SceneBuilder::new("textured");
     b.mesh(&mesh, 1.0, Vec3::ZERO, None);
     // An orthographic-like view: far away, narrow.
-    b.scene.camera = Camera { eye: v(0.0, 0.0, 100.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees() };
+    b.scene.camera = Camera {
+        eye: v(0.0, 0.0, 100.0),
+        look_at: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees(),
+    };
     let scene = b.finish().expect("scene");
     let f = render(&ctx, &scene, &settings(64, 64, 1));
     let decode = |c: u8| {
         let c = f32::from(c) / 255.0;
-        if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
     };
     // Block (x, y), row 0 at the top, is centred at pixel (16 + 32 x, 16 + 32 y).
     for (k, t) in [[255u8, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]].iter().enumerate() {

@@ -288,9 +288,8 @@ fn environment_samples_follow_the_map() {
     let out = probe(&ctx, 2, &input, &shading, &params, (w as u32, h as u32));
     let seen = arbor::render::path::env_texels_as_seen(&texels);
     let lum = |c: [f32; 3]| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
-    let weight: Vec<f64> = (0..w * h)
-        .map(|i| lum(seen[i]) * (std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64).sin())
-        .collect();
+    let weight: Vec<f64> =
+        (0..w * h).map(|i| lum(seen[i]) * (std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64).sin()).collect();
     let total: f64 = weight.iter().sum();
     let mut counts = vec![0f64; w * h];
     for r in out.chunks_exact(3) {

@@ -56,7 +56,8 @@ pub struct Ladder {
 }
 
 /// The table header printed before the rows.
-pub const HEADER: &str = "           scene            accel integrator      spp    seconds     relMSE        PSNR  efficiency";
+pub const HEADER: &str =
+    "           scene            accel integrator      spp    seconds     relMSE        PSNR  efficiency";
 
 fn line(r: &Rung) -> String {
     format!(
@@ -97,7 +98,7 @@ pub fn run(
                 s.spp = spp;
                 s.seed = ladder.seed;
                 s.accel = kind;
-                s.params = ladder.params.clone();
+                s.params = ladder.params;
                 let start = Instant::now();
                 let accel = Accel::build_on(ctx, kind, scene, &ladder.params)?;
                 let (frame, st) = crate::render::gpu::render_with(ctx, scene, &s, &accel, |_, _| {})?;

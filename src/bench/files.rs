@@ -71,7 +71,8 @@ pub(super) fn time_to_image(rows: &[Row]) -> Vec<serde_json::Value> {
     let mut list: Vec<&Row> = rows.iter().filter(|r| r.error.is_none() && !r.brute_force && r.trace_ms > 0.0).collect();
     list.sort_by(|a, b| a.build_ms.total_cmp(&b.build_ms));
     // Path-traced rows trace PATH_SPP samples per pixel; the others one.
-    let per_spp = |r: &Row| if r.rays == RayKind::Path.name() { r.trace_ms / f64::from(super::PATH_SPP) } else { r.trace_ms };
+    let per_spp =
+        |r: &Row| if r.rays == RayKind::Path.name() { r.trace_ms / f64::from(super::PATH_SPP) } else { r.trace_ms };
     let mut out = Vec::new();
     for (k, r) in list.iter().enumerate() {
         // Against each faster-building structure: build_r + s trace_r < build_o + s trace_o.

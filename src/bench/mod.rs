@@ -15,8 +15,8 @@ use std::path::PathBuf;
 use crate::accel::{AccelKind, AccelParams};
 use crate::math::intersect::IntersectMode;
 
-mod files;
 pub mod convergence;
+mod files;
 pub mod options;
 pub mod plots;
 mod rows;

@@ -292,6 +292,9 @@ fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) 
     }
 }
 
+/// Called with the image so far at each checkpoint.
+pub type CheckpointWriter<'a> = Box<dyn FnMut(&Frame) -> Result<()> + 'a>;
+
 /// What a progressive render is told from outside: progress, interruption and
 /// checkpoints.
 pub struct Control<'a> {
@@ -301,7 +304,7 @@ pub struct Control<'a> {
     /// returned.
     pub interrupted: Box<dyn Fn() -> bool + 'a>,
     /// Every so many seconds (checked after each wave), the image so far.
-    pub checkpoint: Option<(f64, Box<dyn FnMut(&Frame) -> Result<()> + 'a>)>,
+    pub checkpoint: Option<(f64, CheckpointWriter<'a>)>,
 }
 
 impl std::fmt::Debug for Control<'_> {
@@ -351,16 +354,26 @@ pub fn render_with(
     if settings.time_budget.is_some() || checkpoint.is_some() {
         spp_per = spp_per.min(4);
     }
-    let waves =
-        Waves { total_pixels, chunk_pixels, pixels_per_dispatch: px_per, spp: settings.spp, samples_per_dispatch: spp_per };
+    let waves = Waves {
+        total_pixels,
+        chunk_pixels,
+        pixels_per_dispatch: px_per,
+        spp: settings.spp,
+        samples_per_dispatch: spp_per,
+    };
     let p = params(scene, settings, accel, &ex);
     let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
     let mut frame = Frame::new(settings.width, settings.height)?;
     let mut overflow = 0u64;
     let mut last_checkpoint = Instant::now();
     let mut chunk_started = Instant::now();
-    let (totals, stopped) =
-        dispatch::run_progressive(ctx, &kernel, bound.pixels(), &waves, &mut *progress, |first, len, _samples, complete| {
+    let (totals, stopped) = dispatch::run_progressive(
+        ctx,
+        &kernel,
+        bound.pixels(),
+        &waves,
+        &mut *progress,
+        |first, len, _samples, complete| {
             if complete {
                 overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
                 chunk_started = Instant::now();
@@ -383,7 +396,8 @@ pub fn render_with(
                 }
             }
             Ok(Next::Continue)
-        })?;
+        },
+    )?;
     ctx.check_validation()?;
     if overflow > 0 {
         return Err(Error::scene(

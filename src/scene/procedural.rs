@@ -85,12 +85,7 @@ pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
 
 /// A quad from four corners (counter-clockwise seen from its front), two triangles.
 pub fn quad(corners: [Vec3; 4]) -> MeshData {
-    MeshData {
-        positions: corners.to_vec(),
-        normals: None,
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-        ..Default::default()
-    }
+    MeshData { positions: corners.to_vec(), normals: None, triangles: vec![[0, 1, 2], [0, 2, 3]], ..Default::default() }
 }
 
 #[cfg(test)]
