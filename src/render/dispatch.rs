@@ -45,6 +45,28 @@ pub struct DispatchTotals {
     pub dispatches: u32,
 }
 
+/// One dispatch: pixels `first..first + n` of the chunk at `chunk`, samples
+/// `s..s_end`; its GPU time joins `totals`.
+fn dispatch_one(
+    ctx: &Context,
+    kernel: &Kernel,
+    pixel_buf: &Buffer,
+    (chunk, first, n): (u64, u64, u64),
+    (s, s_end): (u32, u32),
+    totals: &mut DispatchTotals,
+) -> Result<()> {
+    let header = GpuDispatch { range: [first as u32, n as u32, s, s_end], chunk: [chunk as u32, 0, 0, 0] };
+    let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
+    let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
+    let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&header), [groups, 1, 1], &label)?;
+    totals.gpu_ms = match (totals.gpu_ms, ms) {
+        (Some(a), Some(b)) => Some(a + b),
+        _ => None,
+    };
+    totals.dispatches += 1;
+    Ok(())
+}
+
 /// Runs `kernel` over every pixel and sample of `waves`. After each dispatch,
 /// `progress(done, total)` counts pixel-samples; after each chunk,
 /// `chunk_done(first_pixel, pixels)` reads it back.
@@ -68,25 +90,7 @@ pub fn run(
             let mut s = 0u32;
             while s < waves.spp {
                 let s_end = (s + waves.samples_per_dispatch).min(waves.spp);
-                let header = GpuDispatch {
-                    range: [(chunk_start + p) as u32, n as u32, s, s_end],
-                    chunk: [chunk_start as u32, 0, 0, 0],
-                };
-                let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
-                let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
-                let ms = ctx.dispatch_after_write(
-                    kernel,
-                    pixel_buf,
-                    0,
-                    bytemuck::bytes_of(&header),
-                    [groups, 1, 1],
-                    &label,
-                )?;
-                totals.gpu_ms = match (totals.gpu_ms, ms) {
-                    (Some(a), Some(b)) => Some(a + b),
-                    _ => None,
-                };
-                totals.dispatches += 1;
+                dispatch_one(ctx, kernel, pixel_buf, (chunk_start, chunk_start + p, n), (s, s_end), &mut totals)?;
                 done += n * u64::from(s_end - s);
                 progress(done, total_work);
                 s = s_end;
@@ -134,25 +138,7 @@ pub fn run_progressive(
             let mut p = 0u64;
             while p < chunk_len {
                 let n = waves.pixels_per_dispatch.min(chunk_len - p);
-                let header = GpuDispatch {
-                    range: [(chunk_start + p) as u32, n as u32, s, s_end],
-                    chunk: [chunk_start as u32, 0, 0, 0],
-                };
-                let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
-                let label = format!("trace pixels {}+{n} samples {s}..{s_end}", chunk_start + p);
-                let ms = ctx.dispatch_after_write(
-                    kernel,
-                    pixel_buf,
-                    0,
-                    bytemuck::bytes_of(&header),
-                    [groups, 1, 1],
-                    &label,
-                )?;
-                totals.gpu_ms = match (totals.gpu_ms, ms) {
-                    (Some(a), Some(b)) => Some(a + b),
-                    _ => None,
-                };
-                totals.dispatches += 1;
+                dispatch_one(ctx, kernel, pixel_buf, (chunk_start, chunk_start + p, n), (s, s_end), &mut totals)?;
                 done += n * u64::from(s_end - s);
                 progress(done, total_work);
                 p += n;

@@ -132,3 +132,26 @@ impl Variant {
         Ok(Variant { bindings: trace_bindings(image.family, geometry), name, spirv })
     }
 }
+
+/// Pixels a chunk holds: the image, at most `most`, and what one pixel buffer (the
+/// dispatch header, then 64-byte pixels) may hold within the device's storage range.
+pub fn chunk_pixels(ctx: &Context, total_pixels: u64, most: u64) -> u64 {
+    use crate::accel::gpu_layout::{GpuPixel, PIXEL_HEADER_BYTES};
+    let fits = ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64;
+    total_pixels.min(most).min(fits.max(1))
+}
+
+/// Refuses a render in which `overflow` pixels ran out of traversal steps.
+pub fn check_overflow(ctx: &Context, scene: &Scene, bounds: &LoopBounds, overflow: u64) -> Result<()> {
+    if overflow == 0 {
+        return Ok(());
+    }
+    Err(Error::scene(
+        scene.name.clone(),
+        format!(
+            "{overflow} pixels needed more than {} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
+            bounds.steps,
+            ctx.info().name
+        ),
+    ))
+}

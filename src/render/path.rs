@@ -19,7 +19,7 @@ use super::dispatch::{self, Next, Waves};
 use super::kernel::{LoopBounds, Variant};
 use super::upload::{self, GpuScene};
 use super::{Frame, RenderSettings, RenderStats};
-use crate::accel::gpu_layout::{GpuParams, GpuPixel, PIXEL_HEADER_BYTES};
+use crate::accel::gpu_layout::GpuParams;
 use crate::accel::{Accel, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
@@ -342,9 +342,7 @@ pub fn render_with(
 
     let start = Instant::now();
     let total_pixels = u64::from(settings.width) * u64::from(settings.height);
-    let chunk_pixels = total_pixels.min(MAX_CHUNK_PIXELS).min(
-        (ctx.max_storage_range().saturating_sub(PIXEL_HEADER_BYTES) / std::mem::size_of::<GpuPixel>() as u64).max(1),
-    );
+    let chunk_pixels = super::kernel::chunk_pixels(ctx, total_pixels, MAX_CHUNK_PIXELS);
     let cost = image.cost_per_ray * rays_per_sample(scene, settings, &ex);
     let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
     if let Some(most) = bounds.samples_within_limit(ctx, scene, traces)? {
@@ -399,16 +397,7 @@ pub fn render_with(
         },
     )?;
     ctx.check_validation()?;
-    if overflow > 0 {
-        return Err(Error::scene(
-            scene.name.clone(),
-            format!(
-                "{overflow} pixels needed more than {} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
-                bounds.steps,
-                ctx.info().name
-            ),
-        ));
-    }
+    super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
     let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
