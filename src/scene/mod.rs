@@ -139,13 +139,22 @@ impl SceneBuilder {
     /// the same name as a texture already there is that texture) and its materials'
     /// texture indices are remapped.
     pub fn mesh(&mut self, mesh: &MeshData, scale: f32, translate: Vec3, material: Option<u32>) {
+        let t = glam::Affine3A::from_scale_rotation_translation(Vec3::splat(scale), glam::Quat::IDENTITY, translate);
+        self.mesh_transformed(mesh, &t, material);
+    }
+
+    /// Appends a mesh transformed by the affine `t` (non-singular): positions by `t`,
+    /// normals by its inverse transpose; where `t` mirrors (negative determinant) each
+    /// triangle's winding is reversed, so geometric normals keep facing out.
+    pub fn mesh_transformed(&mut self, mesh: &MeshData, t: &glam::Affine3A, material: Option<u32>) {
         let s = &mut self.scene;
         let base = s.positions.len() as u32;
-        s.positions.extend(mesh.positions.iter().map(|p| *p * scale + translate));
+        s.positions.extend(mesh.positions.iter().map(|p| t.transform_point3(*p)));
+        let normal_matrix = t.matrix3.inverse().transpose();
+        let mirrored = t.matrix3.determinant() < 0.0;
         match &mesh.normals {
             Some(n) if n.len() == mesh.positions.len() => {
-                let flip = if scale < 0.0 { -1.0 } else { 1.0 };
-                s.normals.extend(n.iter().map(|v| (*v * flip).try_normalize().unwrap_or(Vec3::ZERO)))
+                s.normals.extend(n.iter().map(|v| (normal_matrix * *v).try_normalize().unwrap_or(Vec3::ZERO)))
             }
             _ => s.normals.extend(std::iter::repeat_n(Vec3::ZERO, mesh.positions.len())),
         }
@@ -177,8 +186,9 @@ impl SceneBuilder {
                 ..m.clone()
             }));
         }
-        for (k, t) in mesh.triangles.iter().enumerate() {
-            s.triangles.push(t.map(|i| i + base));
+        for (k, tri) in mesh.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| i + base);
+            s.triangles.push(if mirrored { [a, c, b] } else { [a, b, c] });
             let m = match material {
                 Some(m) => m,
                 None if !mesh.materials.is_empty() => mat_base + mesh.tri_material.get(k).copied().unwrap_or(0),

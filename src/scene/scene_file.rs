@@ -85,14 +85,76 @@ struct RenderDef {
 #[serde(deny_unknown_fields)]
 struct MeshDef {
     file: String,
-    #[serde(default = "one")]
-    scale: f32,
-    #[serde(default)]
-    translate: [f32; 3],
+    scale: Option<Scale>,
+    /// Axis x, y, z and an angle in degrees, about an axis through the origin.
+    rotate: Option<[f32; 4]>,
+    translate: Option<[f32; 3]>,
+    /// 16 numbers, row-major, last row 0 0 0 1; instead of scale, rotate and translate.
+    matrix: Option<Vec<f32>>,
     material: Option<String>,
 }
+
 fn one() -> f32 {
     1.0
+}
+
+/// A uniform scale or one per axis.
+#[derive(Deserialize, Clone, Copy)]
+#[serde(untagged)]
+enum Scale {
+    Uniform(f32),
+    Axes([f32; 3]),
+}
+
+/// The mesh table's transform: `matrix`, or scale, then rotate, then translate.
+fn mesh_transform(d: &MeshDef) -> std::result::Result<glam::Affine3A, String> {
+    if let Some(m) = &d.matrix {
+        if d.scale.is_some() || d.rotate.is_some() || d.translate.is_some() {
+            return Err("give either matrix or scale / rotate / translate, not both".into());
+        }
+        if m.len() != 16 {
+            return Err(format!("matrix needs 16 numbers (row-major 4x4), got {}", m.len()));
+        }
+        if m.iter().any(|v| !v.is_finite()) {
+            return Err("matrix has a non-finite number".into());
+        }
+        if m[12..16] != [0.0, 0.0, 0.0, 1.0] {
+            return Err("matrix's last row must be 0 0 0 1 (an affine transform)".into());
+        }
+        let cols = glam::Mat4::from_cols_array(&[
+            m[0], m[4], m[8], m[12], m[1], m[5], m[9], m[13], m[2], m[6], m[10], m[14], m[3], m[7], m[11], m[15],
+        ]);
+        return check_transform(glam::Affine3A::from_mat4(cols));
+    }
+    let scale = match d.scale.unwrap_or(Scale::Uniform(1.0)) {
+        Scale::Uniform(s) => Vec3::splat(s),
+        Scale::Axes(a) => v3(a),
+    };
+    let rotation = match d.rotate {
+        None => glam::Quat::IDENTITY,
+        Some([x, y, z, deg]) => {
+            let axis = Vec3::new(x, y, z);
+            if !(axis.is_finite() && deg.is_finite()) {
+                return Err("rotate needs a finite axis and angle".into());
+            }
+            let axis = axis.try_normalize().ok_or("rotate needs a non-zero axis [x, y, z, degrees]")?;
+            glam::Quat::from_axis_angle(axis, deg.to_radians())
+        }
+    };
+    let translate = v3(d.translate.unwrap_or_default());
+    if !(scale.is_finite() && translate.is_finite()) {
+        return Err("scale and translate must be finite".into());
+    }
+    check_transform(glam::Affine3A::from_scale_rotation_translation(scale, rotation, translate))
+}
+
+/// Refuses a singular or non-finite transform.
+fn check_transform(t: glam::Affine3A) -> std::result::Result<glam::Affine3A, String> {
+    let det = t.matrix3.determinant();
+    if !(det.is_finite() && t.translation.is_finite()) || det == 0.0 {
+        return Err(format!("the transform is singular or not finite (determinant {det})"));
+    }
+    Ok(t)
 }
 
 #[derive(Deserialize)]
@@ -101,6 +163,9 @@ struct SphereDef {
     center: [f32; 3],
     radius: f32,
     material: Option<String>,
+    /// Uniform scale of centre and radius (about the origin), before `translate`.
+    scale: Option<f32>,
+    translate: Option<[f32; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -253,9 +318,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     for m in &file.mesh {
         let d = m.get_ref();
         let mat = lookup(&d.material, m.span())?;
-        if !(d.scale.is_finite() && d.scale != 0.0 && v3(d.translate).is_finite()) {
-            return Err(at(m.span(), "mesh scale must be finite and non-zero, translate finite".into()));
-        }
+        let transform = mesh_transform(d).map_err(|e| at(m.span(), format!("mesh '{}': {e}", d.file)))?;
         let mesh_path = dir.join(&d.file);
         let mesh = match loaded.get(&mesh_path) {
             Some(mesh) => Rc::clone(mesh),
@@ -301,20 +364,25 @@ pub fn load(path: &Path) -> Result<Scene> {
                 ),
             ));
         }
-        meshes.push((mesh, d, mat));
+        meshes.push((mesh, transform, mat));
     }
     drop(loaded);
-    for (mesh, d, mat) in meshes {
-        b.mesh(&mesh, d.scale, v3(d.translate), mat);
+    for (mesh, transform, mat) in meshes {
+        b.mesh_transformed(&mesh, &transform, mat);
     }
     for s in &file.sphere {
         let d = s.get_ref();
         let mat = lookup(&d.material, s.span())?.unwrap_or(0);
-        let c = v3(d.center);
-        if !(c.is_finite() && d.radius.is_finite() && d.radius > 0.0) {
+        let k = d.scale.unwrap_or(1.0);
+        if !(k.is_finite() && k != 0.0) {
+            return Err(at(s.span(), "sphere scale must be a finite, non-zero number (uniform)".into()));
+        }
+        let c = v3(d.center) * k + v3(d.translate.unwrap_or_default());
+        let r = d.radius * k.abs();
+        if !(c.is_finite() && r.is_finite() && d.radius > 0.0 && r > 0.0) {
             return Err(at(s.span(), "sphere needs a finite center and a finite radius > 0".into()));
         }
-        b.scene.spheres.push(Sphere { center: c, radius: d.radius, material: mat });
+        b.scene.spheres.push(Sphere { center: c, radius: r, material: mat });
     }
     for l in &file.light {
         let d = l.get_ref();
