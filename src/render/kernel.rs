@@ -155,3 +155,29 @@ pub fn check_overflow(ctx: &Context, scene: &Scene, bounds: &LoopBounds, overflo
         ),
     ))
 }
+
+/// The uniform parameters every integrator shares: camera, scene box, image size and
+/// primitive counts, materials, seed and background (ambient 0, no lights counted,
+/// no path-integrator tables); each integrator fills in the rest.
+pub fn base_params(
+    scene: &Scene,
+    settings: &RenderSettings,
+    accel: &crate::accel::Accel,
+) -> crate::accel::gpu_layout::GpuParams {
+    let (w, h) = (settings.width, settings.height);
+    let basis = scene.camera.basis(w, h);
+    let bounds = accel.bounds();
+    crate::accel::gpu_layout::GpuParams {
+        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
+        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
+        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
+        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
+        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
+        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
+        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
+        counts: [0, scene.materials.len() as u32, settings.seed, 0],
+        background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
+        tables: [0; 4],
+        env: [0.0; 4],
+    }
+}

@@ -271,25 +271,16 @@ fn specialization(
     ]
 }
 
+/// The uniform parameters: the shared ones, every light, the extras' tables and the
+/// environment's intensity and rotation (no ambient term).
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
-    let (w, h) = (settings.width, settings.height);
-    let basis = scene.camera.basis(w, h);
-    let bounds = accel.bounds();
     let (intensity, rotation) =
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
-    GpuParams {
-        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
-        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
-        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
-        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
-        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
-        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
-        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
-        counts: [scene.lights.len() as u32, scene.materials.len() as u32, settings.seed, 0],
-        background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
-        tables: ex.tables,
-        env: [intensity, rotation, ex.total_power, 0.0],
-    }
+    let mut p = super::kernel::base_params(scene, settings, accel);
+    p.counts[0] = scene.lights.len() as u32;
+    p.tables = ex.tables;
+    p.env = [intensity, rotation, ex.total_power, 0.0];
+    p
 }
 
 /// Called with the image so far at each checkpoint.

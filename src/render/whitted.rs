@@ -72,22 +72,10 @@ fn specialization(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bo
 
 /// The uniform parameters: camera, scene box, counts, background.
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams {
-    let (w, h) = (settings.width, settings.height);
-    let basis = scene.camera.basis(w, h);
-    let bounds = accel.bounds();
-    GpuParams {
-        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
-        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
-        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
-        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
-        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
-        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
-        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
-        counts: [lights_used(scene, settings), scene.materials.len() as u32, settings.seed, 0],
-        background: [scene.background.x, scene.background.y, scene.background.z, scene.ambient],
-        tables: [0; 4],
-        env: [0.0; 4],
-    }
+    let mut p = super::kernel::base_params(scene, settings, accel);
+    p.counts[0] = lights_used(scene, settings);
+    p.background[3] = scene.ambient;
+    p
 }
 
 /// How the image is cut into dispatches on `ctx`.
