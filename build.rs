@@ -6,13 +6,16 @@
 //! declares no mesh buffers; `build_bounds.comp` gets the same geometry variants. Every
 //! other `.comp` is compiled once. Binding numbers and
 //! tunables come from `src/gpu/bindings.rs` as macros. On a shader error the build
-//! fails with `file:line: message` from the compiler.
+//! fails with `file:line: message` from the compiler. Variants compile on every core.
+//!
+//! For kernel experiments only: `ARBOR_DEV_KERNELS=trace_bvh_tris,...` compiles just the
+//! kernels whose names contain one of the given strings; the others are then missing
+//! at run time (an error naming them), so never build a release or run tests with it.
 
-use std::cell::RefCell;
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::rc::Rc;
+use std::sync::{Arc, Mutex};
 
 #[allow(dead_code)]
 mod bindings {
@@ -38,11 +41,14 @@ fn main() {
     std::fs::write(out_dir.join("treelet_dp.rs"), dp_gen::rust()).expect("write treelet_dp.rs to OUT_DIR");
     let dp_glsl = dp_gen::glsl();
 
-    let opened: Rc<RefCell<BTreeSet<PathBuf>>> = Rc::default();
-    let compiler = shaderc::Compiler::new().expect("shaderc compiler");
+    let opened: Arc<Mutex<BTreeSet<PathBuf>>> = Arc::default();
     let mut table =
         String::from("/// (name, SPIR-V bytes) of every compiled kernel.\npub const SHADERS: &[(&str, &[u8])] = &[\n");
     let mut failures = Vec::new();
+    println!("cargo:rerun-if-env-changed=ARBOR_DEV_KERNELS");
+    let only: Vec<String> = std::env::var("ARBOR_DEV_KERNELS")
+        .map(|v| v.split(',').filter(|s| !s.is_empty()).map(str::to_string).collect())
+        .unwrap_or_default();
 
     let mut comps: Vec<PathBuf> =
         read_dir_sorted(&shader_dir).into_iter().filter(|p| p.extension().is_some_and(|e| e == "comp")).collect();
@@ -53,16 +59,18 @@ fn main() {
         .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
         .collect();
 
+    // (kernel name, file, source, defines) of every variant, in table order.
+    let mut jobs: Vec<(String, PathBuf, Arc<String>, Vec<(String, String)>)> = Vec::new();
     for comp in &comps {
         let stem = comp.file_stem().unwrap_or_default().to_string_lossy().into_owned();
         let source = match std::fs::read_to_string(comp) {
-            Ok(s) => s,
+            Ok(s) => Arc::new(s),
             Err(e) => {
                 failures.push(format!("{}: {e}", comp.display()));
                 continue;
             }
         };
-        opened.borrow_mut().insert(comp.clone());
+        opened.lock().expect("include set").insert(comp.clone());
         let mut variants: Vec<(String, Vec<(String, String)>)> = Vec::new();
         if stem == "trace" {
             for accel in &accels {
@@ -88,18 +96,42 @@ fn main() {
             variants.push((stem.clone(), Vec::new()));
         }
         for (name, defines) in variants {
-            match compile(&compiler, &shader_dir, comp, &source, &defines, &opened, &dp_glsl) {
-                Ok(words) => {
-                    let path = out_dir.join(format!("{name}.spv"));
-                    std::fs::write(&path, words).expect("write SPIR-V to OUT_DIR");
-                    let _ = writeln!(table, "    ({name:?}, include_bytes!({:?})),", path.display().to_string());
-                }
-                Err(msg) => failures.push(format!("variant {name}:\n{msg}")),
+            if only.is_empty() || only.iter().any(|o| name.contains(o.as_str())) {
+                jobs.push((name, comp.clone(), Arc::clone(&source), defines));
             }
         }
     }
+
+    // Compile on every core, each thread with its own compiler, taking jobs in turn.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<Mutex<Option<Result<Vec<u8>, String>>>> = jobs.iter().map(|_| Mutex::new(None)).collect();
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).min(jobs.len().max(1));
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                let compiler = shaderc::Compiler::new().expect("shaderc compiler");
+                loop {
+                    let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some((_, file, source, defines)) = jobs.get(k) else { break };
+                    let r = compile(&compiler, &shader_dir, file, source, defines, &opened, &dp_glsl);
+                    *results[k].lock().expect("result slot") = Some(r);
+                }
+            });
+        }
+    });
+    for ((name, ..), result) in jobs.iter().zip(results) {
+        match result.into_inner().expect("result slot") {
+            Some(Ok(words)) => {
+                let path = out_dir.join(format!("{name}.spv"));
+                std::fs::write(&path, words).expect("write SPIR-V to OUT_DIR");
+                let _ = writeln!(table, "    ({name:?}, include_bytes!({:?})),", path.display().to_string());
+            }
+            Some(Err(msg)) => failures.push(format!("variant {name}:\n{msg}")),
+            None => failures.push(format!("variant {name}: not compiled")),
+        }
+    }
     table.push_str("];\n");
-    for f in opened.borrow().iter() {
+    for f in opened.lock().expect("include set").iter() {
         println!("cargo:rerun-if-changed={}", f.display());
     }
     if !failures.is_empty() {
@@ -122,7 +154,7 @@ fn compile(
     file: &Path,
     source: &str,
     defines: &[(String, String)],
-    opened: &Rc<RefCell<BTreeSet<PathBuf>>>,
+    opened: &Arc<Mutex<BTreeSet<PathBuf>>>,
     dp_glsl: &str,
 ) -> Result<Vec<u8>, String> {
     let mut opts = shaderc::CompileOptions::new().ok_or("shaderc options")?;
@@ -137,7 +169,7 @@ fn compile(
         opts.add_macro_definition(k, Some(v));
     }
     let dir = shader_dir.to_path_buf();
-    let opened_cb = Rc::clone(opened);
+    let opened_cb = Arc::clone(opened);
     let dp_glsl = dp_glsl.to_string();
     opts.set_include_callback(move |requested, _ty, requester, _depth| {
         if requested == DP_INCLUDE {
@@ -147,7 +179,9 @@ fn compile(
         let candidates = [dir.join(requested), Path::new(requester).parent().unwrap_or(&dir).join(requested)];
         for c in candidates {
             if let Ok(content) = std::fs::read_to_string(&c) {
-                opened_cb.borrow_mut().insert(c.clone());
+                if let Ok(mut set) = opened_cb.lock() {
+                    set.insert(c.clone());
+                }
                 return Ok(shaderc::ResolvedInclude { resolved_name: c.display().to_string(), content });
             }
         }

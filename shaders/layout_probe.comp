@@ -22,13 +22,13 @@ void main() {
     // GpuDispatch (the pixel buffer's header)
     w4(o, dispatch_range); w4(o, dispatch_chunk);
     // GpuVertex[0..2]
-    for (uint k = 0u; k < 2u; k++) { f4(o, vertices[k].position); f4(o, vertices[k].normal); }
+    for (uint k = 0u; k < 2u; k++) { f4(o, vertex_at(k).position); f4(o, vertex_at(k).normal); }
     // GpuTriangle[0..2]
-    for (uint k = 0u; k < 2u; k++) { w4(o, triangles[k]); }
+    for (uint k = 0u; k < 2u; k++) { w4(o, triangle_at(k)); }
     // GpuSphere[0..2]
-    for (uint k = 0u; k < 2u; k++) { f4(o, spheres[k].center_radius); w4(o, spheres[k].material); }
+    for (uint k = 0u; k < 2u; k++) { f4(o, sphere_center_radius(k)); w4(o, sphere_at(k).material); }
     // shading rows: one GpuMaterial + one GpuLight = 6 rows
-    for (uint k = 0u; k < 6u; k++) { f4(o, shading[k]); }
+    for (uint k = 0u; k < 6u; k++) { f4(o, shading_row(k)); }
     // GpuPixel[0..2] (read)
     for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); f4(o, pixels[k].albedo_m2); }
 }

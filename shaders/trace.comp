@@ -23,6 +23,7 @@ layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
+layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 31u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -37,14 +38,14 @@ bool g_overflow = false;
 #if HAS_TRIANGLES
 bool intersect_triangle(uint i, Ray r, inout Hit h) {
     g_tests += 1u;
-    uvec4 tri = triangles[i];
+    uvec4 tri = triangle_at(i);
     float t, u, v;
     Ray rr = r;
     rr.tmax = h.t;
     // Closer wins; at equal t the lower index wins (same rule as Hit::closer in Rust).
-    vec3 v0 = vertices[tri.x].position.xyz;
-    vec3 v1 = vertices[tri.y].position.xyz;
-    vec3 v2 = vertices[tri.z].position.xyz;
+    vec3 v0 = vertex_position(tri.x);
+    vec3 v1 = vertex_position(tri.y);
+    vec3 v2 = vertex_position(tri.z);
     bool hit = INTERSECT_MODE == 0u ? ray_triangle_watertight(rr, v0, v1, v2, t, u, v)
                                     : ray_triangle_fast(rr, v0, v1, v2, t, u, v);
     if (hit && (t < h.t || i < h.prim)) {
@@ -58,7 +59,7 @@ bool intersect_triangle(uint i, Ray r, inout Hit h) {
 #if HAS_SPHERES
 bool intersect_sphere(uint i, Ray r, inout Hit h) {
     g_tests += 1u;
-    vec4 s = spheres[i].center_radius;
+    vec4 s = sphere_center_radius(i);
     float t;
     Ray rr = r;
     rr.tmax = h.t;
@@ -96,6 +97,29 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 
 #include "common/sampling.glsl"
 
+// The hit point, its error bound and the geometric normal, without the shading frame.
+void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
+    gn = vec3(0.0, 1.0, 0.0);
+    p = vec3(0.0); err = vec3(0.0);
+#if HAS_TRIANGLES
+    if (h.prim < params.dims.z) {
+        uvec4 tri = triangle_at(h.prim);
+        vec3 a = vertex_position(tri.x);
+        vec3 b = vertex_position(tri.y);
+        vec3 c = vertex_position(tri.z);
+        triangle_point(a, b, c, h.u, h.v, p, err);
+        gn = normalize(cross(b - a, c - a));
+        return;
+    }
+#endif
+#if HAS_SPHERES
+    vec4 s = sphere_center_radius(h.prim - params.dims.z);
+    vec3 rel;
+    sphere_point(r.origin, r.dir, h.t, s.xyz, s.w, p, err, rel);
+    gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
+#endif
+}
+
 // Shading frame at a hit: the point (recomputed on the surface) and its error bound
 // for spawning rays, geometric normal (the triangle's winding, a sphere's outside),
 // shading normal, material index, texture coordinates.
@@ -104,10 +128,10 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     p = vec3(0.0); err = vec3(0.0);
 #if HAS_TRIANGLES
     if (h.prim < params.dims.z) {
-        uvec4 tri = triangles[h.prim];
-        Vertex a = vertices[tri.x];
-        Vertex b = vertices[tri.y];
-        Vertex c = vertices[tri.z];
+        uvec4 tri = triangle_at(h.prim);
+        Vertex a = vertex_at(tri.x);
+        Vertex b = vertex_at(tri.y);
+        Vertex c = vertex_at(tri.z);
         triangle_point(a.position.xyz, b.position.xyz, c.position.xyz, h.u, h.v, p, err);
         gn = normalize(cross(b.position.xyz - a.position.xyz, c.position.xyz - a.position.xyz));
         sn = gn;
@@ -124,7 +148,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     }
 #endif
 #if HAS_SPHERES
-    Sphere s = spheres[h.prim - params.dims.z];
+    Sphere s = sphere_at(h.prim - params.dims.z);
     vec3 rel;
     sphere_point(r.origin, r.dir, h.t, s.center_radius.xyz, s.center_radius.w, p, err, rel);
     gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
@@ -134,7 +158,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 #endif
 }
 
-vec4 mat_row(uint mat, uint row) { return shading[mat * MATERIAL_ROWS + row]; }
+vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
 
 // Direct light from every light at p (normal n facing the viewer, geometric gn
 // facing the viewer) toward view direction v.
@@ -146,8 +170,8 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
     uint kind = floatBitsToUint(c.w);
     uint base = params.counts.y * MATERIAL_ROWS;
     for (uint l = 0u; l < LIGHT_COUNT; l++) {
-        vec4 a = shading[base + l * LIGHT_ROWS];
-        vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
+        vec4 a = shading_row(base + l * LIGHT_ROWS);
+        vec3 li = shading_row(base + l * LIGHT_ROWS + 1u).xyz;
         vec3 wi;
         float dist;
         if (a.w > 0.5) {
@@ -228,21 +252,6 @@ void whitted_main() {
                 out_px.albedo_m2.rgb = hit ? mat_row(mat, 0u).rgb : vec3(0.0);
             }
             if (!hit) { L += beta * params.background.rgb; break; }
-            if (DIFFUSE_PROBE) {
-                // The benchmark's incoherent rays: one cosine-distributed ray from the
-                // hit, on the side the camera ray came from. The pixel shows whether it
-                // escaped (ambient occlusion).
-                vec3 n = dot(gn, r.dir) < 0.0 ? gn : -gn;
-                vec3 d = cosine_direction(n, rng_next(rng), rng_next(rng));
-                Ray dr;
-                dr.origin = offset_ray_origin(p, err, n, d); dr.dir = d;
-                dr.tmin = 0.0; dr.tmax = uintBitsToFloat(0x7f800000u);
-                Hit dh;
-                dh.t = dr.tmax; dh.prim = NO_PRIM; dh.u = 0.0; dh.v = 0.0;
-                g_rays += 1u;
-                if (!trace_closest(dr, dh)) L += beta * params.background.rgb;
-                break;
-            }
             vec4 c = mat_row(mat, 0u);
             vec4 em = mat_row(mat, 2u);
             uint kind = floatBitsToUint(c.w);
@@ -254,11 +263,11 @@ void whitted_main() {
                 L += beta * (c.rgb * params.background.a * params.background.rgb
                              + direct_light(p, err, snf, gnf, -r.dir, mat));
                 break;
-            } else if (kind == MAT_MIRROR) {
+            } else if (kind_used(MAT_MIRROR) && kind == MAT_MIRROR) {
                 beta *= c.rgb;
                 r.dir = normalize(reflect(r.dir, snf));
                 r.origin = offset_ray_origin(p, err, gnf, r.dir);
-            } else if (kind == MAT_GLASS) {
+            } else if (kind_used(MAT_GLASS) && kind == MAT_GLASS) {
                 float eta = front ? 1.0 / em.a : em.a;
                 float cos_i = min(dot(-r.dir, snf), 1.0);
                 float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
@@ -291,6 +300,58 @@ void whitted_main() {
     pixels[slot] = out_px;
 }
 
+// The benchmark's probe kernel (INTEGRATOR 2): the camera ray of sample 0 and, with
+// DIFFUSE_PROBE, one cosine-distributed ray from its hit, on the side the camera ray
+// came from; nothing else. It is the trace kernel stripped of shading: on llvmpipe
+// both sides of every branch run for all 8 lanes (docs/lavapipe.md), so shading code
+// would be paid by every ray whether it hit or not. The pixel records the hit (prim,
+// depth, cost), radiance 1 where the camera ray hit (or, with DIFFUSE_PROBE, where
+// the bounce escaped: ambient occlusion) and the background elsewhere.
+void probe_main() {
+    uint gid = gl_GlobalInvocationID.x;
+    uvec4 range = dispatch_range;
+    if (gid >= range.y) return;
+    uint pixel = range.x + gid;
+    uint slot = pixel - dispatch_chunk.x;
+    uint width = params.dims.x;
+    Ray r;
+    r.origin = params.cam_eye.xyz;
+    r.dir = camera_ray_dir(pixel % width, pixel / width, 0.5, 0.5);
+    r.tmin = 0.0;
+    r.tmax = uintBitsToFloat(0x7f800000u);
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    g_nodes = 0u; g_tests = 0u;
+    bool hit = trace_closest(r, h);
+    uvec3 cost = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+    uint rays = 1u;
+    vec3 L = hit ? vec3(1.0) : params.background.rgb;
+    vec3 n = vec3(0.0);
+    if (DIFFUSE_PROBE && hit) {
+        vec3 p, err, gn;
+        surface_point(h, r, p, err, gn);
+        n = dot(gn, r.dir) < 0.0 ? gn : -gn;
+        uint rng = rng_init(pixel, 0u, params.counts.z);
+        vec3 d = cosine_direction(n, rng_next(rng), rng_next(rng));
+        Ray dr;
+        dr.origin = offset_ray_origin(p, err, n, d); dr.dir = d;
+        dr.tmin = 0.0; dr.tmax = uintBitsToFloat(0x7f800000u);
+        Hit dh;
+        dh.t = dr.tmax; dh.prim = NO_PRIM; dh.u = 0.0; dh.v = 0.0;
+        rays = 2u;
+        L = trace_closest(dr, dh) ? vec3(0.0) : params.background.rgb;
+    }
+    Pixel q;
+    q.radiance = vec4(L, 1.0);
+    q.normal_depth = vec4(n, h.t);
+    q.prim_cost = uvec4(cost, rays | (g_overflow ? OVERFLOW_FLAG : 0u));
+    float y = luminance(L);
+    q.albedo_m2 = vec4(0.0, 0.0, 0.0, y * y);
+    pixels[slot] = q;
+}
+
 void main() {
-    if (INTEGRATOR == 1u) path_main(); else whitted_main();
+    if (INTEGRATOR == 1u) path_main();
+    else if (INTEGRATOR == 2u) probe_main();
+    else whitted_main();
 }

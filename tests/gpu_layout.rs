@@ -56,10 +56,10 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
 
     let bindings = [
         BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
-        BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Storage, name: "vertices" },
-        BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Storage, name: "triangles" },
-        BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Storage, name: "spheres" },
-        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" },
+        BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Texel, name: "vertices" },
+        BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Texel, name: "triangles" },
+        BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Texel, name: "spheres" },
+        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" },
         BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" },
         BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_out" },
     ];

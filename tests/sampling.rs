@@ -26,7 +26,7 @@ fn probe(
     let records = input.len() / 2;
     let bindings = [
         BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
-        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" },
+        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" },
         BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_in" },
         BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "probe_out" },
     ];

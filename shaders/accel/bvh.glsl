@@ -9,8 +9,7 @@
 // references (tree depth + 1, checked at build time); every trace takes at most
 // TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is flagged.
 
-layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer BvhNodes { uvec4 bvh_nodes[]; };
-layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer BvhIndices { uint bvh_indices[]; };
+#include "common/accel_texels.glsl"
 
 const uint BVH_LEAF = 0x80000000u;
 const uint BVH_EMPTY = 0xffffffffu;
@@ -29,10 +28,10 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
             g_nodes += 1u;
-            uvec4 a = bvh_nodes[4u * cur];
-            uvec4 b = bvh_nodes[4u * cur + 1u];
-            uvec4 c = bvh_nodes[4u * cur + 2u];
-            uvec4 d = bvh_nodes[4u * cur + 3u];
+            uvec4 a = node_texel(4u * cur);
+            uvec4 b = node_texel(4u * cur + 1u);
+            uvec4 c = node_texel(4u * cur + 2u);
+            uvec4 d = node_texel(4u * cur + 3u);
             uint lref = a.w;
             uint rref = b.w;
             precise float limit = h.t * (1.0 + BVH_T_MARGIN);
@@ -61,7 +60,7 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
         uint count = (cur & 7u) + 1u;
         for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
             steps += 1u;
-            if (intersect_prim(bvh_indices[first + k], r, h)) {
+            if (intersect_prim(accel_index(first + k), r, h)) {
                 found = true;
                 if (any_hit) return true;
             }

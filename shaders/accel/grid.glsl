@@ -8,12 +8,10 @@
 // steps, cells and primitive tests), beyond which the pixel is flagged.
 
 // The head of this block is GpuGridHeader in src/accel/gpu_layout.rs.
-layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer GridCells {
-    uvec4 grid_res;
-    vec4 grid_cell;
-    uint grid_start[];
-};
-layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer GridIndices { uint grid_indices[]; };
+// Node buffer: grid_res (16 bytes), grid_cell (16 bytes), then the cell starts.
+#include "common/accel_texels.glsl"
+#define grid_res node_texel(0u)
+#define grid_cell uintBitsToFloat(node_texel(1u))
 
 // Coordinate of boundary k on axis a; Grid::boundary.
 float grid_boundary(uint a, uint k) {
@@ -63,11 +61,11 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
         steps += 1u;
         g_nodes += 1u;
         uint c = idx.x + res.x * (idx.y + res.y * idx.z);
-        uint first = grid_start[c];
-        uint last = grid_start[c + 1u];
+        uint first = node_word(8u + (c));
+        uint last = node_word(8u + (c + 1u));
         for (uint k = first; k < last && steps < TREE_STEPS; k++) {
             steps += 1u;
-            if (intersect_prim(grid_indices[k], r, h)) {
+            if (intersect_prim(accel_index(k), r, h)) {
                 found = true;
                 if (any_hit) return true;
             }

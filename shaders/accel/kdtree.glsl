@@ -7,8 +7,7 @@
 // every trace takes at most TREE_STEPS steps (nodes + primitive tests), beyond which
 // the pixel is flagged and the host reports an error (llvmpipe caps loop iterations).
 
-layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer KdNodes { uvec2 kd_nodes[]; };
-layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer KdIndices { uint kd_indices[]; };
+#include "common/accel_texels.glsl"
 
 // The stack holds (node, tmax) only: the cell popped next always starts where the
 // last visited cell ended (its tmin is the current tmax, carried exactly), except
@@ -32,7 +31,7 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
     while (steps < TREE_STEPS) {
         // Descend through inner nodes to a leaf ("while-while": on SIMD hardware the
         // lanes then test their leaves' primitives together).
-        uvec2 nd = kd_nodes[node];
+        uvec2 nd = node_pair(node);
         steps += 1u;
         g_nodes += 1u;
         while ((nd.y & 3u) != 3u && steps < TREE_STEPS) {
@@ -59,7 +58,7 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
                     tmax = tplane;
                 }
             }
-            nd = kd_nodes[node];
+            nd = node_pair(node);
             steps += 1u;
             g_nodes += 1u;
         }
@@ -68,7 +67,7 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
         uint count = nd.x;
         for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
             steps += 1u;
-            if (intersect_prim(kd_indices[first + k], r, h)) {
+            if (intersect_prim(accel_index(first + k), r, h)) {
                 found = true;
                 if (any_hit) return true;
             }

@@ -13,12 +13,10 @@
 // and primitive tests) per trace, beyond which the pixel is flagged.
 
 // The head of this block is GpuOctreeHeader in src/accel/gpu_layout.rs.
-layout(std430, set = 0, binding = BINDING_ACCEL_NODES) readonly buffer OctNodes {
-    vec4 oct_min;
-    vec4 oct_max;
-    uvec2 oct_nodes[];
-};
-layout(std430, set = 0, binding = BINDING_ACCEL_INDICES) readonly buffer OctIndices { uint oct_indices[]; };
+// Node buffer: oct_min (16 bytes), oct_max (16 bytes), then 8-byte nodes.
+#include "common/accel_texels.glsl"
+#define oct_min uintBitsToFloat(node_texel(0u))
+#define oct_max uintBitsToFloat(node_texel(1u))
 
 const uint OCT_LEAF = 0x80000000u;
 
@@ -50,7 +48,7 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
         vec3 mn = start_mn;
         vec3 mx = start_mx;
         uint node = start;
-        uvec2 nd = oct_nodes[node];
+        uvec2 nd = node_pair(4u + (node));
         uint parent = node;
         vec3 parent_mn = mn;
         vec3 parent_mx = mx;
@@ -72,7 +70,7 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
             uint mask = nd.x & 0xffu;
             if ((mask & (1u << k)) == 0u) break; // absent octant: empty space
             node = nd.y + uint(bitCount(mask & ((1u << k) - 1u)));
-            nd = oct_nodes[node];
+            nd = node_pair(4u + (node));
             steps += 1u;
             g_nodes += 1u;
         }
@@ -81,7 +79,7 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
             uint count = nd.x & ~OCT_LEAF;
             for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
                 steps += 1u;
-                if (intersect_prim(oct_indices[first + k], r, h)) {
+                if (intersect_prim(accel_index(first + k), r, h)) {
                     found = true;
                     if (any_hit) return true;
                 }

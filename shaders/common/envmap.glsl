@@ -10,11 +10,11 @@
 const float ONE_MINUS_EPSILON = 0.99999994;
 
 float shading_float(uint base, uint k) {
-    return shading[base + (k >> 2u)][k & 3u];
+    return shading_row(base + (k >> 2u))[k & 3u];
 }
 
 uint shading_word(uint base, uint k) {
-    return floatBitsToUint(shading[base + (k >> 2u)][k & 3u]);
+    return floatBitsToUint(shading_row(base + (k >> 2u))[k & 3u]);
 }
 
 // Largest i in [0, n) with cdf(i) <= u, for the n + 1 non-decreasing floats of a CDF

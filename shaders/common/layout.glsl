@@ -53,13 +53,34 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
 } params;
 
 #if HAS_TRIANGLES
-layout(std430, set = 0, binding = BINDING_VERTICES) readonly buffer VertexBuffer { Vertex vertices[]; };
-layout(std430, set = 0, binding = BINDING_TRIANGLES) readonly buffer TriangleBuffer { uvec4 triangles[]; };
+// Vertices and triangles are uniform texel buffers (RGBA32UI views of the same bytes):
+// on llvmpipe a texel fetch is one vector gather where a storage-buffer load is a loop
+// over the lanes (docs/lavapipe.md). A vertex is two texels.
+layout(set = 0, binding = BINDING_VERTICES) uniform usamplerBuffer vertex_texels;
+layout(set = 0, binding = BINDING_TRIANGLES) uniform usamplerBuffer triangle_texels;
+uvec4 triangle_at(uint i) { return texelFetch(triangle_texels, int(i)); }
+vec3 vertex_position(uint i) { return uintBitsToFloat(texelFetch(vertex_texels, int(2u * i)).xyz); }
+Vertex vertex_at(uint i) {
+    Vertex v;
+    v.position = uintBitsToFloat(texelFetch(vertex_texels, int(2u * i)));
+    v.normal = uintBitsToFloat(texelFetch(vertex_texels, int(2u * i + 1u)));
+    return v;
+}
 #endif
 #if HAS_SPHERES
-layout(std430, set = 0, binding = BINDING_SPHERES) readonly buffer SphereBuffer { Sphere spheres[]; };
+// Spheres: a texel buffer, two texels each.
+layout(set = 0, binding = BINDING_SPHERES) uniform usamplerBuffer sphere_texels;
+vec4 sphere_center_radius(uint i) { return uintBitsToFloat(texelFetch(sphere_texels, int(2u * i))); }
+Sphere sphere_at(uint i) {
+    Sphere s;
+    s.center_radius = sphere_center_radius(i);
+    s.material = texelFetch(sphere_texels, int(2u * i + 1u));
+    return s;
+}
 #endif
-layout(std430, set = 0, binding = BINDING_SHADING) readonly buffer ShadingBuffer { vec4 shading[]; };
+// The shading rows (materials, lights, the path integrator's tables), a texel buffer.
+layout(set = 0, binding = BINDING_SHADING) uniform usamplerBuffer shading_texels;
+vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int(k))); }
 // The pixel buffer opens with the dispatch header (`GpuDispatch`), which the host
 // writes before each dispatch (vkCmdUpdateBuffer). It is storage, not push constants,
 // because lavapipe compiles a shader again, at every dispatch, for the values of push

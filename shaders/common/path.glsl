@@ -41,7 +41,7 @@ vec3 texel(uint base, uint w, uint x, uint y) {
 
 // Bilinear, repeat wrap, decoded to linear before filtering.
 vec3 texture_albedo(uint tex, vec2 uv) {
-    vec4 row = shading[params.tables.y + tex];
+    vec4 row = shading_row(params.tables.y + tex);
     uint base = floatBitsToUint(row.x);
     uint w = floatBitsToUint(row.y);
     uint h = floatBitsToUint(row.z);
@@ -74,14 +74,14 @@ float emitter_power(uint prim, Material m) {
     float area = 0.0;
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
-        uvec4 tri = triangles[prim];
-        vec3 a = vertices[tri.x].position.xyz;
-        area = 0.5 * length(cross(vertices[tri.y].position.xyz - a, vertices[tri.z].position.xyz - a));
+        uvec4 tri = triangle_at(prim);
+        vec3 a = vertex_position(tri.x);
+        area = 0.5 * length(cross(vertex_position(tri.y) - a, vertex_position(tri.z) - a));
     }
 #endif
 #if HAS_SPHERES
     if (prim >= params.dims.z) {
-        float r = spheres[prim - params.dims.z].center_radius.w;
+        float r = sphere_center_radius(prim - params.dims.z).w;
         area = 4.0 * PI * r * r;
     }
 #endif
@@ -110,15 +110,15 @@ float light_pdf(uint prim, Material m, vec3 p, vec3 d, float t, vec3 gn) {
     float pmf = emitter_power(prim, m) / params.env.z;
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
-        uvec4 tri = triangles[prim];
-        vec3 a = vertices[tri.x].position.xyz;
-        float area = 0.5 * length(cross(vertices[tri.y].position.xyz - a, vertices[tri.z].position.xyz - a));
+        uvec4 tri = triangle_at(prim);
+        vec3 a = vertex_position(tri.x);
+        float area = 0.5 * length(cross(vertex_position(tri.y) - a, vertex_position(tri.z) - a));
         float cos_l = abs(dot(gn, d));
         return area > 0.0 && cos_l > 0.0 ? pmf * t * t / (area * cos_l) : 0.0;
     }
 #endif
 #if HAS_SPHERES
-    vec4 s = spheres[prim - params.dims.z].center_radius;
+    vec4 s = sphere_center_radius(prim - params.dims.z);
     return pmf * sphere_light_pdf(p, s.xyz, s.w, t, d, gn);
 #else
     return 0.0;
@@ -137,9 +137,9 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     uint hi = EMITTER_COUNT;
     for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
         uint mid = (lo + hi) >> 1u;
-        if (shading[base + mid].y <= u.x) lo = mid; else hi = mid;
+        if (shading_row(base + mid).y <= u.x) lo = mid; else hi = mid;
     }
-    vec4 row = shading[base + lo];
+    vec4 row = shading_row(base + lo);
     uint prim = floatBitsToUint(row.x);
     float pmf = row.z;
     if (pmf <= 0.0) return false;
@@ -147,10 +147,10 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     uint mat;
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
-        uvec4 tri = triangles[prim];
-        vec3 a = vertices[tri.x].position.xyz;
-        vec3 b = vertices[tri.y].position.xyz;
-        vec3 c = vertices[tri.z].position.xyz;
+        uvec4 tri = triangle_at(prim);
+        vec3 a = vertex_position(tri.x);
+        vec3 b = vertex_position(tri.y);
+        vec3 c = vertex_position(tri.z);
         vec3 cr = cross(b - a, c - a);
         float area = 0.5 * length(cr);
         if (area <= 0.0) return false;
@@ -170,7 +170,7 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
 #endif
 #if HAS_SPHERES
     if (prim >= params.dims.z) {
-        Sphere s = spheres[prim - params.dims.z];
+        Sphere s = sphere_at(prim - params.dims.z);
         vec3 c = s.center_radius.xyz;
         float r = s.center_radius.w;
         vec3 pc = c - p;
@@ -219,8 +219,8 @@ vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo) {
     if (LIGHT_COUNT == 0u) return total;
     uint base = params.counts.y * MATERIAL_ROWS;
     for (uint l = 0u; l < LIGHT_COUNT; l++) {
-        vec4 a = shading[base + l * LIGHT_ROWS];
-        vec3 li = shading[base + l * LIGHT_ROWS + 1u].xyz;
+        vec4 a = shading_row(base + l * LIGHT_ROWS);
+        vec3 li = shading_row(base + l * LIGHT_ROWS + 1u).xyz;
         vec3 wi;
         float dist;
         if (a.w > 0.5) {
@@ -379,7 +379,7 @@ void path_main() {
             // transmitted one on the other.
             if ((dot(gnf, wi) > 0.0) == transmit) break;
             beta *= weight;
-            if (transmit && m.kind == MAT_GLASS) sigma = front ? m.absorption : vec3(0.0);
+            if (kind_used(MAT_GLASS) && transmit && m.kind == MAT_GLASS) sigma = front ? m.absorption : vec3(0.0);
             prev_delta = sdelta;
             prev_pdf = bpdf;
             prev_p = p;

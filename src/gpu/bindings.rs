@@ -138,7 +138,8 @@ pub const SPEC_SCATTER_GROUP: u32 = 8;
 /// for the reason given at SPEC_LIGHTS).
 pub const SPEC_TRIANGLE_COUNT: u32 = 9;
 pub const SPEC_SPHERE_COUNT: u32 = 10;
-/// Integrator of the trace kernel: 0 Whitted, 1 path tracing.
+/// Integrator of the trace kernel: 0 Whitted, 1 path tracing, 2 the benchmark's probe
+/// (camera rays and, with `SPEC_DIFFUSE_PROBE`, one bounce; no shading).
 pub const SPEC_INTEGRATOR: u32 = 11;
 /// Path integrator: emissive primitives in the emitter table (0: no area-light code).
 pub const SPEC_EMITTERS: u32 = 12;
@@ -152,6 +153,9 @@ pub const SPEC_TEXTURES: u32 = 15;
 pub const SPEC_MIS: u32 = 16;
 /// Path integrator: the depth from which Russian roulette may end a path.
 pub const SPEC_RR_DEPTH: u32 = 17;
+/// The material kinds the scene has, a bit per `MaterialKind` (1 << kind): the shading
+/// code of absent kinds compiles away.
+pub const SPEC_MATERIAL_KINDS: u32 = 18;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
@@ -193,6 +197,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_TEXTURES", SPEC_TEXTURES),
     ("SPEC_MIS", SPEC_MIS),
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
+    ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),

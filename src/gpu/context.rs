@@ -102,6 +102,8 @@ pub struct Context {
     pub(crate) query_pool: vk::QueryPool,
     pub(crate) timestamps: bool,
     pub(crate) max_storage_range: u64,
+    /// `maxTexelBufferElements`: texels a texel-buffer view may span.
+    pub(crate) max_texel_elements: u64,
     pub(crate) max_workgroups: [u32; 3],
     info: DeviceInfo,
 }
@@ -379,6 +381,7 @@ impl Context {
             query_pool,
             timestamps,
             max_storage_range,
+            max_texel_elements: u64::from(props.limits.max_texel_buffer_elements),
             max_workgroups: props.limits.max_compute_work_group_count,
             info,
         })

@@ -15,6 +15,21 @@ use crate::error::{Error, Result};
 pub enum BindingKind {
     Uniform,
     Storage,
+    /// A read-only uniform texel buffer viewed as `R32G32B32A32_UINT` (GLSL
+    /// `usamplerBuffer`, read with `texelFetch`) over a storage buffer. On llvmpipe a
+    /// texel fetch is one vector gather, where a storage-buffer load is a branchy loop
+    /// over the lanes (docs/lavapipe.md); it does not count as a storage buffer.
+    Texel,
+}
+
+impl BindingKind {
+    fn descriptor_type(self) -> vk::DescriptorType {
+        match self {
+            BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
+            BindingKind::Storage => vk::DescriptorType::STORAGE_BUFFER,
+            BindingKind::Texel => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+        }
+    }
 }
 
 /// One binding of a kernel's descriptor set 0.
@@ -39,6 +54,8 @@ pub struct Kernel {
     set: vk::DescriptorSet,
     push_size: u32,
     bound: Vec<Option<u64>>,
+    /// Buffer views of the texel bindings, by binding index (null where none).
+    views: Vec<vk::BufferView>,
 }
 
 impl Kernel {
@@ -76,6 +93,11 @@ impl Drop for Kernel {
         // SAFETY: submissions complete before returning, so nothing uses these objects.
         unsafe {
             let d = &self.shared.device;
+            for v in &self.views {
+                if *v != vk::BufferView::null() {
+                    d.destroy_buffer_view(*v, None);
+                }
+            }
             d.destroy_descriptor_pool(self.pool, None);
             d.destroy_pipeline(self.pipeline, None);
             d.destroy_pipeline_layout(self.layout, None);
@@ -115,6 +137,7 @@ impl Context {
             set: vk::DescriptorSet::null(),
             push_size,
             bound: vec![None; bindings.len()],
+            views: vec![vk::BufferView::null(); bindings.len()],
         };
         // SAFETY: `words` is SPIR-V produced by shaderc at build time.
         k.module = unsafe { dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
@@ -125,10 +148,7 @@ impl Context {
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(b.binding)
-                    .descriptor_type(match b.kind {
-                        BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
-                        BindingKind::Storage => vk::DescriptorType::STORAGE_BUFFER,
-                    })
+                    .descriptor_type(b.kind.descriptor_type())
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
@@ -168,14 +188,12 @@ impl Context {
         k.pipeline = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &pinfo, None) }
             .map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?[0];
         self.shared.set_name(k.pipeline, name);
-        let storage = bindings.iter().filter(|b| b.kind == BindingKind::Storage).count() as u32;
-        let uniform = bindings.len() as u32 - storage;
         let mut sizes = Vec::new();
-        if storage > 0 {
-            sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: storage });
-        }
-        if uniform > 0 {
-            sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: uniform });
+        for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel] {
+            let count = bindings.iter().filter(|b| b.kind == kind).count() as u32;
+            if count > 0 {
+                sizes.push(vk::DescriptorPoolSize { ty: kind.descriptor_type(), descriptor_count: count });
+            }
         }
         // SAFETY: as above.
         k.pool = unsafe {
@@ -203,9 +221,10 @@ impl Context {
             result: format!("the kernel has no binding {binding}"),
         })?;
         let desc = &kernel.bindings[idx];
-        let (ty, ok_kind) = match desc.kind {
-            BindingKind::Storage => (vk::DescriptorType::STORAGE_BUFFER, buffer.kind() == BufferKind::Storage),
-            BindingKind::Uniform => (vk::DescriptorType::UNIFORM_BUFFER, buffer.kind() == BufferKind::Uniform),
+        let ty = desc.kind.descriptor_type();
+        let ok_kind = match desc.kind {
+            BindingKind::Storage | BindingKind::Texel => buffer.kind() == BufferKind::Storage,
+            BindingKind::Uniform => buffer.kind() == BufferKind::Uniform,
         };
         if !ok_kind {
             return Err(Error::Vulkan {
@@ -220,14 +239,49 @@ impl Context {
                 limit: self.max_storage_range,
             });
         }
-        let info = [vk::DescriptorBufferInfo { buffer: buffer.raw, offset: 0, range: vk::WHOLE_SIZE }];
-        let write = [vk::WriteDescriptorSet::default()
-            .dst_set(kernel.set)
-            .dst_binding(binding)
-            .descriptor_type(ty)
-            .buffer_info(&info)];
-        // SAFETY: the set is not in use by a pending submission (all submissions wait).
-        unsafe { self.shared.device.update_descriptor_sets(&write, &[]) };
+        if desc.kind == BindingKind::Texel {
+            let texels = buffer.size() / 16;
+            if texels > self.max_texel_elements {
+                return Err(Error::BufferTooLarge {
+                    name: buffer.name().to_string(),
+                    size: buffer.size(),
+                    limit: self.max_texel_elements * 16,
+                });
+            }
+            let info = vk::BufferViewCreateInfo::default()
+                .buffer(buffer.raw)
+                .format(vk::Format::R32G32B32A32_UINT)
+                .offset(0)
+                .range(texels * 16);
+            // SAFETY: a live storage buffer created with UNIFORM_TEXEL_BUFFER usage, a
+            // range within it and a format every Vulkan device supports for texel buffers.
+            let view = unsafe { self.shared.device.create_buffer_view(&info, None) }
+                .map_err(vk_err("vkCreateBufferView"))?;
+            let views = [view];
+            let write = [vk::WriteDescriptorSet::default()
+                .dst_set(kernel.set)
+                .dst_binding(binding)
+                .descriptor_type(ty)
+                .texel_buffer_view(&views)];
+            // SAFETY: the set is not in use by a pending submission (all submissions
+            // wait), so the view it held before can go.
+            unsafe {
+                self.shared.device.update_descriptor_sets(&write, &[]);
+                if kernel.views[idx] != vk::BufferView::null() {
+                    self.shared.device.destroy_buffer_view(kernel.views[idx], None);
+                }
+            }
+            kernel.views[idx] = view;
+        } else {
+            let info = [vk::DescriptorBufferInfo { buffer: buffer.raw, offset: 0, range: vk::WHOLE_SIZE }];
+            let write = [vk::WriteDescriptorSet::default()
+                .dst_set(kernel.set)
+                .dst_binding(binding)
+                .descriptor_type(ty)
+                .buffer_info(&info)];
+            // SAFETY: the set is not in use by a pending submission (all submissions wait).
+            unsafe { self.shared.device.update_descriptor_sets(&write, &[]) };
+        }
         kernel.bound[idx] = Some(buffer.size());
         Ok(())
     }

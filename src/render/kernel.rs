@@ -7,7 +7,7 @@ use crate::accel::{GpuImage, TraceLoop};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
-use crate::scene::Scene;
+use crate::scene::{MaterialKind, Scene};
 
 /// Which geometry a kernel variant handles.
 pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
@@ -25,19 +25,28 @@ pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
 pub fn trace_bindings(family: &str, geometry: &str) -> Vec<BindingDesc> {
     let mut b = vec![BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" }];
     if geometry != "spheres" {
-        b.push(BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Storage, name: "vertices" });
-        b.push(BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Storage, name: "triangles" });
+        b.push(BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Texel, name: "vertices" });
+        b.push(BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Texel, name: "triangles" });
     }
     if geometry != "tris" {
-        b.push(BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Storage, name: "spheres" });
+        b.push(BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Texel, name: "spheres" });
     }
-    b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Storage, name: "shading" });
+    b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" });
     b.push(BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" });
     if family != "none" {
-        b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "accel_nodes" });
-        b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "accel_indices" });
+        b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Texel, name: "accel_nodes" });
+        b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Texel, name: "accel_indices" });
     }
     b
+}
+
+/// The material kinds `scene` uses, a bit per kind (`SPEC_MATERIAL_KINDS`); Lambert at
+/// least, the kind of the default material. The general kernel has code for every kind.
+pub fn material_kinds(scene: &Scene, settings: &RenderSettings) -> u32 {
+    if settings.kernel == KernelChoice::General {
+        return (1 << (MaterialKind::Emissive as u32 + 1)) - 1;
+    }
+    scene.materials.iter().fold(1 << MaterialKind::Lambert as u32, |m, x| m | 1 << x.kind as u32)
 }
 
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).

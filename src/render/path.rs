@@ -268,6 +268,7 @@ fn specialization(
         (SPEC_TEXTURES, u32::from(!scene.textures.is_empty())),
         (SPEC_MIS, settings.mis.spec()),
         (SPEC_RR_DEPTH, RR_DEPTH),
+        (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
     ]
 }
 

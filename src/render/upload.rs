@@ -143,7 +143,11 @@ pub fn bind_all(
                 let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
                 check_range(ctx, "pixels", size)?;
                 pixels = Some(storage.len());
-                ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?
+                let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
+                // Cleared here so that on a CPU device the first touch of its pages
+                // (the kernel zeroing them) is not charged to the first trace.
+                ctx.fill_zero(&buf)?;
+                buf
             }
             other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
         };

@@ -67,6 +67,9 @@ fn specialization(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bo
         (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
         (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
         (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
+        // The probe modes run the lean probe kernel (trace.comp, probe_main).
+        (SPEC_INTEGRATOR, if probe { 2 } else { 0 }),
+        (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
     ]
 }
 
