@@ -255,8 +255,8 @@ impl Context {
                 .range(texels * 16);
             // SAFETY: a live storage buffer created with UNIFORM_TEXEL_BUFFER usage, a
             // range within it and a format every Vulkan device supports for texel buffers.
-            let view = unsafe { self.shared.device.create_buffer_view(&info, None) }
-                .map_err(vk_err("vkCreateBufferView"))?;
+            let view =
+                unsafe { self.shared.device.create_buffer_view(&info, None) }.map_err(vk_err("vkCreateBufferView"))?;
             let views = [view];
             let write = [vk::WriteDescriptorSet::default()
                 .dst_set(kernel.set)
