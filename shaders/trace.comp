@@ -91,6 +91,8 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/bvh.glsl"
 #elif defined(ACCEL_GRID)
 #include "accel/grid.glsl"
+#elif defined(ACCEL_BVH4)
+#include "accel/bvh4.glsl"
 #elif defined(ACCEL_OCTREE)
 #include "accel/octree.glsl"
 #endif

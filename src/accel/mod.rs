@@ -8,6 +8,8 @@
 //! - [`AccelKind::BspCourse`]: the lecture's simple BSP tree, same layout and kernel.
 //! - [`AccelKind::BvhSah`], [`AccelKind::Lbvh`], [`AccelKind::Trbvh`]: BVHs from
 //!   three builders, one layout and one kernel (see [`bvh`]).
+//! - [`AccelKind::Bvh4`]: the `bvh-sah` tree collapsed into 4-wide nodes
+//!   ([`bvh::wide`]), its own layout and kernel.
 //! - [`AccelKind::Grid`]: uniform grid, 3D-DDA (Amanatides & Woo 1987).
 //! - [`AccelKind::Octree`]: octree with child masks, parametric traversal (Revelles 2000).
 
@@ -48,6 +50,8 @@ pub enum AccelKind {
     Lbvh,
     /// LBVH with treelet restructuring (Karras & Aila 2013).
     Trbvh,
+    /// The binned SAH BVH collapsed into 4-wide nodes.
+    Bvh4,
     /// Uniform grid, about lambda x N cells (Amanatides & Woo 1987).
     Grid,
     /// Octree, subdivided about node centres (Revelles et al. 2000 traversal).
@@ -63,6 +67,7 @@ impl AccelKind {
         AccelKind::BvhSah,
         AccelKind::Lbvh,
         AccelKind::Trbvh,
+        AccelKind::Bvh4,
         AccelKind::Grid,
         AccelKind::Octree,
     ];
@@ -76,6 +81,7 @@ impl AccelKind {
             AccelKind::BvhSah => "bvh-sah",
             AccelKind::Lbvh => "lbvh",
             AccelKind::Trbvh => "trbvh",
+            AccelKind::Bvh4 => "bvh4",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
         }
@@ -106,7 +112,7 @@ impl AccelKind {
             AccelKind::Trbvh => Some("trbvh"),
             AccelKind::Grid => Some("grid"),
             AccelKind::Octree => Some("octree"),
-            AccelKind::None | AccelKind::BspCourse | AccelKind::BvhSah | AccelKind::Lbvh => None,
+            AccelKind::None | AccelKind::BspCourse | AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Bvh4 => None,
         }
     }
 
@@ -116,6 +122,7 @@ impl AccelKind {
             AccelKind::None => "none",
             AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
             AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
+            AccelKind::Bvh4 => "bvh4",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
         }
@@ -138,6 +145,7 @@ impl FromStr for AccelKind {
             "bvh-sah" | "bvh" => Ok(AccelKind::BvhSah),
             "lbvh" => Ok(AccelKind::Lbvh),
             "trbvh" => Ok(AccelKind::Trbvh),
+            "bvh4" => Ok(AccelKind::Bvh4),
             "grid" => Ok(AccelKind::Grid),
             "octree" => Ok(AccelKind::Octree),
             _ => Err(format!(
@@ -363,6 +371,7 @@ pub enum Accel {
     None(none::BruteForce),
     Kd(kdtree::KdTree),
     Bvh(bvh::Bvh),
+    Bvh4(bvh::wide::Bvh4),
     Grid(grid::Grid),
     Octree(octree::Octree),
 }
@@ -382,6 +391,7 @@ impl Accel {
             AccelKind::BvhSah => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
             AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build_with(scene, bvh::BvhBuilder::Trbvh, &params.treelet)),
+            AccelKind::Bvh4 => Accel::Bvh4(bvh::wide::Bvh4::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
         }
@@ -434,6 +444,7 @@ impl Accel {
             Accel::None(t) => t,
             Accel::Kd(t) => t,
             Accel::Bvh(t) => t,
+            Accel::Bvh4(t) => t,
             Accel::Grid(t) => t,
             Accel::Octree(t) => t,
         }

@@ -9,6 +9,8 @@
 //! - `trbvh` ([`treelet`]): LBVH, then treelet restructuring after Karras & Aila
 //!   (2013), then collapse of subtrees into leaves where the SAH prefers it.
 //!
+//! `bvh4` ([`wide`]) collapses the `bvh-sah` tree into 4-wide nodes.
+//!
 //! GPU layout: 64 bytes per inner node, holding both children's boxes so one fetch
 //! decides which children a ray enters and in which order. Leaves are not nodes but
 //! child references into the primitive-index array:
@@ -40,6 +42,7 @@ mod flatten;
 pub mod gpu_build;
 pub mod lbvh;
 pub mod treelet;
+pub mod wide;
 
 /// Most primitives in one leaf (3 bits of the child reference).
 pub const MAX_LEAF: usize = 8;
