@@ -28,6 +28,11 @@ mod dp_gen;
 /// The include name under which kernels get the generated treelet programme.
 const DP_INCLUDE: &str = "generated/treelet_dp.glsl";
 
+/// One kernel to compile: (kernel name, file, source, extra macro definitions).
+type Job = (String, PathBuf, Arc<String>, Vec<(String, String)>);
+/// A compile's outcome: SPIR-V bytes or the compiler's message.
+type Compiled = Result<Vec<u8>, String>;
+
 /// Geometry variants of the trace kernel: (suffix, HAS_TRIANGLES, HAS_SPHERES).
 const GEOMETRY: &[(&str, u32, u32)] = &[("tris", 1, 0), ("spheres", 0, 1), ("all", 1, 1)];
 
@@ -60,7 +65,7 @@ fn main() {
         .collect();
 
     // (kernel name, file, source, defines) of every variant, in table order.
-    let mut jobs: Vec<(String, PathBuf, Arc<String>, Vec<(String, String)>)> = Vec::new();
+    let mut jobs: Vec<Job> = Vec::new();
     for comp in &comps {
         let stem = comp.file_stem().unwrap_or_default().to_string_lossy().into_owned();
         let source = match std::fs::read_to_string(comp) {
@@ -104,7 +109,7 @@ fn main() {
 
     // Compile on every core, each thread with its own compiler, taking jobs in turn.
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<Mutex<Option<Result<Vec<u8>, String>>>> = jobs.iter().map(|_| Mutex::new(None)).collect();
+    let results: Vec<Mutex<Option<Compiled>>> = jobs.iter().map(|_| Mutex::new(None)).collect();
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).min(jobs.len().max(1));
     std::thread::scope(|scope| {
         for _ in 0..threads {

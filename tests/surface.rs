@@ -75,6 +75,7 @@ fn validate_names_what_is_wrong() {
     let corrupt = |accel: &mut Accel| match accel {
         Accel::Kd(t) => t.indices[0] = np,
         Accel::Bvh(t) => t.indices[0] = np,
+        Accel::Bvh4(t) => t.indices[0] = np,
         Accel::Grid(t) => {
             let i = t.indices.len() - 1;
             t.indices[i] = np;
@@ -100,13 +101,17 @@ fn gpu_image_checks_the_kernel_limits() {
     let scene = Scene::load("builtin:blob:600").expect("blob");
     let mut kd = Accel::build(AccelKind::Kdtree, &scene);
     let mut bvh = Accel::build(AccelKind::BvhSah, &scene);
+    let mut bvh4 = Accel::build(AccelKind::Bvh4, &scene);
+    if let Accel::Bvh4(t) = &mut bvh4 {
+        t.depth = arbor::accel::bvh::MAX_BVH_DEPTH + 1;
+    }
     if let Accel::Kd(t) = &mut kd {
         t.depth = arbor::accel::kdtree::MAX_KD_DEPTH + 1;
     }
     if let Accel::Bvh(t) = &mut bvh {
         t.depth = arbor::accel::bvh::MAX_BVH_DEPTH + 1;
     }
-    for a in [kd, bvh] {
+    for a in [kd, bvh, bvh4] {
         let e = a.gpu_image(&scene).expect_err("too deep");
         assert!(e.to_string().contains("exceeds the kernel's stack"), "{e}");
     }

@@ -95,17 +95,16 @@ impl Bvh4 {
             let mut kids: Vec<(u32, Aabb)> = bin.children(b).into_iter().filter(|(r, _)| *r != EMPTY_REF).collect();
             while kids.len() < WIDTH {
                 // Open the inner child of largest area (the first of equal ones).
-                let open = kids
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, (r, _))| r & LEAF_REF == 0)
-                    .fold(None::<(usize, f32)>, |best, (i, (_, bx))| {
+                let open = kids.iter().enumerate().filter(|(_, (r, _))| r & LEAF_REF == 0).fold(
+                    None::<(usize, f32)>,
+                    |best, (i, (_, bx))| {
                         let a = sah::area(bx);
                         match best {
                             Some((_, ba)) if ba >= a => best,
                             _ => Some((i, a)),
                         }
-                    });
+                    },
+                );
                 let Some((i, _)) = open else { break };
                 let (r, _) = kids.remove(i);
                 let grand: Vec<(u32, Aabb)> =
@@ -369,7 +368,7 @@ impl crate::accel::Structure for Bvh4 {
     fn gpu_image(&self, _scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
         if self.depth > MAX_BVH_DEPTH {
             return Err(ValidateError::whole(format!(
-                "BVH depth {} exceeds the kernel's limit of {MAX_BVH_DEPTH}",
+                "BVH depth {} exceeds the kernel's stack of {MAX_BVH_DEPTH}",
                 self.depth
             )));
         }
