@@ -6,6 +6,8 @@
 // Compiled once per (structure, geometry) variant by build.rs: exactly one
 // ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 
 layout(local_size_x = WORKGROUP_SIZE) in;
 
@@ -24,6 +26,7 @@ layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
 layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 31u;
+layout(constant_id = SPEC_PACKET) const bool PACKET = false;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -95,6 +98,12 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/bvh4.glsl"
 #elif defined(ACCEL_OCTREE)
 #include "accel/octree.glsl"
+#endif
+
+#if !defined(ACCEL_BVH)
+// Coherent rays take the one traversal the structure has (packets: BVHs only).
+bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
+bool trace_any_coherent(Ray r) { return trace_any(r); }
 #endif
 
 #include "common/sampling.glsl"
@@ -192,7 +201,7 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
         // A point light is not geometry: the ray ends at it. A directional one: never.
         sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
         g_rays += 1u;
-        if (trace_any(sr)) continue;
+        if (trace_any_coherent(sr)) continue;
         vec3 f = c.rgb / PI;
         if (kind == MAT_PHONG) {
             float rv = max(dot(reflect(-wi, n), v), 0.0);
@@ -324,7 +333,7 @@ void probe_main() {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     g_nodes = 0u; g_tests = 0u;
-    bool hit = trace_closest(r, h);
+    bool hit = trace_closest_coherent(r, h);
     uvec3 cost = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
     uint rays = 1u;
     vec3 L = hit ? vec3(1.0) : params.background.rgb;

@@ -215,6 +215,7 @@ fn render(a: &RenderArgs) -> Result<()> {
     };
     settings.seed = a.seed;
     settings.intersect = a.intersect;
+    settings.traversal = a.traversal.parse().map_err(anyhow::Error::msg)?;
     settings.accel = accel;
     settings.params = params;
     settings.dispatch_budget = a.dispatch_budget.max(1);
@@ -420,6 +421,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         rays: args.rays.clone(),
         shadow: args.shadow,
         intersect: args.intersect.clone(),
+        traversal: args.traversal.parse().map_err(anyhow::Error::msg)?,
         size,
         repeat: args.repeat,
         quick: args.quick,

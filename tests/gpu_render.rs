@@ -6,7 +6,7 @@ mod common;
 use arbor::accel::AccelKind;
 use arbor::gpu::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
 use arbor::gpu::{BindingDesc, BindingKind, Context, Kernel};
-use arbor::render::{cpu, gpu, Frame, Integrator, KernelChoice, RenderSettings};
+use arbor::render::{cpu, gpu, Frame, Integrator, KernelChoice, RenderSettings, Traversal};
 use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, Scene, SceneBuilder, Sphere};
 use glam::Vec3;
 
@@ -141,6 +141,32 @@ fn specialised_kernels_bind_only_what_the_scene_needs() {
     });
     assert!(a.radiance.iter().any(|p| p[0] > 0.0), "the box is lit");
     assert_eq!(a.radiance, b.radiance, "cornell: specialised and general path radiance differ");
+}
+
+#[test]
+fn packet_traversal_gives_the_single_ray_image() {
+    let Some(ctx) = common::gpu() else { return };
+    // Camera rays (the probe kernel), bounce rays and shadow rays toward a point and a
+    // directional light: packets change the work, never the image.
+    let scene = mixed_scene(Vec3::new(0.2, 0.6, 3.5));
+    for kind in [AccelKind::BvhSah, AccelKind::Trbvh, AccelKind::Kdtree] {
+        for mode in ["primary", "diffuse", "whitted"] {
+            let run = |traversal: Traversal| {
+                render(&ctx, &scene, 61, 47, |s| {
+                    s.accel = kind;
+                    s.traversal = traversal;
+                    s.primary_only = mode == "primary";
+                    s.diffuse_probe = mode == "diffuse";
+                })
+            };
+            let a = run(Traversal::Single);
+            let b = run(Traversal::Packet);
+            assert_eq!(a.prim, b.prim, "{kind} {mode}: primitives differ");
+            assert_eq!(a.depth, b.depth, "{kind} {mode}: depths differ");
+            assert_eq!(a.radiance, b.radiance, "{kind} {mode}: radiance differs");
+            assert!(a.prim.iter().any(|&p| p != u32::MAX), "{kind} {mode}: something is hit");
+        }
+    }
 }
 
 #[test]

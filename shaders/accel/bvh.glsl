@@ -75,8 +75,92 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
     return found;
 }
 
+// Packet traversal for coherent rays (camera rays, shadow rays toward point and
+// directional lights): the subgroup walks one node sequence together. A child is
+// entered when any active lane's ray enters it (subgroupAny), so every lane visits a
+// superset of its own nodes and finds the same closest hit; the nearer child first by
+// the lanes' majority. The node sequence, the stack and the step count are the same
+// in every lane. A lane whose ray missed the scene box, or (any-hit) already found a
+// hit, rides along without testing. Mirrors nothing on the CPU: it changes the work,
+// not the result (tests/gpu_render.rs compares it with single-ray traversal).
+bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
+    vec3 inv = safe_rcp3(r.dir);
+    float e0, e1;
+    bool live = ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1);
+    if (!subgroupAny(live)) return false;
+    uint stack[STACK_SIZE];
+    uint sp = 0u;
+    uint cur = 0u;
+    bool found = false;
+    uint steps = 0u;
+    while (steps < TREE_STEPS) {
+        while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
+            steps += 1u;
+            if (live) g_nodes += 1u;
+            uvec4 a = node_texel(4u * cur);
+            uvec4 b = node_texel(4u * cur + 1u);
+            uvec4 c = node_texel(4u * cur + 2u);
+            uvec4 d = node_texel(4u * cur + 3u);
+            uint lref = a.w;
+            uint rref = b.w;
+            precise float limit = h.t * (1.0 + BVH_T_MARGIN);
+            float l0, l1, r0, r1;
+            bool hl = live && lref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1);
+            bool hr = live && rref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1);
+            bool any_l = subgroupAny(hl);
+            bool any_r = subgroupAny(hr);
+            // Votes for the left child first: lanes entering only it, or both with the
+            // left nearer; against: the mirror cases.
+            int vote = subgroupAdd(int(hl && (!hr || l0 <= r0)) - int(hr && (!hl || r0 < l0)));
+            if (any_l && any_r) {
+                bool left_first = vote >= 0;
+                stack[sp] = left_first ? rref : lref;
+                sp += 1u;
+                cur = left_first ? lref : rref;
+            } else if (any_l) {
+                cur = lref;
+            } else if (any_r) {
+                cur = rref;
+            } else {
+                if (sp == 0u) return found;
+                sp -= 1u;
+                cur = stack[sp];
+            }
+        }
+        if ((cur & BVH_LEAF) == 0u) break;
+        uint first = (cur & ~BVH_LEAF) >> 3u;
+        uint count = (cur & 7u) + 1u;
+        for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
+            steps += 1u;
+            if (live && intersect_prim(accel_index(first + k), r, h)) {
+                found = true;
+                if (any_hit) live = false;
+            }
+        }
+        if (steps >= TREE_STEPS) break;
+        if (any_hit && !subgroupAny(live)) return found;
+        if (sp == 0u) return found;
+        sp -= 1u;
+        cur = stack[sp];
+    }
+    g_overflow = true;
+    return found;
+}
+
 bool trace_closest(Ray r, inout Hit h) {
     return bvh_traverse(r, h, false);
+}
+
+bool trace_closest_coherent(Ray r, inout Hit h) {
+    return PACKET ? bvh_traverse_packet(r, h, false) : bvh_traverse(r, h, false);
+}
+
+bool trace_any_coherent(Ray r) {
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    return PACKET ? bvh_traverse_packet(r, h, true) : bvh_traverse(r, h, true);
 }
 
 bool trace_any(Ray r) {

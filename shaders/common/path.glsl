@@ -240,7 +240,7 @@ vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo) {
         sr.origin = offset_ray_origin(p, err, gnf, wi); sr.dir = wi; sr.tmin = 0.0;
         sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
         g_rays += 1u;
-        if (trace_any(sr)) continue;
+        if (trace_any_coherent(sr)) continue;
         total += f * li * abs(dot(n, wi));
     }
     return total;

@@ -46,6 +46,8 @@ pub struct Options {
     pub variants: Vec<(AccelKind, AccelParams, String)>,
     pub rays: Vec<RayKind>,
     pub intersect: Vec<IntersectMode>,
+    /// Traversal of coherent rays in the BVH kernels.
+    pub traversal: crate::render::Traversal,
     /// Camera image size.
     pub size: (u32, u32),
     /// Timed repeats after one warm-up.

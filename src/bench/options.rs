@@ -33,6 +33,8 @@ pub struct Request {
     /// Adds shadow rays (the older `--shadow`).
     pub shadow: bool,
     pub intersect: Vec<IntersectMode>,
+    /// Traversal of coherent rays in the BVH kernels.
+    pub traversal: crate::render::Traversal,
     pub size: (u32, u32),
     /// Timed rounds (1 with `quick`).
     pub repeat: usize,
@@ -67,6 +69,7 @@ impl Request {
             variants: self.variants(),
             rays,
             intersect: self.intersect.clone(),
+            traversal: self.traversal,
             size: self.size,
             repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
@@ -130,6 +133,7 @@ mod tests {
             rays: Vec::new(),
             shadow: false,
             intersect: vec![IntersectMode::Watertight],
+            traversal: crate::render::Traversal::Single,
             size: (16, 16),
             repeat: 3,
             quick: true,

@@ -181,7 +181,7 @@ fn rounds(
                 ctx,
                 scene,
                 (run.kind, run.params),
-                (rays, run.mode),
+                (rays, run.mode, opts.traversal),
                 timed,
                 &mut run.case,
                 &mut run.pipelines,
@@ -212,7 +212,7 @@ fn bench_round(
     ctx: &Context,
     scene: &Scene,
     (kind, params): (AccelKind, &AccelParams),
-    (rays, mode): (RayKind, IntersectMode),
+    (rays, mode, traversal): (RayKind, IntersectMode, crate::render::Traversal),
     timed: bool,
     case: &mut Case,
     pipelines: &mut Option<GpuBuilder>,
@@ -226,6 +226,7 @@ fn bench_round(
     }
     settings.accel = kind;
     settings.intersect = mode;
+    settings.traversal = traversal;
     let first = if timed {
         let accel = Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
         Some(accel.timing())

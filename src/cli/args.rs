@@ -126,6 +126,11 @@ pub(crate) struct BenchArgs {
     /// escaped through the mesh: the miss/M column counts them per million rays.
     #[arg(long, value_delimiter = ',', default_value = "watertight", value_name = "MODE,...")]
     pub(crate) intersect: Vec<arbor::math::intersect::IntersectMode>,
+    /// Traversal of the coherent rays (primary and diffuse rows' camera rays, shadow
+    /// rays toward point and directional lights) in the BVH kernels: single (one ray
+    /// per lane) or packet (a subgroup walks one node sequence together).
+    #[arg(long, default_value = "single", value_parser = ["single", "packet"])]
+    pub(crate) traversal: String,
     /// Ray kinds, one set of rows each: primary (camera rays), shadow (camera rays plus
     /// a shadow ray toward each light from every hit), diffuse (camera rays plus one
     /// cosine-distributed ray from every hit, seeded: incoherent), path (path tracing at
@@ -216,6 +221,11 @@ pub(crate) struct RenderArgs {
     /// rays can escape through shared edges and vertices).
     #[arg(long, default_value = "watertight", value_name = "MODE")]
     pub(crate) intersect: arbor::math::intersect::IntersectMode,
+    /// Traversal of coherent rays (shadow rays toward point and directional lights) in
+    /// the BVH kernels: single (one ray per lane) or packet (the rays of a subgroup
+    /// walk one node sequence together). The image is the same.
+    #[arg(long, default_value = "single", value_parser = ["single", "packet"])]
+    pub(crate) traversal: String,
     /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
     /// cost (RGB: nodes visited, primitives tested, 0) of sample 0's camera ray;
     /// albedo (first hit, for denoisers); variance (of the pixel's mean luminance);

@@ -156,6 +156,9 @@ pub const SPEC_RR_DEPTH: u32 = 17;
 /// The material kinds the scene has, a bit per `MaterialKind` (1 << kind): the shading
 /// code of absent kinds compiles away.
 pub const SPEC_MATERIAL_KINDS: u32 = 18;
+/// Packet traversal (a subgroup walks one node sequence) for coherent rays: camera
+/// rays of the probe kernel and shadow rays toward point and directional lights. BVHs.
+pub const SPEC_PACKET: u32 = 19;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
@@ -198,6 +201,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_MIS", SPEC_MIS),
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
+    ("SPEC_PACKET", SPEC_PACKET),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),

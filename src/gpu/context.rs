@@ -45,6 +45,9 @@ pub struct DeviceInfo {
     pub is_llvmpipe: bool,
     /// Invocations per subgroup (8 on lavapipe here, 32 on NVIDIA).
     pub subgroup_size: u32,
+    /// Whether compute shaders have subgroup vote and arithmetic operations, which
+    /// packet traversal (`--traversal packet`) and every trace kernel declare.
+    pub subgroup_vote: bool,
 }
 
 /// State shared by the context and every object it created; dropped last.
@@ -201,6 +204,10 @@ impl Context {
             timestamp_period_ns: props.limits.timestamp_period,
             is_llvmpipe: driver.driver_id == vk::DriverId::MESA_LLVMPIPE,
             subgroup_size: subgroup.subgroup_size,
+            subgroup_vote: subgroup.supported_stages.contains(vk::ShaderStageFlags::COMPUTE)
+                && subgroup
+                    .supported_operations
+                    .contains(vk::SubgroupFeatureFlags::VOTE | vk::SubgroupFeatureFlags::ARITHMETIC),
         }
     }
 

@@ -49,6 +49,23 @@ pub fn material_kinds(scene: &Scene, settings: &RenderSettings) -> u32 {
     scene.materials.iter().fold(1 << MaterialKind::Lambert as u32, |m, x| m | 1 << x.kind as u32)
 }
 
+/// The trace kernels declare subgroup vote and arithmetic operations (packet
+/// traversal); a device without them in compute shaders cannot run them.
+pub fn check_subgroups(ctx: &Context) -> Result<()> {
+    if ctx.info().subgroup_vote {
+        return Ok(());
+    }
+    Err(Error::Usage(format!(
+        "{} lacks subgroup vote and arithmetic operations in compute shaders, which the trace kernels use",
+        ctx.info().name
+    )))
+}
+
+/// `SPEC_PACKET`: packet traversal where asked for and the kernel has it (BVHs).
+pub fn packet_spec(settings: &RenderSettings, image: &GpuImage) -> u32 {
+    u32::from(settings.traversal == super::Traversal::Packet && image.family == "bvh")
+}
+
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
 const MIN_TREE_STEPS: u64 = 256;
 /// Per-trace step budget of tree traversal where the driver sets no loop limit.

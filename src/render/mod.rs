@@ -122,6 +122,41 @@ pub struct RenderSettings {
     pub time_budget: Option<f64>,
     /// Overrides the scene's maximum path depth.
     pub max_depth: Option<u32>,
+    /// How coherent rays traverse BVHs: one ray per lane, or packets of a subgroup.
+    pub traversal: Traversal,
+}
+
+/// Traversal of coherent rays (camera rays of `bench --rays primary,diffuse`, shadow
+/// rays toward point and directional lights) in the BVH kernels; other rays and other
+/// structures always trace one ray per lane. Either gives the same image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Traversal {
+    /// One ray per lane, each on its own path through the tree.
+    #[default]
+    Single,
+    /// The subgroup's rays walk one node sequence together (subgroupAny decides).
+    Packet,
+}
+
+impl std::str::FromStr for Traversal {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "single" => Ok(Traversal::Single),
+            "packet" => Ok(Traversal::Packet),
+            _ => Err(format!("unknown traversal '{s}'; expected single or packet")),
+        }
+    }
+}
+
+impl Traversal {
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Single => "single",
+            Traversal::Packet => "packet",
+        }
+    }
 }
 
 impl RenderSettings {
@@ -143,6 +178,7 @@ impl RenderSettings {
             mis: Mis::Both,
             time_budget: None,
             max_depth: None,
+            traversal: Traversal::Single,
         }
     }
 }

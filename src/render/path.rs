@@ -269,6 +269,7 @@ fn specialization(
         (SPEC_MIS, settings.mis.spec()),
         (SPEC_RR_DEPTH, RR_DEPTH),
         (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
+        (SPEC_PACKET, super::kernel::packet_spec(settings, image)),
     ]
 }
 
@@ -322,6 +323,7 @@ pub fn render_with(
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
     let Control { mut progress, interrupted, mut checkpoint } = control;
+    super::kernel::check_subgroups(ctx)?;
     let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
     let variant = Variant::new("trace", scene, settings, &image)?;
     let mut gs = GpuScene::new(scene);

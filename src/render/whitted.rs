@@ -70,6 +70,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bo
         // The probe modes run the lean probe kernel (trace.comp, probe_main).
         (SPEC_INTEGRATOR, if probe { 2 } else { 0 }),
         (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
+        (SPEC_PACKET, super::kernel::packet_spec(settings, image)),
     ]
 }
 
@@ -114,6 +115,7 @@ pub fn render_with(
     progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
+    super::kernel::check_subgroups(ctx)?;
     let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
     let variant = Variant::new("trace", scene, settings, &image)?;
     let bounds = LoopBounds::new(ctx, scene, &image, traces_per_sample(scene, settings))?;
