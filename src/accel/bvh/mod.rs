@@ -392,19 +392,6 @@ impl Bvh {
         [(a[3], unpack_box(a, b)), (b[3], unpack_box(c, d))]
     }
 
-    /// Visits every child reference: `f(reference, box, depth of its parent)`.
-    fn walk(&self, mut f: impl FnMut(u32, &Aabb, u32)) {
-        let mut stack = vec![(0usize, 1u32)];
-        while let Some((n, d)) = stack.pop() {
-            for (r, b) in self.children(n) {
-                f(r, &b, d);
-                if r & LEAF_REF == 0 {
-                    stack.push((r as usize, d + 1));
-                }
-            }
-        }
-    }
-
     /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
     pub fn timing(&self) -> (f64, Vec<Phase>) {
         (self.build_ms, self.phases.clone())
@@ -412,45 +399,8 @@ impl Bvh {
 
     /// Statistics, with the SAH cost computed like every other structure's.
     pub fn stats(&self) -> BuildStats {
-        let costs = SahCosts::default();
-        let [(_, l), (_, r)] = self.children(0);
-        let root_area = f64::from(sah::area(&l.union(&r)));
-        let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
-        // The root counts as a traversal step too.
-        let mut cost = f64::from(costs.traversal) * root_area;
-        self.walk(|r, b, d| {
-            let a = f64::from(sah::area(b));
-            if r == EMPTY_REF {
-                // An empty child slot is an empty leaf, as in every other structure.
-                leaves += 1;
-                empty += 1;
-                depth_sum += u64::from(d);
-            } else if r & LEAF_REF != 0 {
-                let (_, count) = leaf_range(r);
-                leaves += 1;
-                depth_sum += u64::from(d);
-                refs += count as u64;
-                cost += f64::from(costs.intersect) * a * count as f64;
-            } else {
-                cost += f64::from(costs.traversal) * a;
-            }
-        });
-        BuildStats {
-            kind: self.builder.name().into(),
-            build_ms: self.build_ms,
-            bytes: self.bytes(),
-            // Each record is an inner node; its leaves are stored in its child slots.
-            nodes: self.nodes.len() as u64 + leaves,
-            max_depth: self.depth,
-            leaves,
-            empty_leaves: empty,
-            mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
-            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
-            prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
-            sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
-            phases: self.phases.clone(),
-            resolution: None,
-        }
+        tree_stats(self.builder.name(), self.nodes.len(), |n| self.children(n), self.bytes(), self.depth, self.prims)
+            .with_timing(self.build_ms, &self.phases)
     }
 
     /// Checks: depth within the kernel's limit; references in range; every inner node
@@ -458,78 +408,7 @@ impl Bvh {
     /// inner child, the bounds of a leaf's primitives); every primitive in exactly
     /// one leaf.
     pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
-        if self.depth > MAX_BVH_DEPTH {
-            return Err(ValidateError::whole(format!("depth {} exceeds {MAX_BVH_DEPTH}", self.depth)));
-        }
-        if self.nodes.is_empty() {
-            return Err(ValidateError::whole("no root node"));
-        }
-        let np = scene.prim_count();
-        let mut seen_node = vec![false; self.nodes.len()];
-        let mut seen_prim = vec![false; np];
-        seen_node[0] = true;
-        let mut stack = vec![(0usize, 1u32)];
-        let mut max_depth = 0;
-        while let Some((n, d)) = stack.pop() {
-            max_depth = max_depth.max(d);
-            for (r, b) in self.children(n) {
-                if r == EMPTY_REF {
-                    continue;
-                }
-                if r & LEAF_REF != 0 {
-                    let (first, count) = leaf_range(r);
-                    if first + count > self.indices.len() {
-                        return Err(ValidateError::node(n, "leaf indexes past the index array"));
-                    }
-                    for &p in &self.indices[first..first + count] {
-                        let p = p as usize;
-                        if p >= np {
-                            return Err(ValidateError::node(n, format!("leaf references primitive {p} of {np}")));
-                        }
-                        if std::mem::replace(&mut seen_prim[p], true) {
-                            return Err(ValidateError::prim(p, "in more than one leaf"));
-                        }
-                        let pb = prim::bounds(&prim::geom(scene, p as u32));
-                        if !contains(&b, &pb) {
-                            return Err(ValidateError::node(
-                                n,
-                                format!("leaf box {b:?} does not contain primitive {p} {pb:?}"),
-                            ));
-                        }
-                    }
-                } else {
-                    let c = r as usize;
-                    if c >= self.nodes.len() {
-                        return Err(ValidateError::node(n, format!("child {c} out of range")));
-                    }
-                    if std::mem::replace(&mut seen_node[c], true) {
-                        return Err(ValidateError::node(c, "reached twice"));
-                    }
-                    for (cr, cb) in self.children(c) {
-                        if cr != EMPTY_REF && !contains(&b, &cb) {
-                            return Err(ValidateError::node(
-                                n,
-                                format!("child box {b:?} does not contain its child's box {cb:?}"),
-                            ));
-                        }
-                    }
-                    stack.push((c, d + 1));
-                }
-            }
-        }
-        if max_depth != self.depth {
-            return Err(ValidateError::whole(format!(
-                "recorded depth {} but the tree is {max_depth} deep",
-                self.depth
-            )));
-        }
-        if let Some(n) = seen_node.iter().position(|s| !s) {
-            return Err(ValidateError::node(n, "unreachable"));
-        }
-        if let Some(p) = seen_prim.iter().position(|s| !s) {
-            return Err(ValidateError::prim(p, "in no leaf"));
-        }
-        Ok(())
+        validate_tree(scene, self.nodes.len(), &self.indices, self.depth, |n| self.children(n))
     }
 
     /// Front-to-back traversal with a stack of child references: at each inner node
@@ -587,6 +466,160 @@ impl Bvh {
 
 fn contains(outer: &Aabb, inner: &Aabb) -> bool {
     inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
+}
+
+/// Visits every child reference of a BVH of either layout, whose node `n` has the
+/// children `children(n)` (empty slots included): `f(reference, box, depth of its
+/// parent)`.
+fn walk_tree<const W: usize>(children: impl Fn(usize) -> [(u32, Aabb); W], mut f: impl FnMut(u32, &Aabb, u32)) {
+    let mut stack = vec![(0usize, 1u32)];
+    while let Some((n, d)) = stack.pop() {
+        for (r, b) in children(n) {
+            f(r, &b, d);
+            if r & LEAF_REF == 0 {
+                stack.push((r as usize, d + 1));
+            }
+        }
+    }
+}
+
+/// Statistics of a BVH of either layout (without its build time and phases): an
+/// empty child slot counts as an empty leaf, as in every other structure, and each
+/// node record is an inner node whose leaves live in its child slots.
+fn tree_stats<const W: usize>(
+    kind: &str,
+    node_count: usize,
+    children: impl Fn(usize) -> [(u32, Aabb); W] + Copy,
+    bytes: u64,
+    depth: u32,
+    prims: usize,
+) -> BuildStats {
+    let costs = SahCosts::default();
+    let root = children(0).iter().filter(|(r, _)| *r != EMPTY_REF).fold(Aabb::EMPTY, |a, (_, b)| a.union(b));
+    let root_area = f64::from(sah::area(&root));
+    let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
+    // The root counts as a traversal step too.
+    let mut cost = f64::from(costs.traversal) * root_area;
+    walk_tree(children, |r, b, d| {
+        let a = f64::from(sah::area(b));
+        if r == EMPTY_REF {
+            leaves += 1;
+            empty += 1;
+            depth_sum += u64::from(d);
+        } else if r & LEAF_REF != 0 {
+            let (_, count) = leaf_range(r);
+            leaves += 1;
+            depth_sum += u64::from(d);
+            refs += count as u64;
+            cost += f64::from(costs.intersect) * a * count as f64;
+        } else {
+            cost += f64::from(costs.traversal) * a;
+        }
+    });
+    BuildStats {
+        kind: kind.into(),
+        build_ms: 0.0,
+        bytes,
+        nodes: node_count as u64 + leaves,
+        max_depth: depth,
+        leaves,
+        empty_leaves: empty,
+        mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
+        refs_per_prim: refs as f64 / prims.max(1) as f64,
+        prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
+        sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
+        phases: Vec::new(),
+        resolution: None,
+    }
+}
+
+impl BuildStats {
+    /// These statistics with the build's time and phases.
+    fn with_timing(self, build_ms: f64, phases: &[Phase]) -> BuildStats {
+        BuildStats { build_ms, phases: phases.to_vec(), ..self }
+    }
+}
+
+/// The invariants of a BVH of either layout, whose node `n` has the children
+/// `children(n)`: depth within the kernel's limit; references in range; every node
+/// reached exactly once; every child box contains its subtree (an inner child's boxes,
+/// a leaf's primitives); every primitive in exactly one leaf.
+fn validate_tree<const W: usize>(
+    scene: &Scene,
+    node_count: usize,
+    indices: &[u32],
+    depth: u32,
+    children: impl Fn(usize) -> [(u32, Aabb); W],
+) -> Result<(), ValidateError> {
+    if depth > MAX_BVH_DEPTH {
+        return Err(ValidateError::whole(format!("depth {depth} exceeds {MAX_BVH_DEPTH}")));
+    }
+    if node_count == 0 {
+        return Err(ValidateError::whole("no root node"));
+    }
+    let np = scene.prim_count();
+    let mut seen_node = vec![false; node_count];
+    let mut seen_prim = vec![false; np];
+    seen_node[0] = true;
+    let mut stack = vec![(0usize, 1u32)];
+    let mut max_depth = 0;
+    while let Some((n, d)) = stack.pop() {
+        max_depth = max_depth.max(d);
+        for (r, b) in children(n) {
+            if r == EMPTY_REF {
+                continue;
+            }
+            if r & LEAF_REF != 0 {
+                let (first, count) = leaf_range(r);
+                if first + count > indices.len() {
+                    return Err(ValidateError::node(n, "leaf indexes past the index array"));
+                }
+                for &p in &indices[first..first + count] {
+                    let p = p as usize;
+                    if p >= np {
+                        return Err(ValidateError::node(n, format!("leaf references primitive {p} of {np}")));
+                    }
+                    if std::mem::replace(&mut seen_prim[p], true) {
+                        return Err(ValidateError::prim(p, "in more than one leaf"));
+                    }
+                    let pb = prim::bounds(&prim::geom(scene, p as u32));
+                    if !contains(&b, &pb) {
+                        return Err(ValidateError::node(
+                            n,
+                            format!("leaf box {b:?} does not contain primitive {p} {pb:?}"),
+                        ));
+                    }
+                }
+                continue;
+            }
+            let c = r as usize;
+            if c >= node_count {
+                return Err(ValidateError::node(n, format!("child {c} out of range")));
+            }
+            if std::mem::replace(&mut seen_node[c], true) {
+                return Err(ValidateError::node(c, "reached twice"));
+            }
+            for (cr, cb) in children(c) {
+                if cr != EMPTY_REF && !contains(&b, &cb) {
+                    return Err(ValidateError::node(
+                        n,
+                        format!("child box {b:?} does not contain its child's box {cb:?}"),
+                    ));
+                }
+            }
+            stack.push((c, d + 1));
+        }
+    }
+    if max_depth != depth {
+        return Err(ValidateError::whole(format!("recorded depth {depth} but the tree is {max_depth} deep")));
+    }
+    if let Some(n) = seen_node.iter().position(|s| !s) {
+        return Err(ValidateError::node(n, "unreachable"));
+    }
+    if let Some(p) = seen_prim.iter().position(|s| !s) {
+        return Err(ValidateError::prim(p, "in no leaf"));
+    }
+    Ok(())
 }
 
 /// Records the time since `t` as phase `name` and restarts `t`.

@@ -34,7 +34,7 @@ use glam::Vec3;
 
 use super::{leaf_range, Bvh, BvhBuilder, EMPTY_REF, LEAF_REF, MAX_BVH_DEPTH, MAX_BVH_PRIMS, T_MARGIN};
 use crate::accel::prim::{self, Prims};
-use crate::accel::sah::{self, SahCosts};
+use crate::accel::sah;
 use crate::accel::validate::ValidateError;
 use crate::accel::{BuildStats, GpuImage, Phase, TraceLoop};
 use crate::math::{Aabb, Hit, Ray};
@@ -150,138 +150,22 @@ impl Bvh4 {
         })
     }
 
-    /// Visits every child reference: `f(reference, box, depth of its parent)`.
-    fn walk(&self, mut f: impl FnMut(u32, &Aabb, u32)) {
-        let mut stack = vec![(0usize, 1u32)];
-        while let Some((n, d)) = stack.pop() {
-            for (r, b) in self.children(n) {
-                f(r, &b, d);
-                if r & LEAF_REF == 0 {
-                    stack.push((r as usize, d + 1));
-                }
-            }
-        }
-    }
-
     /// Statistics, with the SAH cost computed as for every other structure (an empty
     /// slot is an empty leaf).
     pub fn stats(&self) -> BuildStats {
-        let costs = SahCosts::default();
-        let root = self.children(0).iter().filter(|(r, _)| *r != EMPTY_REF).fold(Aabb::EMPTY, |a, (_, b)| a.union(b));
-        let root_area = f64::from(sah::area(&root));
-        let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
-        let mut cost = f64::from(costs.traversal) * root_area;
-        self.walk(|r, b, d| {
-            if r == EMPTY_REF {
-                leaves += 1;
-                empty += 1;
-                depth_sum += u64::from(d);
-            } else if r & LEAF_REF != 0 {
-                let (_, count) = leaf_range(r);
-                leaves += 1;
-                depth_sum += u64::from(d);
-                refs += count as u64;
-                cost += f64::from(costs.intersect) * f64::from(sah::area(b)) * count as f64;
-            } else {
-                cost += f64::from(costs.traversal) * f64::from(sah::area(b));
-            }
-        });
-        BuildStats {
-            kind: "bvh4".into(),
-            build_ms: self.build_ms,
-            bytes: self.bytes(),
-            nodes: self.nodes.len() as u64 + leaves,
-            max_depth: self.depth,
-            leaves,
-            empty_leaves: empty,
-            mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
-            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
-            prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
-            sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
-            phases: self.phases.clone(),
-            resolution: None,
-        }
+        super::tree_stats("bvh4", self.nodes.len(), |n| self.children(n), self.bytes(), self.depth, self.prims)
+            .with_timing(self.build_ms, &self.phases)
     }
 
-    /// Checks: depth within the kernel's limit; references in range; every node
-    /// reached exactly once; an empty slot has an all-zero box; every child box
-    /// contains its subtree; every primitive in exactly one leaf.
+    /// Checks the binary BVH's invariants ([`Bvh::validate`]), and that an empty slot
+    /// has an all-zero box.
     pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
-        if self.depth > MAX_BVH_DEPTH {
-            return Err(ValidateError::whole(format!("depth {} exceeds {MAX_BVH_DEPTH}", self.depth)));
-        }
-        if self.nodes.is_empty() {
-            return Err(ValidateError::whole("no root node"));
-        }
-        let np = scene.prim_count();
-        let mut seen_node = vec![false; self.nodes.len()];
-        let mut seen_prim = vec![false; np];
-        seen_node[0] = true;
-        let mut stack = vec![(0usize, 1u32)];
-        let mut max_depth = 0;
-        while let Some((n, d)) = stack.pop() {
-            max_depth = max_depth.max(d);
-            for (r, b) in self.children(n) {
-                if r == EMPTY_REF {
-                    if b.min != Vec3::ZERO || b.max != Vec3::ZERO {
-                        return Err(ValidateError::node(n, "an empty slot has a box"));
-                    }
-                    continue;
-                }
-                if r & LEAF_REF != 0 {
-                    let (first, count) = leaf_range(r);
-                    if first + count > self.indices.len() {
-                        return Err(ValidateError::node(n, "leaf indexes past the index array"));
-                    }
-                    for &p in &self.indices[first..first + count] {
-                        let p = p as usize;
-                        if p >= np {
-                            return Err(ValidateError::node(n, format!("leaf references primitive {p} of {np}")));
-                        }
-                        if std::mem::replace(&mut seen_prim[p], true) {
-                            return Err(ValidateError::prim(p, "in more than one leaf"));
-                        }
-                        let pb = prim::bounds(&prim::geom(scene, p as u32));
-                        if !contains(&b, &pb) {
-                            return Err(ValidateError::node(
-                                n,
-                                format!("leaf box {b:?} does not contain primitive {p} {pb:?}"),
-                            ));
-                        }
-                    }
-                    continue;
-                }
-                let c = r as usize;
-                if c >= self.nodes.len() {
-                    return Err(ValidateError::node(n, format!("child {c} out of range")));
-                }
-                if std::mem::replace(&mut seen_node[c], true) {
-                    return Err(ValidateError::node(c, "reached twice"));
-                }
-                for (cr, cb) in self.children(c) {
-                    if cr != EMPTY_REF && !contains(&b, &cb) {
-                        return Err(ValidateError::node(
-                            n,
-                            format!("child box {b:?} does not contain its child's box {cb:?}"),
-                        ));
-                    }
-                }
-                stack.push((c, d + 1));
+        for n in 0..self.nodes.len() {
+            if self.children(n).iter().any(|(r, b)| *r == EMPTY_REF && (b.min != Vec3::ZERO || b.max != Vec3::ZERO)) {
+                return Err(ValidateError::node(n, "an empty slot has a box"));
             }
         }
-        if max_depth != self.depth {
-            return Err(ValidateError::whole(format!(
-                "recorded depth {} but the tree is {max_depth} deep",
-                self.depth
-            )));
-        }
-        if let Some(n) = seen_node.iter().position(|s| !s) {
-            return Err(ValidateError::node(n, "unreachable"));
-        }
-        if let Some(p) = seen_prim.iter().position(|s| !s) {
-            return Err(ValidateError::prim(p, "in no leaf"));
-        }
-        Ok(())
+        super::validate_tree(scene, self.nodes.len(), &self.indices, self.depth, |n| self.children(n))
     }
 
     /// The kernel's traversal on the CPU (see the module docs).
@@ -340,10 +224,6 @@ impl Bvh4 {
             }
         }
     }
-}
-
-fn contains(outer: &Aabb, inner: &Aabb) -> bool {
-    inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
 }
 
 impl crate::accel::Traverse for Bvh4 {
