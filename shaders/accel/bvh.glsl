@@ -9,11 +9,7 @@
 // references (tree depth + 1, checked at build time); every trace takes at most
 // TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is flagged.
 
-#include "common/accel_texels.glsl"
-
-const uint BVH_LEAF = 0x80000000u;
-const uint BVH_EMPTY = 0xffffffffu;
-const float BVH_T_MARGIN = 1e-5;
+#include "common/bvh_leaf.glsl"
 
 bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
@@ -56,14 +52,9 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
-        uint first = (cur & ~BVH_LEAF) >> 3u;
-        uint count = (cur & 7u) + 1u;
-        for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
-            steps += 1u;
-            if (intersect_prim(accel_index(first + k), r, h)) {
-                found = true;
-                if (any_hit) return true;
-            }
+        if (bvh_leaf(cur, r, h, any_hit, true, steps)) {
+            found = true;
+            if (any_hit) return true;
         }
         // A leaf cut short by the step budget must not end the trace as if complete.
         if (steps >= TREE_STEPS) break;
@@ -130,14 +121,9 @@ bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
-        uint first = (cur & ~BVH_LEAF) >> 3u;
-        uint count = (cur & 7u) + 1u;
-        for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
-            steps += 1u;
-            if (live && intersect_prim(accel_index(first + k), r, h)) {
-                found = true;
-                if (any_hit) live = false;
-            }
+        if (bvh_leaf(cur, r, h, any_hit, live, steps)) {
+            found = true;
+            if (any_hit) live = false;
         }
         if (steps >= TREE_STEPS) break;
         if (any_hit && !subgroupAny(live)) return found;
