@@ -112,6 +112,11 @@ pub struct Context {
 }
 
 /// Validation messages of severity error go to the context's list; others are dropped.
+///
+/// For an error the callback returns `VK_TRUE`, which makes the validation layer skip
+/// the invalid call (it returns `VK_ERROR_VALIDATION_FAILED_EXT` instead). Passing an
+/// invalid call on to the driver is undefined behaviour: lavapipe has crashed compiling
+/// a pipeline whose layout lacks a binding its shader uses.
 unsafe extern "system" fn debug_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     _types: vk::DebugUtilsMessageTypeFlagsEXT,
@@ -134,6 +139,7 @@ unsafe extern "system" fn debug_callback(
         if let Ok(mut l) = list.lock() {
             l.push(msg);
         }
+        return vk::TRUE;
     }
     vk::FALSE
 }
@@ -498,9 +504,10 @@ impl Context {
             dev.destroy_fence(fence, None);
             dev.free_command_buffers(self.command_pool, &[cb]);
         }
-        let r = result?;
+        // A skipped invalid call fails with VK_ERROR_VALIDATION_FAILED_EXT; the layer's
+        // message says more than that code.
         self.check_validation()?;
-        Ok(r)
+        result
     }
 }
 

@@ -185,8 +185,13 @@ impl Context {
             .specialization_info(&spec_info);
         let pinfo = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(k.layout)];
         // SAFETY: as above.
-        k.pipeline = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &pinfo, None) }
-            .map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?[0];
+        let created = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &pinfo, None) };
+        if let Ok(p) = &created {
+            k.pipeline = p[0];
+        }
+        // A pipeline the validation layer rejected was never created: report its message.
+        self.check_validation()?;
+        created.map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?;
         self.shared.set_name(k.pipeline, name);
         let mut sizes = Vec::new();
         for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel] {
