@@ -218,24 +218,17 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
 void whitted_main() {
     uint gid = gl_GlobalInvocationID.x;
     if (gid >= dispatch_range.y) return;
-    uint pixel = dispatch_range.x + gid;
-    uint slot = pixel - dispatch_chunk.x;
-    uint width = params.dims.x;
-    uint i = pixel % width;
-    uint j = pixel / width;
+    uint local = dispatch_range.x + gid;
+    uint slot = local - dispatch_chunk.x;
+    uvec3 at = window_pixel(local);
+    uint pixel = at.x;
+    uint i = at.y;
+    uint j = at.z;
 
-    Pixel out_px;
-    if (dispatch_range.z == 0u) {
-        out_px.radiance = vec4(0.0);
-        out_px.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-        out_px.prim_cost = uvec4(NO_PRIM, 0u, 0u, 0u);
-        out_px.albedo_m2 = vec4(0.0);
-    } else {
-        out_px = pixels[slot];
-    }
+    Pixel out_px = pixel_start(slot);
 
     g_rays = 0u;
-    for (uint s = dispatch_range.z; s < dispatch_range.w; s++) {
+    for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {
         uint rng = rng_init(pixel, s, params.counts.z);
         // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
         float fx = 0.5, fy = 0.5;
@@ -322,12 +315,13 @@ void probe_main() {
     uint gid = gl_GlobalInvocationID.x;
     uvec4 range = dispatch_range;
     if (gid >= range.y) return;
-    uint pixel = range.x + gid;
-    uint slot = pixel - dispatch_chunk.x;
-    uint width = params.dims.x;
+    uint local = range.x + gid;
+    uint slot = local - dispatch_chunk.x;
+    uvec3 at = window_pixel(local);
+    uint pixel = at.x;
     Ray r;
     r.origin = params.cam_eye.xyz;
-    r.dir = camera_ray_dir(pixel % width, pixel / width, 0.5, 0.5);
+    r.dir = camera_ray_dir(at.y, at.z, 0.5, 0.5);
     r.tmin = 0.0;
     r.tmax = uintBitsToFloat(0x7f800000u);
     Hit h;

@@ -89,7 +89,38 @@ vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int
 layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_range;  // 0  first pixel, pixel count, first sample, end sample
     uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer
-    Pixel pixels[];        // 32
+    uvec4 dispatch_window; // 32 x, y: window origin, z: width, w: sample that starts from zero
+    Pixel pixels[];        // 48
 };
+
+// The pixel of the full image that window-relative pixel `local` is (the random
+// numbers are keyed by it, so a crop renders exactly what the whole image would), and
+// its column and row.
+uvec3 window_pixel(uint local) {
+    uint i = dispatch_window.x + local % dispatch_window.z;
+    uint j = dispatch_window.y + local / dispatch_window.z;
+    return uvec3(j * params.dims.x + i, i, j);
+}
+
+// The pixel's state before this dispatch's samples: zero at the window's first sample,
+// else what earlier dispatches (or a resumed part, uploaded by the host) left.
+Pixel pixel_start(uint slot) {
+    if (dispatch_chunk.y == 0u && dispatch_range.z == dispatch_window.w) {
+        Pixel p;
+        p.radiance = vec4(0.0);
+        p.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+        p.prim_cost = uvec4(0xffffffffu, 0u, 0u, 0u);
+        p.albedo_m2 = vec4(0.0);
+        return p;
+    }
+    return pixels[slot];
+}
+
+// The first sample of this dispatch the pixel lacks. A resumed pixel (dispatch_chunk.y
+// set) holds samples from the window's first one up to its count already.
+uint sample_begin(Pixel p) {
+    if (dispatch_chunk.y == 0u) return dispatch_range.z;
+    return max(dispatch_range.z, dispatch_window.w + uint(p.radiance.w));
+}
 
 #endif

@@ -127,6 +127,11 @@ pub struct GpuDispatch {
     pub range: [u32; 4],
     /// first pixel held by the pixel buffer (the chunk base), rest unused
     pub chunk: [u32; 4],
+    /// the window of the image being rendered (`--crop`, a tile shard): left column,
+    /// top row, width; then the sample at which the pixels start from zero
+    /// (`u32::MAX`: never, a resumed render continues from uploaded sums). Pixel
+    /// indices of `range` and `chunk` count row-major inside the window.
+    pub window: [u32; 4],
 }
 
 /// Head of the grid's node buffer, before the cell starts. GLSL twin: the `GridCells`
@@ -181,7 +186,7 @@ pub struct GpuBuildPush {
 }
 
 const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
-const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 48);
 
 /// Bytes before the first [`GpuPixel`] of the pixel buffer: one [`GpuDispatch`].
 pub const PIXEL_HEADER_BYTES: u64 = std::mem::size_of::<GpuDispatch>() as u64;

@@ -170,6 +170,28 @@ impl Context {
         Ok(dst)
     }
 
+    /// Copies `data` into a storage buffer at byte `offset` (through a staging buffer).
+    pub fn write_storage(&self, buffer: &Buffer, offset: u64, data: &[u8]) -> Result<()> {
+        let len = data.len() as u64;
+        if offset.checked_add(len).is_none_or(|end| end > buffer.size()) {
+            return Err(Error::Vulkan {
+                what: format!("write buffer '{}'", buffer.name),
+                result: format!("{len} bytes at byte {offset} of {}", buffer.size()),
+            });
+        }
+        if data.is_empty() {
+            return Ok(());
+        }
+        let mut staging = self.create_buffer(&format!("{}.staging", buffer.name), len, BufferKind::Staging)?;
+        self.write_host(&mut staging, data)?;
+        self.submit(&format!("write {}", buffer.name), |dev, cb| {
+            let region = [vk::BufferCopy { src_offset: 0, dst_offset: offset, size: len }];
+            // SAFETY: both buffers are live and the range was checked above.
+            unsafe { dev.cmd_copy_buffer(cb, staging.raw, buffer.raw, &region) };
+        })?;
+        Ok(())
+    }
+
     /// Creates a uniform buffer holding `data`.
     pub fn upload_uniform(&self, name: &str, data: &[u8]) -> Result<Buffer> {
         let mut b = self.create_buffer(name, data.len() as u64, BufferKind::Uniform)?;

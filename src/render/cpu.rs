@@ -73,6 +73,8 @@ pub fn reference_aovs(scene: &Scene, width: u32, height: u32) -> Frame {
         albedo: vec![[0.0; 3]; n],
         variance: vec![0.0; n],
         samples: vec![1; n],
+        sum: vec![[0.0; 3]; n],
+        sum_y2: vec![0.0; n],
     };
     for (t, p, nrm) in rows.into_iter().flatten() {
         f.depth.push(t);

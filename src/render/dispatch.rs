@@ -4,7 +4,8 @@
 //! kernel runs through it: the per-dispatch values travel in the pixel buffer's
 //! header (`GpuDispatch`), never in push constants (docs/kernels.md).
 
-use crate::accel::gpu_layout::GpuDispatch;
+use super::Frame;
+use crate::accel::gpu_layout::{GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
 use crate::error::Result;
 use crate::gpu::bindings::WORKGROUP_SIZE;
 use crate::gpu::{Buffer, Context, Kernel};
@@ -32,9 +33,55 @@ pub struct Waves {
     pub chunk_pixels: u64,
     /// Pixels per dispatch.
     pub pixels_per_dispatch: u64,
+    /// Samples of each pixel, from `first_sample`.
     pub spp: u32,
     /// Samples per dispatch.
     pub samples_per_dispatch: u32,
+    /// The first sample index.
+    pub first_sample: u32,
+    /// The window's left column, top row and width: pixel indices count inside it.
+    pub window: [u32; 3],
+    /// Resumed: the pixels start from uploaded sums, never from zero.
+    pub resumed: bool,
+}
+
+impl Waves {
+    /// The dispatches of `settings`' window and sample range, `chunk_pixels` pixels at
+    /// a time, in dispatches of the given shape.
+    pub fn new(
+        settings: &super::RenderSettings,
+        chunk_pixels: u64,
+        pixels_per_dispatch: u64,
+        samples_per_dispatch: u32,
+    ) -> Waves {
+        let win = settings.window();
+        Waves {
+            total_pixels: win.pixels(),
+            chunk_pixels,
+            pixels_per_dispatch,
+            spp: settings.spp,
+            samples_per_dispatch,
+            first_sample: settings.first_sample,
+            window: [win.x0, win.y0, win.width()],
+            resumed: settings.resume.is_some(),
+        }
+    }
+
+    fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32)) -> GpuDispatch {
+        let [x0, y0, w] = self.window;
+        GpuDispatch {
+            range: [first as u32, n as u32, s, s_end],
+            chunk: [chunk as u32, u32::from(self.resumed), 0, 0],
+            window: [x0, y0, w, self.first_sample],
+        }
+    }
+}
+
+/// Writes the chunk's starting pixel states from `resume` (a resumed render).
+fn upload_chunk(ctx: &Context, pixel_buf: &Buffer, resume: Option<&Frame>, first: u64, len: u64) -> Result<()> {
+    let Some(f) = resume else { return Ok(()) };
+    let pixels: Vec<GpuPixel> = (first..first + len).map(|k| f.gpu_pixel(k as usize)).collect();
+    ctx.write_storage(pixel_buf, PIXEL_HEADER_BYTES, bytemuck::cast_slice(&pixels))
 }
 
 /// What the dispatches cost.
@@ -51,11 +98,12 @@ fn dispatch_one(
     ctx: &Context,
     kernel: &Kernel,
     pixel_buf: &Buffer,
+    waves: &Waves,
     (chunk, first, n): (u64, u64, u64),
     (s, s_end): (u32, u32),
     totals: &mut DispatchTotals,
 ) -> Result<()> {
-    let header = GpuDispatch { range: [first as u32, n as u32, s, s_end], chunk: [chunk as u32, 0, 0, 0] };
+    let header = waves.header((chunk, first, n), (s, s_end));
     let groups = n.div_ceil(u64::from(WORKGROUP_SIZE)) as u32;
     let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
     let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&header), [groups, 1, 1], &label)?;
@@ -75,22 +123,33 @@ pub fn run(
     kernel: &Kernel,
     pixel_buf: &Buffer,
     waves: &Waves,
+    resume: Option<&Frame>,
     mut progress: impl FnMut(u64, u64),
     mut chunk_done: impl FnMut(u64, u64) -> Result<()>,
 ) -> Result<DispatchTotals> {
     let total_work = waves.total_pixels * u64::from(waves.spp);
+    let end = waves.first_sample + waves.spp;
     let mut done = 0u64;
     let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
     let mut chunk_start = 0u64;
     while chunk_start < waves.total_pixels {
         let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
+        upload_chunk(ctx, pixel_buf, resume, chunk_start, chunk_len)?;
         let mut p = 0u64;
         while p < chunk_len {
             let n = waves.pixels_per_dispatch.min(chunk_len - p);
-            let mut s = 0u32;
-            while s < waves.spp {
-                let s_end = (s + waves.samples_per_dispatch).min(waves.spp);
-                dispatch_one(ctx, kernel, pixel_buf, (chunk_start, chunk_start + p, n), (s, s_end), &mut totals)?;
+            let mut s = waves.first_sample;
+            while s < end {
+                let s_end = (s + waves.samples_per_dispatch).min(end);
+                dispatch_one(
+                    ctx,
+                    kernel,
+                    pixel_buf,
+                    waves,
+                    (chunk_start, chunk_start + p, n),
+                    (s, s_end),
+                    &mut totals,
+                )?;
                 done += n * u64::from(s_end - s);
                 progress(done, total_work);
                 s = s_end;
@@ -123,41 +182,52 @@ pub fn run_progressive(
     kernel: &Kernel,
     pixel_buf: &Buffer,
     waves: &Waves,
+    resume: Option<&Frame>,
     mut progress: impl FnMut(u64, u64),
     mut wave_done: impl FnMut(u64, u64, u32, bool) -> Result<Next>,
 ) -> Result<(DispatchTotals, bool)> {
     let total_work = waves.total_pixels * u64::from(waves.spp);
+    let end = waves.first_sample + waves.spp;
     let mut done = 0u64;
     let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
     let mut chunk_start = 0u64;
     while chunk_start < waves.total_pixels {
         let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
-        let mut s = 0u32;
-        while s < waves.spp {
-            let s_end = (s + waves.samples_per_dispatch).min(waves.spp);
+        upload_chunk(ctx, pixel_buf, resume, chunk_start, chunk_len)?;
+        let mut s = waves.first_sample;
+        while s < end {
+            let s_end = (s + waves.samples_per_dispatch).min(end);
             let mut p = 0u64;
             while p < chunk_len {
                 let n = waves.pixels_per_dispatch.min(chunk_len - p);
-                dispatch_one(ctx, kernel, pixel_buf, (chunk_start, chunk_start + p, n), (s, s_end), &mut totals)?;
+                dispatch_one(
+                    ctx,
+                    kernel,
+                    pixel_buf,
+                    waves,
+                    (chunk_start, chunk_start + p, n),
+                    (s, s_end),
+                    &mut totals,
+                )?;
                 done += n * u64::from(s_end - s);
                 progress(done, total_work);
                 p += n;
             }
             s = s_end;
-            match wave_done(chunk_start, chunk_len, s, s == waves.spp)? {
+            match wave_done(chunk_start, chunk_len, s, s == end)? {
                 Next::Continue => {}
                 Next::NextChunk => {
-                    if s < waves.spp {
+                    if s < end {
                         wave_done(chunk_start, chunk_len, s, true)?;
-                        done += chunk_len * u64::from(waves.spp - s);
+                        done += chunk_len * u64::from(end - s);
                     }
                     break;
                 }
                 Next::Stop => {
-                    if s < waves.spp {
+                    if s < end {
                         wave_done(chunk_start, chunk_len, s, true)?;
                     }
-                    return Ok((totals, chunk_start + chunk_len < waves.total_pixels || s < waves.spp));
+                    return Ok((totals, chunk_start + chunk_len < waves.total_pixels || s < end));
                 }
             }
         }

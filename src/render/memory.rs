@@ -16,8 +16,9 @@ use super::output::Format;
 use crate::error::{Error, Result};
 
 /// Bytes per pixel of a [`super::Frame`]: radiance (12), depth (4), normal (12),
-/// primitive, nodes, tests, rays (4 each), albedo (12), variance and samples (4 each).
-pub const FRAME_BYTES_PER_PIXEL: u64 = 64;
+/// primitive, nodes, tests, rays (4 each), albedo (12), variance and samples (4 each),
+/// the radiance sums (12) and the sum of squared luminance (4).
+pub const FRAME_BYTES_PER_PIXEL: u64 = 80;
 
 /// Host bytes per primitive assumed for building a structure (references, nodes,
 /// the builder's scratch and the GPU image's staging copy); a generous estimate.

@@ -124,6 +124,66 @@ pub struct RenderSettings {
     pub max_depth: Option<u32>,
     /// How coherent rays traverse BVHs: one ray per lane, or packets of a subgroup.
     pub traversal: Traversal,
+    /// The window of the image to render (`--crop`, a tile shard); `None`: all of it.
+    /// The frame has the window's size; every pixel is the one the whole render gives.
+    pub crop: Option<Crop>,
+    /// The first sample index (`--sample-offset`, a sample shard): the render traces
+    /// samples `first_sample..first_sample + spp` of every pixel.
+    pub first_sample: u32,
+    /// Continue from this frame's sums (`--resume`): a frame of the window's size
+    /// whose pixels hold samples `first_sample..first_sample + n` (n may differ per
+    /// pixel); each pixel traces only the samples of the range it lacks.
+    pub resume: Option<std::sync::Arc<Frame>>,
+}
+
+/// A pixel window of the image: columns `x0..x1`, rows `y0..y1` (half-open, from the
+/// top-left corner).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Crop {
+    pub x0: u32,
+    pub x1: u32,
+    pub y0: u32,
+    pub y1: u32,
+}
+
+impl Crop {
+    /// The whole of a `width` x `height` image.
+    pub fn full(width: u32, height: u32) -> Crop {
+        Crop { x0: 0, x1: width, y0: 0, y1: height }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width()) * u64::from(self.height())
+    }
+
+    /// Parses `X0,X1,Y0,Y1`.
+    pub fn parse(s: &str) -> std::result::Result<Crop, String> {
+        let v: Vec<&str> = s.split(',').map(str::trim).collect();
+        let nums: Option<Vec<u32>> = v.iter().map(|x| x.parse().ok()).collect();
+        match nums.as_deref() {
+            Some(&[x0, x1, y0, y1]) => Ok(Crop { x0, x1, y0, y1 }),
+            _ => Err(format!("--crop '{s}': expected X0,X1,Y0,Y1 (four pixel bounds, e.g. 0,512,0,256)")),
+        }
+    }
+
+    /// Rejects an empty window or one outside a `width` x `height` image.
+    pub fn check(&self, width: u32, height: u32) -> Result<()> {
+        if self.x0 >= self.x1 || self.y0 >= self.y1 || self.x1 > width || self.y1 > height {
+            return Err(Error::Usage(format!(
+                "--crop {},{},{},{} is not a non-empty window of the {width}x{height} image (X0 < X1 <= {width}, Y0 < Y1 <= {height})",
+                self.x0, self.x1, self.y0, self.y1
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// Traversal of coherent rays (camera rays of `bench --rays primary,diffuse`, shadow
@@ -179,7 +239,15 @@ impl RenderSettings {
             time_budget: None,
             max_depth: None,
             traversal: Traversal::Single,
+            crop: None,
+            first_sample: 0,
+            resume: None,
         }
+    }
+
+    /// The window rendered: the crop, or the whole image.
+    pub fn window(&self) -> Crop {
+        self.crop.unwrap_or(Crop::full(self.width, self.height))
     }
 }
 
@@ -192,6 +260,24 @@ impl RenderSettings {
         }
         if self.spp == 0 || self.spp > 1 << 20 {
             return Err(Error::Usage(format!("--spp must be 1..=1048576, got {}", self.spp)));
+        }
+        if self.first_sample > 1 << 20 {
+            return Err(Error::Usage(format!("--sample-offset must be 0..=1048576, got {}", self.first_sample)));
+        }
+        if let Some(c) = &self.crop {
+            c.check(w, h)?;
+        }
+        if let Some(f) = &self.resume {
+            let win = self.window();
+            if (f.width, f.height) != (win.width(), win.height()) {
+                return Err(Error::Usage(format!(
+                    "the resumed part is {}x{}, the window {}x{}",
+                    f.width,
+                    f.height,
+                    win.width(),
+                    win.height()
+                )));
+            }
         }
         if let Some(t) = self.time_budget {
             if !(t.is_finite() && t > 0.0) {
@@ -240,6 +326,11 @@ pub struct Frame {
     /// Samples the pixel holds (fewer than asked for after an interruption or with
     /// `--time`).
     pub samples: Vec<u32>,
+    /// The kernel's radiance sums, of which `radiance` is the mean: kept so that a
+    /// part can be resumed and merged exactly.
+    pub sum: Vec<[f32; 3]>,
+    /// The kernel's sum of squared luminance (for `variance`).
+    pub sum_y2: Vec<f32>,
 }
 
 /// The figures `--stats` writes.

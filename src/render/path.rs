@@ -335,7 +335,7 @@ pub fn render_with(
     let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
 
     let start = Instant::now();
-    let total_pixels = u64::from(settings.width) * u64::from(settings.height);
+    let total_pixels = settings.window().pixels();
     let chunk_pixels = super::kernel::chunk_pixels(ctx, total_pixels, MAX_CHUNK_PIXELS);
     let cost = image.cost_per_ray * rays_per_sample(scene, settings, &ex);
     let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
@@ -346,16 +346,11 @@ pub fn render_with(
     if settings.time_budget.is_some() || checkpoint.is_some() {
         spp_per = spp_per.min(4);
     }
-    let waves = Waves {
-        total_pixels,
-        chunk_pixels,
-        pixels_per_dispatch: px_per,
-        spp: settings.spp,
-        samples_per_dispatch: spp_per,
-    };
+    let waves = Waves::new(settings, chunk_pixels, px_per, spp_per);
     let p = params(scene, settings, accel, &ex);
     let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
-    let mut frame = Frame::new(settings.width, settings.height)?;
+    let win = settings.window();
+    let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
     let mut last_checkpoint = Instant::now();
     let mut chunk_started = Instant::now();
@@ -364,6 +359,7 @@ pub fn render_with(
         &kernel,
         bound.pixels(),
         &waves,
+        settings.resume.as_deref(),
         &mut *progress,
         |first, len, _samples, complete| {
             if complete {

@@ -31,7 +31,36 @@ impl Frame {
             albedo: filled(n, [0.0; 3]).ok_or_else(too_big)?,
             variance: filled(n, 0.0).ok_or_else(too_big)?,
             samples: filled(n, 0).ok_or_else(too_big)?,
+            sum: filled(n, [0.0; 3]).ok_or_else(too_big)?,
+            sum_y2: filled(n, 0.0).ok_or_else(too_big)?,
         })
+    }
+
+    /// Pixel `k`'s state as the kernel holds it (what [`read_chunk`] read), for
+    /// resuming: bit for bit the sums and AOVs, without the overflow flag.
+    pub fn gpu_pixel(&self, k: usize) -> GpuPixel {
+        let [r, g, b] = self.sum[k];
+        let [nx, ny, nz] = self.normal[k];
+        let [ar, ag, ab] = self.albedo[k];
+        GpuPixel {
+            radiance: [r, g, b, self.samples[k] as f32],
+            normal_depth: [nx, ny, nz, self.depth[k]],
+            prim_cost: [self.prim[k], self.nodes[k], self.tests[k], self.rays[k]],
+            albedo_m2: [ar, ag, ab, self.sum_y2[k]],
+        }
+    }
+
+    /// Sets the mean radiance and the variance of pixel `k` from its sums and sample
+    /// count (as [`read_chunk`] does).
+    pub fn finish_pixel(&mut self, k: usize) {
+        let n = self.samples[k] as f32;
+        let inv = if n > 0.0 { 1.0 / n } else { 0.0 };
+        let [r, g, b] = self.sum[k];
+        self.radiance[k] = [r * inv, g * inv, b * inv];
+        let [r, gg, b] = self.radiance[k];
+        let mean = 0.2126 * r + 0.7152 * gg + 0.0722 * b;
+        // Variance of the mean: (E[y^2] - E[y]^2) / (n - 1), from the sums.
+        self.variance[k] = if n > 1.0 { ((self.sum_y2[k] * inv - mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 };
     }
 }
 
@@ -52,15 +81,11 @@ pub fn read_chunk(ctx: &Context, pixel_buf: &Buffer, frame: &mut Frame, first: u
     let mut overflow = 0u64;
     for (k, g) in bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned::<GpuPixel>).enumerate() {
         let idx = first as usize + k;
-        let n = g.radiance[3];
-        let inv = if n > 0.0 { 1.0 / n } else { 0.0 };
-        frame.radiance[idx] = [g.radiance[0] * inv, g.radiance[1] * inv, g.radiance[2] * inv];
-        frame.samples[idx] = n as u32;
+        frame.samples[idx] = g.radiance[3] as u32;
+        frame.sum[idx] = [g.radiance[0], g.radiance[1], g.radiance[2]];
+        frame.sum_y2[idx] = g.albedo_m2[3];
+        frame.finish_pixel(idx);
         frame.albedo[idx] = [g.albedo_m2[0], g.albedo_m2[1], g.albedo_m2[2]];
-        // Variance of the mean: (E[y^2] - E[y]^2) / (n - 1), from the sums.
-        let [r, gg, b] = frame.radiance[idx];
-        let mean = 0.2126 * r + 0.7152 * gg + 0.0722 * b;
-        frame.variance[idx] = if n > 1.0 { ((g.albedo_m2[3] * inv - mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 };
         frame.normal[idx] = [g.normal_depth[0], g.normal_depth[1], g.normal_depth[2]];
         frame.depth[idx] = g.normal_depth[3];
         frame.prim[idx] = g.prim_cost[0];

@@ -90,20 +90,14 @@ fn waves(
     image: &GpuImage,
     bounds: &LoopBounds,
 ) -> Result<Waves> {
-    let total_pixels = u64::from(settings.width) * u64::from(settings.height);
+    let total_pixels = settings.window().pixels();
     let chunk_pixels = super::kernel::chunk_pixels(ctx, total_pixels, MAX_CHUNK_PIXELS);
     let cost = image.cost_per_ray * rays_per_sample(scene, settings);
     let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
     if let Some(most) = bounds.samples_within_limit(ctx, scene, traces_per_sample(scene, settings))? {
         spp_per = spp_per.min(most).max(1);
     }
-    Ok(Waves {
-        total_pixels,
-        chunk_pixels,
-        pixels_per_dispatch: px_per,
-        spp: settings.spp,
-        samples_per_dispatch: spp_per,
-    })
+    Ok(Waves::new(settings, chunk_pixels, px_per, spp_per))
 }
 
 /// Renders `scene` with an already built structure.
@@ -127,9 +121,11 @@ pub fn render_with(
     let gs = GpuScene::new(scene);
     let p = params(scene, settings, accel);
     let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
-    let mut frame = Frame::new(settings.width, settings.height)?;
+    let win = settings.window();
+    let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
-    let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, progress, |first, len| {
+    let resume = settings.resume.as_deref();
+    let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, resume, progress, |first, len| {
         overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
         Ok(())
     })?;
