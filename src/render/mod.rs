@@ -11,9 +11,12 @@ pub mod envdist;
 pub mod gpu;
 pub mod kernel;
 pub mod memory;
+pub mod merge;
 pub mod output;
+pub mod part;
 pub mod path;
 pub mod readback;
+pub mod shard;
 pub mod upload;
 pub mod whitted;
 
