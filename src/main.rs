@@ -22,7 +22,7 @@ mod interrupt;
 #[path = "cli/progress.rs"]
 mod progress;
 
-use args::{BenchArgs, Cli, Command, CompareArgs, DeviceArgs, InfoArgs, RenderArgs};
+use args::{BenchArgs, Cli, Command, CompareArgs, DeviceArgs, InfoArgs, MergeArgs, RenderArgs};
 use progress::{BenchProgress, Reporter};
 
 #[global_allocator]
@@ -165,6 +165,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Devices => devices(),
         Command::Bench(args) => bench(&args),
         Command::Compare(args) => compare(&args),
+        Command::Merge(args) => merge(&args),
     }
 }
 
@@ -220,12 +221,27 @@ fn render(a: &RenderArgs) -> Result<()> {
     settings.params = params;
     settings.dispatch_budget = a.dispatch_budget.max(1);
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
+    let spp_total = shard_settings(a, &mut settings)?;
     settings.check()?;
-    let (frame, st) = trace(&ctx, &scene, &settings, a, &aovs)?;
-    write_outputs(a, &aovs, &frame, Some(&st))?;
+    let shard_name = match &a.shard {
+        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?.describe(a.shard_by.parse().map_err(anyhow::Error::msg)?),
+        None => String::new(),
+    };
+    let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
+    if let Some(path) = &a.resume {
+        settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
+    }
+    let spp = settings.first_sample + settings.spp;
+    let (frame, st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
+    write_outputs(a, &aovs, &frame, Some(&st), &part)?;
     if st.interrupted && interrupt::requested() {
+        let resume = if format == output::Format::Exr {
+            format!("; continue it with --resume {}", a.output.display())
+        } else {
+            String::new()
+        };
         eprintln!(
-            "arbor: interrupted: wrote {} with {} of {spp} samples per pixel",
+            "arbor: interrupted: wrote {} with {} of {spp} samples per pixel{resume}",
             a.output.display(),
             st.samples_done
         );
@@ -262,10 +278,11 @@ fn write_outputs(
     aovs: &[(String, std::path::PathBuf)],
     frame: &render::Frame,
     st: Option<&render::RenderStats>,
+    part: &render::part::PartInfo,
 ) -> Result<()> {
     let (w, h) = (frame.width, frame.height);
     let mut set = output::OutputSet::new();
-    output::write_image(&mut set, &a.output, w, h, &frame.radiance)?;
+    output::write_frame(&mut set, &a.output, part, frame)?;
     output::write_aovs(&mut set, aovs, frame, w, h)?;
     if let (Some(p), Some(st)) = (&a.stats, st) {
         let provenance = output::Provenance {
@@ -280,6 +297,90 @@ fn write_outputs(
         output::write_stats(&mut set, p, st, provenance)?;
     }
     Ok(set.commit()?)
+}
+
+/// Applies `--crop`, `--shard`, `--shard-by` and `--sample-offset` to `settings`
+/// (whose `spp` is the whole render's); returns the total samples per pixel a part
+/// records (0 for an explicit `--sample-offset` range).
+fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> {
+    let mut window = render::Crop::full(settings.width, settings.height);
+    if let Some(c) = &a.crop {
+        window = render::Crop::parse(c).map_err(anyhow::Error::msg)?;
+        window.check(settings.width, settings.height)?;
+    }
+    let first = a.sample_offset.unwrap_or(0);
+    let by: render::shard::ShardBy = a.shard_by.parse().map_err(anyhow::Error::msg)?;
+    let (window, first, count) = match &a.shard {
+        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?.plan(by, window, first, settings.spp)?,
+        None => (window, first, settings.spp),
+    };
+    let total = if a.sample_offset.is_some() { 0 } else { settings.spp };
+    settings.crop = (window != render::Crop::full(settings.width, settings.height)).then_some(window);
+    settings.first_sample = first;
+    settings.spp = count;
+    Ok(total)
+}
+
+/// Reads the part `--resume` names and checks that this command renders the same
+/// window and samples of the same image.
+fn resumable(path: &std::path::Path, part: &render::part::PartInfo) -> Result<render::Frame> {
+    let (info, frame) = render::part::read(path)?;
+    let why = if info.hash != part.hash || info.version != part.version {
+        Some("it was rendered from another scene or other settings than this command's".to_string())
+    } else if (info.width, info.height) != (part.width, part.height) || info.crop != part.crop {
+        Some(format!(
+            "it holds the window {},{},{},{} of a {}x{} image, this command renders {},{},{},{} of {}x{}",
+            info.crop.x0, info.crop.x1, info.crop.y0, info.crop.y1, info.width, info.height,
+            part.crop.x0, part.crop.x1, part.crop.y0, part.crop.y1, part.width, part.height
+        ))
+    } else if info.first_sample != part.first_sample || info.samples > part.samples {
+        // The same first sample and no more samples than this command's range: a
+        // larger --spp continues a finished render too.
+        Some(format!(
+            "it holds samples from the range {:?}, which does not start this command's {:?}",
+            info.sample_range(),
+            part.sample_range()
+        ))
+    } else {
+        None
+    };
+    match why {
+        Some(why) => bail!("--resume {}: {why}", path.display()),
+        None => Ok(frame),
+    }
+}
+
+/// `arbor merge`: parts into one image (and AOVs), written together or not at all.
+fn merge(a: &MergeArgs) -> Result<()> {
+    let start = Instant::now();
+    let aovs = output::parse_aovs(&a.aov)?;
+    output::format_of(&a.output, "image")?;
+    let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p));
+    output::check_outputs(paths.map(|p| p.as_path()))?;
+    let mut parts = Vec::new();
+    for path in &a.parts {
+        let (info, frame) = render::part::read(path).map_err(BadInput)?;
+        parts.push(render::merge::Part { path: path.clone(), info, frame });
+    }
+    let n = parts.len();
+    let (info, frame) = render::merge::merge(parts, a.allow_partial).map_err(BadInput)?;
+    let mut set = output::OutputSet::new();
+    output::write_frame(&mut set, &a.output, &info, &frame)?;
+    output::write_aovs(&mut set, &aovs, &frame, frame.width, frame.height)?;
+    set.commit()?;
+    if !a.quiet {
+        let fewest = frame.samples.iter().copied().min().unwrap_or(0);
+        eprintln!(
+            "wrote {} ({}x{}, samples {}..{}, fewest per pixel {fewest}) from {n} parts in {:.0} ms",
+            a.output.display(),
+            info.width,
+            info.height,
+            info.first_sample,
+            info.first_sample + info.samples,
+            ms(start)
+        );
+    }
+    Ok(())
 }
 
 /// With the Whitted integrator an emissive material lights nothing else: say so when
@@ -306,13 +407,14 @@ fn trace(
     settings: &RenderSettings,
     a: &RenderArgs,
     aovs: &[(String, std::path::PathBuf)],
+    part: &render::part::PartInfo,
 ) -> Result<(render::Frame, render::RenderStats)> {
     interrupt::install();
     let progress = Reporter::new("render", a.quiet, false);
     progress.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
     let checkpoint = a.checkpoint.map(|every| {
         let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
-            write_outputs(a, aovs, frame, None).map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
+            write_outputs(a, aovs, frame, None, part).map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
         };
         (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
     });

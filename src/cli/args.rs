@@ -250,6 +250,57 @@ pub(crate) struct RenderArgs {
     /// No progress (bar or lines), no summary line.
     #[arg(short, long)]
     pub(crate) quiet: bool,
+    /// Render only this window of the image: pixel bounds X0,X1,Y0,Y1 (half-open, from
+    /// the top-left corner). Its pixels are exactly those of the whole render; an EXR
+    /// output holds the window inside the full display window.
+    #[arg(long, value_name = "X0,X1,Y0,Y1")]
+    pub(crate) crop: Option<String>,
+    /// Render part I of N (0 <= I < N) of the image (inside --crop if given), split by
+    /// --shard-by. I may be `auto`: read from SLURM_ARRAY_TASK_ID, else
+    /// JOB_COMPLETION_INDEX (Slurm job arrays, Kubernetes Indexed Jobs). Write the part
+    /// as EXR and assemble the parts with `arbor merge`.
+    #[arg(long, value_name = "I/N|auto/N")]
+    pub(crate) shard: Option<String>,
+    /// How --shard splits the work: tiles (N bands of rows) or samples (N contiguous
+    /// ranges of the --spp samples of every pixel).
+    #[arg(long, default_value = "tiles", value_name = "tiles|samples")]
+    pub(crate) shard_by: String,
+    /// Trace samples K..K+spp of every pixel instead of 0..spp (an explicit sample
+    /// range; `arbor merge` adds ranges that meet). Sample K is the same whoever
+    /// traces it.
+    #[arg(long, value_name = "K")]
+    pub(crate) sample_offset: Option<u32>,
+    /// Continue the render held by this EXR part (an interrupted or checkpointed
+    /// render, or a shard) up to this command's sample range; the command must
+    /// otherwise be the one that wrote it (a larger --spp adds samples to a finished
+    /// render). The image is the one an uninterrupted render gives, bit for bit. The
+    /// part may be the output file itself.
+    #[arg(long, value_name = "PART.exr")]
+    pub(crate) resume: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+#[command(after_help = "Exit status: 0 when merged; 2 when a part is unreadable, of another scene, settings or \
+image size, or the parts overlap or leave tiles or samples missing (one line naming the file; nothing is written).")]
+pub(crate) struct MergeArgs {
+    /// The parts: EXR files written by `arbor render` (--shard, --crop, --sample-offset,
+    /// or any EXR output).
+    #[arg(required = true, value_name = "PART.exr")]
+    pub(crate) parts: Vec<PathBuf>,
+    /// Output image; the extension picks the format: .png, or .exr (itself a part,
+    /// holding every sum and AOV, so it can be merged again or resumed).
+    #[arg(short, long, value_name = "OUT")]
+    pub(crate) output: PathBuf,
+    /// AOVs of the merged image as NAME=PATH pairs, as `render --aov`.
+    #[arg(long, value_name = "NAME=PATH,...")]
+    pub(crate) aov: Vec<String>,
+    /// Merge what is there: missing tiles stay black with no samples; gaps in the
+    /// samples and unfinished parts are accepted.
+    #[arg(long)]
+    pub(crate) allow_partial: bool,
+    /// No summary line.
+    #[arg(short, long)]
+    pub(crate) quiet: bool,
 }
 
 #[derive(clap::Args)]
@@ -309,4 +360,10 @@ pub(crate) enum Command {
     /// the values clamped to [0, 1], in dB (inf when equal); and the largest absolute
     /// difference.
     Compare(CompareArgs),
+    /// Assemble render parts (tiles and sample ranges, EXR) into one image.
+    ///
+    /// Tiles are placed by their data window; parts of the same window are sample
+    /// ranges and are combined as a sample-weighted mean (sums added in sample order);
+    /// the AOVs of sample 0's camera ray come from the part that holds sample 0.
+    Merge(MergeArgs),
 }

@@ -207,6 +207,16 @@ pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rg
     set.add(path, &encode_image(f, width, height, rgb)?)
 }
 
+/// Adds a rendered frame as `path` to `set`: a PNG of its radiance, or an EXR part
+/// ([`super::part`]: the window in the full image, every sum and AOV, the header
+/// `info`) that `arbor merge` and `--resume` read.
+pub fn write_frame(set: &mut OutputSet, path: &Path, info: &super::part::PartInfo, frame: &Frame) -> Result<()> {
+    match format_of(path, "image")? {
+        Format::Exr => set.add(path, &super::part::encode(info, frame)?),
+        f => set.add(path, &encode_image(f, frame.width, frame.height, &frame.radiance)?),
+    }
+}
+
 /// Adds a 1- or 3-channel AOV as `path` (PFM or EXR by extension; an EXR of a
 /// 1-channel AOV repeats the value in R, G and B) to `set`.
 pub fn write_aov(
