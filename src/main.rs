@@ -224,7 +224,8 @@ fn render(a: &RenderArgs) -> Result<()> {
     let spp_total = shard_settings(a, &mut settings)?;
     settings.check()?;
     let shard_name = match &a.shard {
-        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?.describe(a.shard_by.parse().map_err(anyhow::Error::msg)?),
+        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?
+            .describe(a.shard_by.parse().map_err(anyhow::Error::msg)?),
         None => String::new(),
     };
     let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
@@ -301,7 +302,7 @@ fn write_outputs(
 
 /// Applies `--crop`, `--shard`, `--shard-by` and `--sample-offset` to `settings`
 /// (whose `spp` is the whole render's); returns the total samples per pixel a part
-/// records (0 for an explicit `--sample-offset` range).
+/// records: the `--spp` split by a sample shard, else 0.
 fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> {
     let mut window = render::Crop::full(settings.width, settings.height);
     if let Some(c) = &a.crop {
@@ -314,7 +315,8 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> 
         Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?.plan(by, window, first, settings.spp)?,
         None => (window, first, settings.spp),
     };
-    let total = if a.sample_offset.is_some() { 0 } else { settings.spp };
+    // Only a sample shard is a part of a known total; other parts may be extended.
+    let total = if a.shard.is_some() && by == render::shard::ShardBy::Samples { settings.spp } else { 0 };
     settings.crop = (window != render::Crop::full(settings.width, settings.height)).then_some(window);
     settings.first_sample = first;
     settings.spp = count;
@@ -330,8 +332,18 @@ fn resumable(path: &std::path::Path, part: &render::part::PartInfo) -> Result<re
     } else if (info.width, info.height) != (part.width, part.height) || info.crop != part.crop {
         Some(format!(
             "it holds the window {},{},{},{} of a {}x{} image, this command renders {},{},{},{} of {}x{}",
-            info.crop.x0, info.crop.x1, info.crop.y0, info.crop.y1, info.width, info.height,
-            part.crop.x0, part.crop.x1, part.crop.y0, part.crop.y1, part.width, part.height
+            info.crop.x0,
+            info.crop.x1,
+            info.crop.y0,
+            info.crop.y1,
+            info.width,
+            info.height,
+            part.crop.x0,
+            part.crop.x1,
+            part.crop.y0,
+            part.crop.y1,
+            part.width,
+            part.height
         ))
     } else if info.first_sample != part.first_sample || info.samples > part.samples {
         // The same first sample and no more samples than this command's range: a
@@ -414,7 +426,8 @@ fn trace(
     progress.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
     let checkpoint = a.checkpoint.map(|every| {
         let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
-            write_outputs(a, aovs, frame, None, part).map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
+            write_outputs(a, aovs, frame, None, part)
+                .map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
         };
         (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
     });

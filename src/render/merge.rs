@@ -81,16 +81,18 @@ pub fn merge(parts: Vec<Part>, allow_partial: bool) -> Result<(PartInfo, Frame)>
                 ),
             ));
         }
-        if i.spp_total != 0 && base.spp_total != 0 && i.spp_total != base.spp_total {
-            return Err(refuse(
-                &p.path,
-                format!(
-                    "a part of {} samples per pixel, not {} like {}",
-                    i.spp_total,
-                    base.spp_total,
-                    base_path.display()
-                ),
-            ));
+        if let Some(t) = parts.iter().find(|t| t.info.spp_total != 0) {
+            if i.spp_total != 0 && i.spp_total != t.info.spp_total {
+                return Err(refuse(
+                    &p.path,
+                    format!(
+                        "a sample shard of {} samples per pixel, not {} like {}",
+                        i.spp_total,
+                        t.info.spp_total,
+                        t.path.display()
+                    ),
+                ));
+            }
         }
         if !allow_partial && fewest(&p.frame) < i.samples {
             return Err(refuse(
@@ -181,10 +183,10 @@ pub fn merge(parts: Vec<Part>, allow_partial: bool) -> Result<(PartInfo, Frame)>
         }
     }
     let (lo, hi, _) = union.expect("at least one part");
-    if base.spp_total != 0 && hi - lo != base.spp_total && lo == 0 && !allow_partial {
+    let total = parts.iter().map(|p| p.info.spp_total).max().unwrap_or(0);
+    if total != 0 && hi - lo != total && !allow_partial {
         return Err(Error::Usage(format!(
-            "merge: the parts hold samples {lo}..{hi} of {} per pixel: sample shards are missing (or pass --allow-partial)",
-            base.spp_total
+            "merge: the parts hold samples {lo}..{hi} of {total} per pixel: sample shards are missing (or pass --allow-partial)"
         )));
     }
 
@@ -227,8 +229,14 @@ pub fn merge(parts: Vec<Part>, allow_partial: bool) -> Result<(PartInfo, Frame)>
         }
     }
     let shard = format!("merged from {} parts", parts.len());
-    let info =
-        PartInfo { crop: Crop::full(base.width, base.height), first_sample: lo, samples: hi - lo, shard, ..base };
+    let info = PartInfo {
+        crop: Crop::full(base.width, base.height),
+        first_sample: lo,
+        samples: hi - lo,
+        spp_total: total,
+        shard,
+        ..base
+    };
     Ok((info, out))
 }
 

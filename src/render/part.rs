@@ -20,8 +20,8 @@
 //!
 //! The header attribute `arbor.part` (text) holds `key=value` lines: `version`, `hash`
 //! (of the scene and every setting that changes pixels: [`settings_hash`]), `scene`,
-//! `integrator`, `seed`, `sampleFirst`, `sampleCount`, `sppTotal` (0 when the part
-//! was given an explicit range) and `shard` (for example `3/8 tiles`, empty when not a
+//! `integrator`, `seed`, `sampleFirst`, `sampleCount`, `sppTotal` (the samples per
+//! pixel a sample shard is part of, else 0) and `shard` (for example `3/8 tiles`, empty when not a
 //! shard). One attribute, because the EXR library keeps attributes in a hash map,
 //! whose order would make the bytes of a rerun differ.
 
@@ -47,7 +47,8 @@ pub struct PartInfo {
     /// The sample range the part was asked for: `first_sample..first_sample + samples`.
     pub first_sample: u32,
     pub samples: u32,
-    /// Samples per pixel of the whole render (0: not known, an explicit range).
+    /// Samples per pixel of the whole render a sample shard is part of (0: not a
+    /// sample shard).
     pub spp_total: u32,
     pub seed: u32,
     pub integrator: String,
