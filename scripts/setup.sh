@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what arbor needs on Debian 12: Vulkan loader and lavapipe (software
 # Vulkan), the Khronos validation layer, shaderc/glslang/SPIRV-Tools static libraries
-# (linked into build.rs, see docs/build-notes.md), and the assimp test models used by the tests.
+# (linked into build.rs, see docs/build-notes.md), the assimp test models used by the tests,
+# and Slurm with munge (the render-farm test starts a single-node cluster).
 set -euo pipefail
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
@@ -9,6 +10,7 @@ PACKAGES=(
   mesa-vulkan-drivers vulkan-tools vulkan-validationlayers libvulkan-dev
   libshaderc-dev glslang-dev spirv-tools
   assimp-testmodels g++ pkg-config fonts-dejavu-core
+  slurm-wlm munge
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
