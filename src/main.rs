@@ -17,6 +17,8 @@ use clap::Parser;
 // `keep_freed_memory` not to give freed memory back: docs/build-notes.md, "Host memory".
 #[path = "cli/args.rs"]
 mod args;
+#[path = "cli/farm_bench.rs"]
+mod farm_bench;
 #[path = "cli/interrupt.rs"]
 mod interrupt;
 #[path = "cli/progress.rs"]
@@ -441,6 +443,35 @@ fn trace(
     Ok(done?)
 }
 
+/// `bench --shards`: the one --scene path traced as N shards, each its own process.
+fn bench_shards(args: &BenchArgs) -> Result<()> {
+    let [scene] = args.scene.as_slice() else {
+        bail!("--shards needs exactly one --scene");
+    };
+    if let Some(bad) = args.shards.iter().find(|&&n| n == 0 || n > 4096) {
+        bail!("--shards {bad}: each shard count must be 1..=4096");
+    }
+    // The default list (every structure) means render's default here.
+    let accel = if args.accel == AccelKind::ALL.to_vec() { AccelKind::Kdtree } else { args.accel[0] };
+    if args.accel.len() > 1 && args.accel != AccelKind::ALL.to_vec() {
+        bail!("--shards renders with one structure: give one --accel");
+    }
+    let (w, h) = parse_size(&args.size)?;
+    let spp = args.spp.unwrap_or(DEFAULT_PATH_SPP);
+    let base: Vec<String> = vec![
+        scene.clone(),
+        "--size".into(),
+        format!("{w}x{h}"),
+        "--spp".into(),
+        spp.to_string(),
+        "--accel".into(),
+        accel.name().into(),
+    ];
+    eprintln!("bench --shards: {scene} at {w}x{h}, path tracing, {spp} spp, accel {}", accel.name());
+    let text = farm_bench::run(&base, &args.shards, &args.shard_by, false)?;
+    Ok(print_out(&text)?)
+}
+
 /// `bench --reference`: error against time over a ladder of sample counts.
 fn bench_convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()> {
     let [scene_arg] = args.scene.as_slice() else {
@@ -524,6 +555,9 @@ fn devices() -> Result<()> {
 fn bench(args: &BenchArgs) -> Result<()> {
     if let Some(reference) = &args.reference {
         return bench_convergence(args, reference);
+    }
+    if !args.shards.is_empty() {
+        return bench_shards(args);
     }
     let size = if args.quick && args.size == "256x256" { (128, 128) } else { parse_size(&args.size)? };
     let opts = bench::Request {

@@ -165,6 +165,19 @@ pub(crate) struct BenchArgs {
     pub(crate) integrator: Vec<String>,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
+    /// Render-farm overhead instead of the structure table: path trace the one --scene
+    /// (at --size, --spp, one --accel) split into each of these shard counts, every
+    /// shard its own `arbor render` process, one after the other, then `arbor merge`;
+    /// print the machine time of all shards, the longest shard, the fixed cost per
+    /// shard (process start, load, build, set-up) and the merge (docs/farm.md).
+    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    pub(crate) shards: Vec<u32>,
+    /// How --shards splits: tiles or samples.
+    #[arg(long, default_value = "tiles", value_parser = ["tiles", "samples"])]
+    pub(crate) shard_by: String,
+    /// Samples per pixel of the --shards renders (default 64).
+    #[arg(long)]
+    pub(crate) spp: Option<u32>,
 }
 
 #[derive(clap::Args)]
