@@ -252,3 +252,27 @@ fn reference_ladder_reports_error_against_time() {
     assert_eq!(csv.lines().count(), 5, "{csv}");
     assert!(dir.path().join("out/convergence.png").exists());
 }
+
+#[test]
+fn shard_bench_prints_a_row_per_shard_count() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let out = run(&["bench", "--shards", "1,3", "--scene", "builtin:cornell", "--size", "24x16", "--spp", "2"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<Vec<&str>> =
+        text.lines().filter(|l| !l.starts_with('#')).map(|l| l.split_whitespace().collect()).collect();
+    assert_eq!(rows.len(), 3, "a header and two rows:\n{text}");
+    assert_eq!(rows[0][0], "shards");
+    for (row, n) in rows[1..].iter().zip(["1", "3"]) {
+        assert_eq!((row[0], row[1]), (n, "tiles"));
+        let figures: Vec<f64> = row[2..8].iter().map(|v| v.parse().expect("a number")).collect();
+        assert!(figures.iter().all(|&v| v.is_finite() && v >= 0.0), "{row:?}");
+        assert!(figures[0] >= figures[1], "all shards take at least the longest: {row:?}");
+    }
+    let bad = Command::new(env!("CARGO_BIN_EXE_arbor"))
+        .args(["bench", "--shards", "2", "--scene", "builtin:cornell,builtin:spheres"])
+        .output()
+        .expect("run");
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("exactly one --scene"));
+}

@@ -35,10 +35,18 @@ fn int_of(v: &Value, path: &str) -> u64 {
 fn check_job(job: &Value, claims: &[String]) {
     assert_eq!(str_of(job, "apiVersion"), "batch/v1");
     let name = str_of(job, "metadata.name");
-    assert!(!name.is_empty() && name.len() <= 63 && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'));
+    assert!(
+        !name.is_empty()
+            && name.len() <= 63
+            && name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+    );
     let pod = get(job, "spec.template.spec");
-    assert!(["Never", "OnFailure"].contains(&str_of(pod, "restartPolicy")), "{name}: a Job's pods restart Never or OnFailure");
-    let volumes: Vec<&str> = get(pod, "volumes").as_sequence().expect("volumes").iter().map(|v| str_of(v, "name")).collect();
+    assert!(
+        ["Never", "OnFailure"].contains(&str_of(pod, "restartPolicy")),
+        "{name}: a Job's pods restart Never or OnFailure"
+    );
+    let volumes: Vec<&str> =
+        get(pod, "volumes").as_sequence().expect("volumes").iter().map(|v| str_of(v, "name")).collect();
     for v in get(pod, "volumes").as_sequence().expect("volumes") {
         let claim = str_of(v, "persistentVolumeClaim.claimName");
         assert!(claims.iter().any(|c| c == claim), "{name}: claim {claim} is declared in the file");

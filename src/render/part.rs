@@ -255,9 +255,11 @@ pub fn encode(info: &PartInfo, frame: &Frame) -> Result<Vec<u8>> {
     list.push(u32s("arbor.tests", frame.tests.clone()));
     list.push(u32s("arbor.rays", frame.rays.clone()));
 
-    let mut attrs = LayerAttributes::default();
-    attrs.layer_position = Vec2(info.crop.x0 as i32, info.crop.y0 as i32);
-    attrs.software_name = Some(text(&format!("arbor {}", info.version)));
+    let mut attrs = LayerAttributes {
+        layer_position: Vec2(info.crop.x0 as i32, info.crop.y0 as i32),
+        software_name: Some(text(&format!("arbor {}", info.version))),
+        ..Default::default()
+    };
     // One text attribute of `key=value` lines: the decoder's attribute map is a
     // HashMap, whose order (and so the file's bytes) would change from run to run.
     let mut other: HashMap<Text, AttributeValue> = HashMap::new();

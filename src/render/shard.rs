@@ -154,14 +154,14 @@ mod tests {
     fn shards_cover_the_image_and_the_samples_once() {
         let full = Crop::full(50, 37);
         for n in [1, 2, 3, 7, 37] {
-            let mut rows = vec![0; 37];
+            let mut rows = [0; 37];
             for i in 0..n {
                 let (c, first, spp) = Shard { index: i, count: n }.plan(ShardBy::Tiles, full, 0, 9).expect("plan");
                 assert_eq!((c.x0, c.x1, first, spp), (0, 50, 0, 9));
                 (c.y0..c.y1).for_each(|y| rows[y as usize] += 1);
             }
             assert!(rows.iter().all(|&r| r == 1), "{n} tiles");
-            let mut samples = vec![0; 20];
+            let mut samples = [0; 20];
             for i in 0..n.min(20) {
                 let (c, first, spp) =
                     Shard { index: i, count: n.min(20) }.plan(ShardBy::Samples, full, 0, 20).expect("plan");
