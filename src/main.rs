@@ -234,7 +234,14 @@ fn render(a: &RenderArgs) -> Result<()> {
     if let Some(path) = &a.resume {
         settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
     }
-    let spp = settings.first_sample + settings.spp;
+    let spp = settings.spp;
+    let mut part_note = String::new();
+    if let Some(c) = settings.crop {
+        part_note += &format!(", window {},{},{},{}", c.x0, c.x1, c.y0, c.y1);
+    }
+    if settings.first_sample > 0 {
+        part_note += &format!(", samples {}..{}", settings.first_sample, settings.first_sample + spp);
+    }
     let (frame, st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
     write_outputs(a, &aovs, &frame, Some(&st), &part)?;
     if st.interrupted && interrupt::requested() {
@@ -257,7 +264,7 @@ fn render(a: &RenderArgs) -> Result<()> {
         };
         let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
         eprintln!(
-            "wrote {} ({w}x{h}, {} {}{} spp, {} triangles, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
+            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
             a.output.display(),
             st.integrator,
             st.samples_done,

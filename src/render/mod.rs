@@ -351,6 +351,11 @@ pub struct RenderStats {
     /// Fewest samples any pixel holds (less than `spp` after an interruption or with
     /// a time budget).
     pub samples_done: u32,
+    /// The window rendered (`--crop`, a tile shard); null: the whole image.
+    pub crop: Option<Crop>,
+    /// The first sample index (`--sample-offset`, a sample shard): the render traced
+    /// samples `first_sample..first_sample + spp`.
+    pub first_sample: u32,
     /// The render stopped early (interrupted, or the time budget ran out).
     pub interrupted: bool,
     pub accel: String,
@@ -402,6 +407,8 @@ impl RenderStats {
             spp: settings.spp,
             integrator: settings.integrator.name().to_string(),
             samples_done: frame.samples.iter().copied().min().unwrap_or(0),
+            crop: settings.crop,
+            first_sample: settings.first_sample,
             interrupted: false,
             accel: settings.accel.name().to_string(),
             build_ms: build.build_ms,
