@@ -6,6 +6,7 @@
 
 pub mod builtin;
 pub mod camera;
+pub mod gltf;
 pub mod images;
 pub mod limits;
 pub mod mesh;
@@ -344,6 +345,10 @@ impl Scene {
         let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
         match ext.as_str() {
             "toml" => scene_file::load(path),
+            "gltf" | "glb" => Self::from_gltf(source, &gltf::load(path)?).map_err(|e| match e {
+                Error::Scene { msg, .. } => Error::invalid(path, msg),
+                other => other,
+            }),
             "obj" | "ply" | "off" => {
                 let mesh = load_mesh(path)?;
                 // Messages start with the file name, like every other file error.
@@ -354,7 +359,7 @@ impl Scene {
             }
             _ => Err(Error::invalid(
                 path,
-                "unknown scene type: expected a .toml scene file, a .obj/.ply/.off mesh, or builtin:default|cornell|blob:N",
+                "unknown scene type: expected a .toml scene file, a .obj/.ply/.off mesh, a .gltf/.glb scene, or builtin:default|cornell|blob:N",
             )),
         }
     }
@@ -376,6 +381,41 @@ impl Scene {
             b.scene.camera = framed_camera(&bounds, 45.0);
         }
         b.scene.lights.push(default_light());
+        b.finish()
+    }
+
+    /// A scene from a glTF file: its triangles, materials and lights; its first camera
+    /// (film 512 pixels high, as wide as the camera's aspect ratio asks), else one framed
+    /// on the scene box; one default directional light when it has no light and
+    /// nothing emits.
+    pub fn from_gltf(name: &str, g: &gltf::GltfScene) -> Result<Scene> {
+        if let Some(msg) = g.mesh.texture_uv_error(None) {
+            return Err(Error::scene(name, msg));
+        }
+        let mut b = SceneBuilder::new(name);
+        b.mesh(&g.mesh, 1.0, Vec3::ZERO, None);
+        match &g.camera {
+            Some((camera, aspect)) => {
+                b.scene.camera = *camera;
+                if let Some(a) = aspect.filter(|a| a.is_finite() && *a > 0.0) {
+                    b.scene.width = ((512.0 * a).round() as u32).clamp(1, MAX_FILM_SIDE);
+                }
+            }
+            None => {
+                let mut bounds = Aabb::EMPTY;
+                for p in &b.scene.positions {
+                    bounds.grow(*p);
+                }
+                if !bounds.is_empty() && bounds.min.is_finite() && bounds.max.is_finite() {
+                    b.scene.camera = framed_camera(&bounds, 45.0);
+                }
+            }
+        }
+        b.scene.lights.extend(g.lights.iter().cloned());
+        let emits = b.scene.materials.iter().any(|m| m.emission != Vec3::ZERO);
+        if b.scene.lights.is_empty() && !emits {
+            b.scene.lights.push(default_light());
+        }
         b.finish()
     }
 
@@ -431,6 +471,7 @@ pub fn load_mesh(path: &Path) -> Result<MeshData> {
         "obj" => obj::load(path),
         "ply" => ply::load(path),
         "off" => off::load(path),
-        _ => Err(Error::invalid(path, "unknown mesh type: expected .obj, .ply or .off")),
+        "gltf" | "glb" => Ok(gltf::load(path)?.mesh),
+        _ => Err(Error::invalid(path, "unknown mesh type: expected .obj, .ply, .off, .gltf or .glb")),
     }
 }

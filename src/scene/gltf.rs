@@ -1,0 +1,310 @@
+//! glTF 2.0 (`.gltf` with external or embedded buffers, `.glb`) through the `gltf`
+//! crate: the default scene's node hierarchy flattened into world-space triangles,
+//! its materials mapped to arbor's, the first camera, and KHR_lights_punctual lights.
+//!
+//! Materials (metallic-roughness) map as follows, roughness and metallic being the
+//! factors (their textures are not read):
+//! - transmission (KHR_materials_transmission) of 0.5 or more: glass, tinted by the
+//!   base colour, with KHR_materials_ior's index (default 1.5);
+//! - metallic of 0.5 or more and roughness of 0.1 or less: a mirror tinted by the base
+//!   colour;
+//! - roughness below 0.5: normalised Phong; specular = mix(0.04, base, metallic),
+//!   diffuse = base x (1 - metallic) x (1 - max(specular)), shininess 2/a^2 - 2 with
+//!   a = roughness^2 (at most 10,000);
+//! - otherwise Lambert with the base colour;
+//! - the emissive factor times KHR_materials_emissive_strength is the emission (an area
+//!   light); `doubleSided` makes it emit from both sides.
+//!
+//! The base colour texture (texture coordinate set 0) becomes the albedo texture.
+//! Triangle strips and fans are triangulated; points and lines are an error naming
+//! the mesh. Spot lights are treated as point lights (their cone is ignored). Skins,
+//! morph targets, animations and Draco compression are not read.
+
+#![forbid(unsafe_code)]
+
+use std::path::Path;
+
+use glam::{Mat4, Vec2, Vec3};
+
+use super::mesh::{MeshData, Texture};
+use super::{Camera, Light, Material, MaterialKind};
+use crate::error::{Error, Result};
+
+/// What a glTF file holds for arbor.
+#[derive(Debug, Clone, Default)]
+pub struct GltfScene {
+    /// Every triangle of the scene in world space, with its materials and textures.
+    pub mesh: MeshData,
+    /// The first camera in the node hierarchy and its aspect ratio, if any.
+    pub camera: Option<(Camera, Option<f32>)>,
+    /// KHR_lights_punctual lights.
+    pub lights: Vec<Light>,
+}
+
+/// Deepest node hierarchy followed (a cycle or an absurd depth is an error).
+const MAX_DEPTH: usize = 256;
+
+/// Loads a `.gltf` or `.glb` file. Any problem is an error naming the file.
+pub fn load(path: &Path) -> Result<GltfScene> {
+    let bytes = super::limits::read_file(path, super::limits::FileKind::Mesh)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let loaded = std::panic::catch_unwind(|| load_bytes(&bytes, base, &path.display().to_string()));
+    match loaded {
+        Ok(r) => r.map_err(|why| Error::invalid(path, why)),
+        Err(_) => Err(Error::invalid(path, "glTF: the file is malformed (the reader failed)")),
+    }
+}
+
+/// Extensions a file may require: what this loader reads, and those whose absence
+/// only changes the look (the file stays valid glTF without them).
+const KNOWN_REQUIRED: [&str; 5] = [
+    "KHR_lights_punctual",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
+];
+
+fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<GltfScene, String> {
+    // A required extension arbor cannot read (Draco, meshopt, ...) would otherwise show
+    // up as a confusing validation error about missing buffer views.
+    if let Ok(g) = gltf::Gltf::from_slice_without_validation(bytes) {
+        if let Some(ext) = g.document.extensions_required().find(|e| !KNOWN_REQUIRED.contains(e)) {
+            return Err(format!("glTF: the file requires the extension {ext}, which arbor does not read"));
+        }
+    }
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| format!("glTF: {e}"))?;
+    let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| format!("glTF buffers: {e}"))?;
+    let images = gltf::import_images(&document, Some(base), &buffers).map_err(|e| format!("glTF images: {e}"))?;
+    let mut out = GltfScene::default();
+    // Materials and textures: one arbor material per glTF material, then the default.
+    let mut textures: Vec<Option<u32>> = vec![None; images.len()];
+    for m in document.materials() {
+        let mat = material(&m, &images, &mut textures, &mut out.mesh.textures, name)?;
+        out.mesh.materials.push(mat);
+    }
+    let default_material = out.mesh.materials.len() as u32;
+    out.mesh.materials.push(Material::lambert("gltf default", Vec3::splat(0.8)));
+    let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
+        Some(s) => s.nodes().collect(),
+        None => {
+            // No scene: every node that is no other node's child.
+            let mut child = vec![false; document.nodes().count()];
+            for n in document.nodes() {
+                for c in n.children() {
+                    child[c.index()] = true;
+                }
+            }
+            document.nodes().filter(|n| !child[n.index()]).collect()
+        }
+    };
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut any_uvs = false;
+    let mut normals: Vec<Vec3> = Vec::new();
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    let mut visits = 0usize;
+    while let Some((node, parent, depth)) = stack.pop() {
+        visits += 1;
+        if depth > MAX_DEPTH || visits > 1 << 20 {
+            return Err(format!("node {}: the node hierarchy is deeper than {MAX_DEPTH} or has a cycle", node.index()));
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(format!("node {}: its transform is not finite", node.index()));
+        }
+        if let Some(mesh) = node.mesh() {
+            add_mesh(&mesh, &world, &buffers, default_material, &mut out.mesh, &mut normals, &mut uvs, &mut any_uvs)?;
+        }
+        if let Some(cam) = node.camera() {
+            if out.camera.is_none() {
+                if let gltf::camera::Projection::Perspective(p) = cam.projection() {
+                    let eye = world.transform_point3(Vec3::ZERO);
+                    let forward = world.transform_vector3(-Vec3::Z);
+                    let up = world.transform_vector3(Vec3::Y);
+                    let camera = Camera { eye, look_at: eye + forward, up, vfov: p.yfov().to_degrees() };
+                    out.camera = Some((camera, p.aspect_ratio()));
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            let power = Vec3::from(light.color()) * light.intensity();
+            out.lights.push(match light.kind() {
+                gltf::khr_lights_punctual::Kind::Directional => Light::Directional {
+                    direction: world.transform_vector3(-Vec3::Z).try_normalize().unwrap_or(-Vec3::Z),
+                    radiance: power,
+                },
+                _ => Light::Point { position: world.transform_point3(Vec3::ZERO), intensity: power },
+            });
+        }
+        for c in node.children() {
+            stack.push((c, world, depth + 1));
+        }
+    }
+    out.mesh.normals =
+        (normals.len() == out.mesh.positions.len() && normals.iter().any(|n| *n != Vec3::ZERO)).then_some(normals);
+    if any_uvs {
+        uvs.resize(out.mesh.positions.len(), Vec2::ZERO);
+        out.mesh.uvs = Some(uvs);
+    }
+    Ok(out)
+}
+
+/// Appends every primitive of `mesh`, transformed by `world`.
+#[allow(clippy::too_many_arguments)]
+fn add_mesh(
+    mesh: &gltf::Mesh,
+    world: &Mat4,
+    buffers: &[gltf::buffer::Data],
+    default_material: u32,
+    out: &mut MeshData,
+    normals: &mut Vec<Vec3>,
+    uvs: &mut Vec<Vec2>,
+    any_uvs: &mut bool,
+) -> std::result::Result<(), String> {
+    use gltf::mesh::Mode;
+    let what = || match mesh.name() {
+        Some(n) => format!("mesh {} ('{n}')", mesh.index()),
+        None => format!("mesh {}", mesh.index()),
+    };
+    let m3 = glam::Mat3::from_mat4(*world);
+    let normal_matrix = m3.inverse().transpose();
+    let mirrored = m3.determinant() < 0.0;
+    for prim in mesh.primitives() {
+        let mode = prim.mode();
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            return Err(format!("{}: primitive {} draws {mode:?}, not triangles", what(), prim.index()));
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| format!("{}: primitive {} has no POSITION", what(), prim.index()))?
+            .map(Vec3::from)
+            .collect();
+        let n = positions.len() as u32;
+        let base = out.positions.len() as u32;
+        out.positions.extend(positions.iter().map(|p| world.transform_point3(*p)));
+        match reader.read_normals() {
+            Some(ns) => {
+                let ns: Vec<Vec3> = ns.map(Vec3::from).collect();
+                if ns.len() != positions.len() {
+                    return Err(format!(
+                        "{}: primitive {} has {} normals for {n} positions",
+                        what(),
+                        prim.index(),
+                        ns.len()
+                    ));
+                }
+                normals.extend(ns.iter().map(|v| (normal_matrix * *v).try_normalize().unwrap_or(Vec3::ZERO)));
+            }
+            None => normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
+        }
+        if let Some(tc) = reader.read_tex_coords(0) {
+            let tc: Vec<Vec2> = tc.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect();
+            if tc.len() != positions.len() {
+                return Err(format!("{}: primitive {} has {} UVs for {n} positions", what(), prim.index(), tc.len()));
+            }
+            uvs.resize(base as usize, Vec2::ZERO);
+            uvs.extend(tc);
+            *any_uvs = true;
+        }
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..n).collect(),
+        };
+        if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
+            return Err(format!("{}: primitive {} uses vertex {bad} of {n}", what(), prim.index()));
+        }
+        let mut tris: Vec<[u32; 3]> = Vec::new();
+        match mode {
+            Mode::Triangles => tris.extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]])),
+            Mode::TriangleStrip => {
+                for k in 2..indices.len() {
+                    let (a, b, c) = (indices[k - 2], indices[k - 1], indices[k]);
+                    tris.push(if k % 2 == 0 { [a, b, c] } else { [b, a, c] });
+                }
+            }
+            _ => {
+                for k in 2..indices.len() {
+                    tris.push([indices[0], indices[k - 1], indices[k]]);
+                }
+            }
+        }
+        let material = prim.material().index().map_or(default_material, |i| i as u32);
+        for t in tris {
+            let [a, b, c] = t.map(|i| i + base);
+            out.triangles.push(if mirrored { [a, c, b] } else { [a, b, c] });
+            out.tri_material.push(material);
+        }
+    }
+    Ok(())
+}
+
+/// An arbor material for a glTF material (the module docs give the mapping).
+fn material(
+    m: &gltf::Material,
+    images: &[gltf::image::Data],
+    done: &mut [Option<u32>],
+    textures: &mut Vec<Texture>,
+    file: &str,
+) -> std::result::Result<Material, String> {
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let base = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
+    let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
+    let rough = pbr.roughness_factor().clamp(0.0, 1.0);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let name = m.name().map_or_else(|| format!("gltf material {}", m.index().unwrap_or(0)), str::to_string);
+    let mut out = Material::lambert(&name, base);
+    if transmission >= 0.5 {
+        out.kind = MaterialKind::Glass;
+        out.ior = m.ior().unwrap_or(1.5);
+    } else if metallic >= 0.5 && rough <= 0.1 {
+        out.kind = MaterialKind::Mirror;
+    } else if rough < 0.5 {
+        let spec = Vec3::splat(0.04).lerp(base, metallic);
+        out.kind = MaterialKind::Phong;
+        out.specular = spec;
+        out.color = base * (1.0 - metallic) * (1.0 - spec.max_element());
+        let a = (rough * rough).max(1e-3);
+        out.shininess = (2.0 / (a * a) - 2.0).clamp(1.0, 10_000.0);
+    }
+    out.emission = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
+    out.two_sided = m.double_sided();
+    if let Some(info) = pbr.base_color_texture() {
+        if info.tex_coord() == 0 {
+            let image = info.texture().source().index();
+            let slot = match done.get(image).copied().flatten() {
+                Some(s) => s,
+                None => {
+                    let data = images.get(image).ok_or_else(|| format!("image {image} is missing"))?;
+                    textures.push(texture(data, &format!("{file}#image{image}"))?);
+                    let s = (textures.len() - 1) as u32;
+                    if let Some(d) = done.get_mut(image) {
+                        *d = Some(s);
+                    }
+                    s
+                }
+            };
+            out.texture = Some(slot);
+        }
+    }
+    Ok(out)
+}
+
+/// An 8-bit RGBA texture from a decoded glTF image.
+fn texture(d: &gltf::image::Data, name: &str) -> std::result::Result<Texture, String> {
+    use gltf::image::Format;
+    let n = d.width as usize * d.height as usize;
+    let texels: Vec<[u8; 4]> = match d.format {
+        Format::R8G8B8A8 => d.pixels.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]).collect(),
+        Format::R8G8B8 => d.pixels.chunks_exact(3).map(|p| [p[0], p[1], p[2], 255]).collect(),
+        Format::R8 => d.pixels.iter().map(|&v| [v, v, v, 255]).collect(),
+        Format::R8G8 => d.pixels.chunks_exact(2).map(|p| [p[0], p[0], p[0], p[1]]).collect(),
+        other => return Err(format!("{name}: image format {other:?} is not supported (8-bit images only)")),
+    };
+    if texels.len() != n || n == 0 {
+        return Err(format!("{name}: the image has {} texels for {}x{}", texels.len(), d.width, d.height));
+    }
+    Ok(Texture { name: name.to_string(), width: d.width, height: d.height, texels })
+}
