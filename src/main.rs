@@ -205,7 +205,9 @@ fn render(a: &RenderArgs) -> Result<()> {
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
     }
+    let opened = Instant::now();
     let ctx = context(&a.device)?;
+    let device_ms = ms(opened);
     let mut settings = RenderSettings::for_size(w, h);
     settings.spp = spp;
     settings.integrator = integrator;
@@ -242,7 +244,9 @@ fn render(a: &RenderArgs) -> Result<()> {
     if settings.first_sample > 0 {
         part_note += &format!(", samples {}..{}", settings.first_sample, settings.first_sample + spp);
     }
-    let (frame, st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
+    let (frame, mut st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
+    st.load_ms = load_ms;
+    st.device_ms = device_ms;
     write_outputs(a, &aovs, &frame, Some(&st), &part)?;
     if st.interrupted && interrupt::requested() {
         let resume = if format == output::Format::Exr {

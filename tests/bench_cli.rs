@@ -266,7 +266,7 @@ fn shard_bench_prints_a_row_per_shard_count() {
     assert_eq!(rows[0][0], "shards");
     for (row, n) in rows[1..].iter().zip(["1", "3"]) {
         assert_eq!((row[0], row[1]), (n, "tiles"));
-        let figures: Vec<f64> = row[2..8].iter().map(|v| v.parse().expect("a number")).collect();
+        let figures: Vec<f64> = row[2..11].iter().map(|v| v.parse().expect("a number")).collect();
         assert!(figures.iter().all(|&v| v.is_finite() && v >= 0.0), "{row:?}");
         assert!(figures[0] >= figures[1], "all shards take at least the longest: {row:?}");
     }

@@ -19,6 +19,10 @@ struct ShardRun {
     /// stats.
     trace_s: f64,
     build_s: f64,
+    /// Scene load, device opening and kernel compilation.
+    load_s: f64,
+    device_s: f64,
+    kernel_s: f64,
 }
 
 fn run_shard(exe: &Path, base: &[String], i: u32, n: u32, by: &str, dir: &Path) -> Result<ShardRun> {
@@ -40,7 +44,14 @@ fn run_shard(exe: &Path, base: &[String], i: u32, n: u32, by: &str, dir: &Path) 
     }
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats)?)?;
     let num = |k: &str| json.get(k).and_then(serde_json::Value::as_f64).unwrap_or(0.0) / 1e3;
-    Ok(ShardRun { wall_s, trace_s: num("wall_ms"), build_s: num("build_ms") })
+    Ok(ShardRun {
+        wall_s,
+        trace_s: num("wall_ms"),
+        build_s: num("build_ms"),
+        load_s: num("load_ms"),
+        device_s: num("device_ms"),
+        kernel_s: num("kernel_ms"),
+    })
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -62,9 +73,21 @@ pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Res
     let dir = tempfile_dir()?;
     let mut text = format!(
         "# arbor bench --shards: every shard its own process, one after the other; times in seconds\n\
-         # fixed = process wall - render loop (start, scene load, build, Vulkan set-up, writing the part)\n\
-         {:>6} {:>8} {:>10} {:>10} {:>10} {:>8} {:>10} {:>10} {:>9}\n",
-        "shards", "by", "wall sum", "wall max", "loop max", "fixed", "build", "merge", "overhead"
+         # fixed = process wall - render loop, of which load, device, kernel, build (medians); the rest is\n\
+         # process start and writing the part\n\
+         {:>6} {:>8} {:>10} {:>10} {:>10} {:>8} {:>7} {:>7} {:>7} {:>7} {:>8} {:>9}\n",
+        "shards",
+        "by",
+        "wall sum",
+        "wall max",
+        "loop max",
+        "fixed",
+        "load",
+        "device",
+        "kernel",
+        "build",
+        "merge",
+        "overhead"
     );
     let mut single = None;
     for &n in counts {
@@ -89,9 +112,12 @@ pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Res
         let loop_max = runs.iter().map(|r| r.trace_s).fold(0.0, f64::max);
         let fixed = median(runs.iter().map(|r| r.wall_s - r.trace_s).collect());
         let build = median(runs.iter().map(|r| r.build_s).collect());
+        let load = median(runs.iter().map(|r| r.load_s).collect());
+        let device = median(runs.iter().map(|r| r.device_s).collect());
+        let kernel = median(runs.iter().map(|r| r.kernel_s).collect());
         let base_sum = *single.get_or_insert(wall_sum);
         text += &format!(
-            "{n:>6} {by:>8} {wall_sum:>10.3} {wall_max:>10.3} {loop_max:>10.3} {fixed:>8.3} {build:>10.3} {merge_s:>10.3} {:>8.1}%\n",
+            "{n:>6} {by:>8} {wall_sum:>10.3} {wall_max:>10.3} {loop_max:>10.3} {fixed:>8.3} {load:>7.3} {device:>7.3} {kernel:>7.3} {build:>7.3} {merge_s:>8.3} {:>8.1}%\n",
             100.0 * (wall_sum / base_sum - 1.0)
         );
     }

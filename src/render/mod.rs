@@ -369,6 +369,12 @@ pub struct RenderStats {
     pub trace_ms: Option<f64>,
     /// Host wall time of the whole trace, uploads and readback included.
     pub wall_ms: f64,
+    /// Host time to create the kernel (on lavapipe: compiling it).
+    pub kernel_ms: f64,
+    /// Host time to load the scene (set by the command line; 0 otherwise).
+    pub load_ms: f64,
+    /// Host time to open the Vulkan device (set by the command line; 0 otherwise).
+    pub device_ms: f64,
     pub dispatches: u32,
     /// Every ray traced: camera, shadow and bounce rays.
     pub rays: u64,
@@ -418,6 +424,9 @@ impl RenderStats {
             bindings,
             trace_ms: totals.gpu_ms,
             wall_ms,
+            kernel_ms: 0.0,
+            load_ms: 0.0,
+            device_ms: 0.0,
             dispatches: totals.dispatches,
             rays,
             mrays_per_s: mrays,

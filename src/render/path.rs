@@ -332,7 +332,9 @@ pub fn render_with(
     let traces = traces_per_sample(scene, settings, &ex);
     let bounds = LoopBounds::new(ctx, scene, &image, traces)?;
     let spec = specialization(scene, settings, &image, &bounds, &ex);
+    let compile = Instant::now();
     let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+    let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
 
     let start = Instant::now();
     let total_pixels = settings.window().pixels();
@@ -392,5 +394,6 @@ pub fn render_with(
     let build = accel.stats(scene);
     let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
     stats.interrupted = stopped;
+    stats.kernel_ms = kernel_ms;
     Ok((frame, stats))
 }

@@ -114,7 +114,9 @@ pub fn render_with(
     let variant = Variant::new("trace", scene, settings, &image)?;
     let bounds = LoopBounds::new(ctx, scene, &image, traces_per_sample(scene, settings))?;
     let spec = specialization(scene, settings, &image, &bounds);
+    let compile = Instant::now();
     let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+    let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
 
     let start = Instant::now();
     let waves = waves(ctx, scene, settings, &image, &bounds)?;
@@ -133,6 +135,7 @@ pub fn render_with(
     super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
-    let stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
+    let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
+    stats.kernel_ms = kernel_ms;
     Ok((frame, stats))
 }
