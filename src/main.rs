@@ -383,8 +383,12 @@ fn merge(a: &MergeArgs) -> Result<()> {
     let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p));
     output::check_outputs(paths.map(|p| p.as_path()))?;
     let mut parts = Vec::new();
-    for path in &a.parts {
-        let (info, frame) = render::part::read(path).map_err(BadInput)?;
+    // Parts decode in parallel (each decoder on one thread); the first failure in the
+    // order given is reported.
+    use rayon::prelude::*;
+    let read: Vec<_> = a.parts.par_iter().map(|path| render::part::read(path).map(|(i, f)| (path, i, f))).collect();
+    for r in read {
+        let (path, info, frame) = r.map_err(BadInput)?;
         parts.push(render::merge::Part { path: path.clone(), info, frame });
     }
     let n = parts.len();
