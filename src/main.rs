@@ -225,13 +225,8 @@ fn render(a: &RenderArgs) -> Result<()> {
     settings.params = params;
     settings.dispatch_budget = a.dispatch_budget.max(1);
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
-    let spp_total = shard_settings(a, &mut settings)?;
+    let (spp_total, shard_name) = shard_settings(a, &mut settings)?;
     settings.check()?;
-    let shard_name = match &a.shard {
-        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?
-            .describe(a.shard_by.parse().map_err(anyhow::Error::msg)?),
-        None => String::new(),
-    };
     let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
     if let Some(path) = &a.resume {
         settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
@@ -314,9 +309,10 @@ fn write_outputs(
 }
 
 /// Applies `--crop`, `--shard`, `--shard-by` and `--sample-offset` to `settings`
-/// (whose `spp` is the whole render's); returns the total samples per pixel a part
-/// records: the `--spp` split by a sample shard, else 0.
-fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> {
+/// (whose `spp` is the whole render's); returns what a part records: the total
+/// samples per pixel (the `--spp` split by a sample shard, else 0) and the shard
+/// (`I/N tiles`, empty when not a shard).
+fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32, String)> {
     let mut window = render::Crop::full(settings.width, settings.height);
     if let Some(c) = &a.crop {
         window = render::Crop::parse(c).map_err(anyhow::Error::msg)?;
@@ -324,8 +320,9 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> 
     }
     let first = a.sample_offset.unwrap_or(0);
     let by: render::shard::ShardBy = a.shard_by.parse().map_err(anyhow::Error::msg)?;
-    let (window, first, count) = match &a.shard {
-        Some(s) => render::shard::Shard::parse(s, |v| std::env::var(v).ok())?.plan(by, window, first, settings.spp)?,
+    let shard = a.shard.as_deref().map(|s| render::shard::Shard::parse(s, |v| std::env::var(v).ok())).transpose()?;
+    let (window, first, count) = match &shard {
+        Some(s) => s.plan(by, window, first, settings.spp)?,
         None => (window, first, settings.spp),
     };
     // Only a sample shard is a part of a known total; other parts may be extended.
@@ -333,7 +330,7 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<u32> 
     settings.crop = (window != render::Crop::full(settings.width, settings.height)).then_some(window);
     settings.first_sample = first;
     settings.spp = count;
-    Ok(total)
+    Ok((total, shard.map(|s| s.describe(by)).unwrap_or_default()))
 }
 
 /// Reads the part `--resume` names and checks that this command renders the same
