@@ -89,6 +89,21 @@ fn main() {
                         ],
                     ));
                 }
+                // Instanced scenes (src/accel/instance.rs): every structure but brute
+                // force as the bottom level; instances are meshes, so never spheres only.
+                if accel != "none" {
+                    for (geo, tris, spheres) in GEOMETRY.iter().filter(|g| g.1 == 1) {
+                        variants.push((
+                            format!("trace_inst_{accel}_{geo}"),
+                            vec![
+                                (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                                ("HAS_TRIANGLES".into(), tris.to_string()),
+                                ("HAS_SPHERES".into(), spheres.to_string()),
+                                ("HAS_INSTANCES".into(), "1".into()),
+                            ],
+                        ));
+                    }
+                }
             }
         } else if stem == "build_bounds" {
             for (geo, tris, spheres) in GEOMETRY {

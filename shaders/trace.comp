@@ -86,6 +86,14 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 }
 
+#ifdef HAS_INSTANCES
+// The structure's traversal becomes the bottom level of common/instances.glsl.
+#define trace_closest blas_closest
+#define trace_any blas_any
+#define trace_closest_coherent blas_closest_coherent
+#define trace_any_coherent blas_any_coherent
+#endif
+
 #if defined(ACCEL_NONE)
 #include "accel/none.glsl"
 #elif defined(ACCEL_KDTREE)
@@ -106,6 +114,23 @@ bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
 bool trace_any_coherent(Ray r) { return trace_any(r); }
 #endif
 
+#ifdef HAS_INSTANCES
+#undef trace_closest
+#undef trace_any
+#undef trace_closest_coherent
+#undef trace_any_coherent
+#include "common/instances.glsl"
+#endif
+
+// The primitive number the AOV reports: that of the flattened scene with instances.
+uint aov_prim(Hit h) {
+#ifdef HAS_INSTANCES
+    return inst_aov_prim(h);
+#else
+    return h.prim;
+#endif
+}
+
 #include "common/sampling.glsl"
 
 // The hit point, its error bound and the geometric normal, without the shading frame.
@@ -120,6 +145,10 @@ void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
         vec3 c = vertex_position(tri.z);
         triangle_point(a, b, c, h.u, h.v, p, err);
         gn = normalize(cross(b - a, c - a));
+#ifdef HAS_INSTANCES
+        vec3 sn = gn;
+        inst_to_world(h, p, err, gn, sn);
+#endif
         return;
     }
 #endif
@@ -155,6 +184,9 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
         uv = vec2(a.position.w, a.normal.w) * w0 + vec2(b.position.w, b.normal.w) * h.u
              + vec2(c.position.w, c.normal.w) * h.v;
         mat = tri.w;
+#ifdef HAS_INSTANCES
+        inst_to_world(h, p, err, gn, sn);
+#endif
         return;
     }
 #endif
@@ -252,7 +284,7 @@ void whitted_main() {
             if (hit) surface(h, r, p, err, gn, sn, mat, uv);
             if (s == 0u && depth == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-                out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+                out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
                 out_px.albedo_m2.rgb = hit ? mat_row(mat, 0u).rgb : vec3(0.0);
             }
             if (!hit) { L += beta * params.background.rgb; break; }
@@ -328,7 +360,7 @@ void probe_main() {
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     g_nodes = 0u; g_tests = 0u;
     bool hit = trace_closest_coherent(r, h);
-    uvec3 cost = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+    uvec3 cost = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
     uint rays = 1u;
     vec3 L = hit ? vec3(1.0) : params.background.rgb;
     vec3 n = vec3(0.0);

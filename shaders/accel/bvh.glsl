@@ -14,12 +14,12 @@
 bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;
-    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
+    if (!ray_box(ACCEL_BOX_MIN, ACCEL_BOX_MAX, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
     uint stack[STACK_SIZE];
     uint sp = 0u;
     uint cur = 0u;
     bool found = false;
-    uint steps = 0u;
+    STEPS_START;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
@@ -77,13 +77,13 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
 bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;
-    bool live = ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1);
+    bool live = ray_box(ACCEL_BOX_MIN, ACCEL_BOX_MAX, r.origin, inv, r.tmin, r.tmax, e0, e1);
     if (!subgroupAny(live)) return false;
     uint stack[STACK_SIZE];
     uint sp = 0u;
     uint cur = 0u;
     bool found = false;
-    uint steps = 0u;
+    STEPS_START;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;

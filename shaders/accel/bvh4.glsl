@@ -35,13 +35,13 @@ float bvh4_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {
 bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;
-    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
+    if (!ray_box(ACCEL_BOX_MIN, ACCEL_BOX_MAX, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
     const float INF = uintBitsToFloat(0x7f800000u);
     uint stack[STACK_SIZE];
     uint sp = 0u;
     uint cur = 0u;
     bool found = false;
-    uint steps = 0u;
+    STEPS_START;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;

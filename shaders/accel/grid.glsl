@@ -15,7 +15,7 @@
 
 // Coordinate of boundary k on axis a; Grid::boundary.
 float grid_boundary(uint a, uint k) {
-    precise float b = params.scene_min[a] + float(k) * grid_cell[a];
+    precise float b = ACCEL_BOX_MIN[a] + float(k) * grid_cell[a];
     return b;
 }
 
@@ -29,12 +29,12 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float t_enter, t_far;
     if (grid_res.w == 0u) return false;
-    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, t_enter, t_far)) return false;
+    if (!ray_box(ACCEL_BOX_MIN, ACCEL_BOX_MAX, r.origin, inv, r.tmin, r.tmax, t_enter, t_far)) return false;
     const float INF = uintBitsToFloat(0x7f800000u);
     uvec3 res = grid_res.xyz;
     uvec3 idx = uvec3(0u);
     vec3 t_next = vec3(INF);
-    uint steps = 0u;
+    STEPS_START;
     for (uint a = 0u; a < 3u; a++) {
         bool flat_axis = abs(inv[a]) >= 1e30;
         // Largest k whose boundary the ray at t_enter lies at or above.

@@ -20,14 +20,14 @@ const uint IN_PLANE = 0x80000000u;
 bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float tmin, tmax;
-    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, tmin, tmax)) return false;
+    if (!ray_box(ACCEL_BOX_MIN, ACCEL_BOX_MAX, r.origin, inv, r.tmin, r.tmax, tmin, tmax)) return false;
     float t_entry = tmin;
     uint st_node[STACK_SIZE];
     float st_max[STACK_SIZE];
     uint sp = 0u;
     uint node = 0u;
     bool found = false;
-    uint steps = 0u;
+    STEPS_START;
     while (steps < TREE_STEPS) {
         // Descend through inner nodes to a leaf ("while-while": on SIMD hardware the
         // lanes then test their leaves' primitives together).

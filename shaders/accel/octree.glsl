@@ -39,7 +39,7 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
     float root_exit = oct_exit(rmin, rmax, r.origin, inv, flat_axis, up);
     float t = t_enter;
     bool found = false;
-    uint steps = 0u;
+    STEPS_START;
     // Where each descent starts: the root, or the last cell's parent (Octree::traverse).
     uint start = 0u;
     vec3 start_mn = rmin;

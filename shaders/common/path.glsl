@@ -300,7 +300,7 @@ void path_main() {
             }
             if (s == 0u && depth == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-                out_px.prim_cost.xyz = uvec3(hit ? h.prim : NO_PRIM, g_nodes, g_tests);
+                out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
                 out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
             }
             if (sigma != vec3(0.0)) beta *= exp(-sigma * h.t);

@@ -16,6 +16,9 @@ struct Hit {
     uint prim;   // triangles first, then spheres; 0xffffffff = none
     float u;
     float v;
+#ifdef HAS_INSTANCES
+    uint inst;   // the entry hit (common/instances.glsl); valid where prim is
+#endif
 };
 
 const uint NO_PRIM = 0xffffffffu;

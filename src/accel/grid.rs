@@ -367,6 +367,7 @@ impl Grid {
             sah_cost: cost,
             phases: self.phases.clone(),
             resolution: Some(self.res),
+            levels: None,
         }
     }
 

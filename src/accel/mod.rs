@@ -19,6 +19,7 @@ pub mod auto;
 pub mod bvh;
 pub mod gpu_layout;
 pub mod grid;
+pub mod instance;
 pub mod kdtree;
 pub mod none;
 pub mod octree;
@@ -187,6 +188,9 @@ pub struct BuildStats {
     /// Cells per axis (grid only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resolution: Option<[u32; 3]>,
+    /// Each level of a two-level structure (instanced scenes only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub levels: Option<instance::LevelStats>,
 }
 
 /// One timed phase of a build.
@@ -374,6 +378,8 @@ pub enum Accel {
     Bvh4(bvh::wide::Bvh4),
     Grid(grid::Grid),
     Octree(octree::Octree),
+    /// Any of the above per prototype of an instanced scene, under a top-level BVH.
+    TwoLevel(Box<instance::TwoLevel>),
 }
 
 impl Accel {
@@ -382,8 +388,17 @@ impl Accel {
         Self::build_with(kind, scene, &AccelParams::default())
     }
 
-    /// Builds `kind` for `scene` with `params` (each structure reads its own part).
+    /// Builds `kind` for `scene` with `params` (each structure reads its own part); for
+    /// a scene with instances, a two-level structure of `kind` ([`instance`]).
     pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, params: &AccelParams) -> Accel {
+        if scene.has_instances() {
+            return Accel::TwoLevel(Box::new(instance::TwoLevel::build(kind, scene, params)));
+        }
+        Self::build_own(kind, scene, params)
+    }
+
+    /// Builds `kind` over the scene's own primitives (instances left out).
+    pub fn build_own(kind: AccelKind, scene: &crate::scene::Scene, params: &AccelParams) -> Accel {
         match kind {
             AccelKind::None => Accel::None(none::BruteForce::build(scene)),
             AccelKind::Kdtree => Accel::Kd(kdtree::KdTree::build(scene, &params.kd)),
@@ -419,6 +434,9 @@ impl Accel {
     ) -> crate::error::Result<Accel> {
         match params.build {
             BuildOn::Cpu => Ok(Self::build_with(kind, scene, params)),
+            BuildOn::Gpu if scene.has_instances() => {
+                Err(crate::error::Error::Usage("--build gpu does not build instanced scenes; use --build cpu".into()))
+            }
             BuildOn::Gpu => {
                 let builder = match kind {
                     AccelKind::Lbvh => bvh::BvhBuilder::Lbvh,
@@ -447,6 +465,7 @@ impl Accel {
             Accel::Bvh4(t) => t,
             Accel::Grid(t) => t,
             Accel::Octree(t) => t,
+            Accel::TwoLevel(t) => t.as_ref(),
         }
     }
 

@@ -313,6 +313,7 @@ impl Octree {
             sah_cost: cost + absent.2,
             phases: self.phases.clone(),
             resolution: None,
+            levels: None,
         }
     }
 

@@ -11,7 +11,7 @@ use crate::scene::{MaterialKind, Scene};
 
 /// Which geometry a kernel variant handles.
 pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
-    match (choice, scene.triangles.is_empty(), scene.spheres.is_empty()) {
+    match (choice, scene.stored_triangles() == 0, scene.spheres.is_empty()) {
         (KernelChoice::General, _, _) => "all",
         (_, false, true) => "tris",
         (_, true, false) => "spheres",
@@ -200,7 +200,7 @@ pub fn base_params(
         cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
         scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
         scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
-        dims: [w, h, scene.triangles.len() as u32, scene.spheres.len() as u32],
+        dims: [w, h, scene.stored_triangles() as u32, scene.spheres.len() as u32],
         counts: [0, scene.materials.len() as u32, settings.seed, 0],
         background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
         tables: [0; 4],

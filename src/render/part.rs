@@ -152,6 +152,27 @@ pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
     h.u32(scene.triangles.len() as u32);
     scene.triangles.iter().flatten().for_each(|&i| h.u32(i));
     scene.tri_material.iter().for_each(|&m| h.u32(m));
+    if let Some(inst) = &scene.instancing {
+        h.str("instancing");
+        for p in &inst.prototypes {
+            let g = &p.geometry;
+            h.u32(g.positions.len() as u32);
+            g.positions.iter().for_each(|&p| h.vec3(p));
+            g.normals.iter().for_each(|&n| h.vec3(n));
+            g.uvs.iter().for_each(|uv| {
+                h.f32(uv.x);
+                h.f32(uv.y)
+            });
+            h.u32(g.triangles.len() as u32);
+            g.triangles.iter().flatten().for_each(|&i| h.u32(i));
+            g.tri_material.iter().for_each(|&m| h.u32(m));
+        }
+        h.u32(inst.instances.len() as u32);
+        for i in &inst.instances {
+            h.u32(i.prototype);
+            i.transform.to_cols_array().iter().for_each(|&v| h.f32(v));
+        }
+    }
     h.u32(scene.spheres.len() as u32);
     for sp in &scene.spheres {
         h.vec3(sp.center);

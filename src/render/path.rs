@@ -55,8 +55,13 @@ fn sides(m: &Material) -> f32 {
 
 /// Every primitive that emits (non-zero luminance of emission, non-zero area), with
 /// the power the kernel's `emitter_power` computes for it.
+///
+/// Numbers are those of the kernel's primitive buffers: with instancing, the scene's
+/// own triangles come after every prototype's (which cannot emit).
 pub fn emitters(scene: &Scene) -> Vec<Emitter> {
     let mut out = Vec::new();
+    let stored = scene.stored_triangles() as u32;
+    let first_own = stored - scene.triangles.len() as u32;
     let emits = |m: u32| {
         let m = &scene.materials[m as usize];
         let l = luminance(m.emission);
@@ -67,11 +72,11 @@ pub fn emitters(scene: &Scene) -> Vec<Emitter> {
             let [a, b, c] = t.map(|i| scene.positions[i as usize]);
             let area = 0.5 * (b - a).cross(c - a).length();
             if area > 0.0 && area.is_finite() {
-                out.push(Emitter { prim: k as u32, power: l * area });
+                out.push(Emitter { prim: first_own + k as u32, power: l * area });
             }
         }
     }
-    let nt = scene.triangles.len() as u32;
+    let nt = stored;
     for (k, s) in scene.spheres.iter().enumerate() {
         if let Some(l) = emits(s.material) {
             let area = 4.0 * std::f32::consts::PI * s.radius * s.radius;

@@ -19,22 +19,29 @@ pub struct GpuScene {
 }
 
 impl GpuScene {
-    /// Converts a validated scene.
+    /// Converts a validated scene. With instancing, every prototype's vertices and
+    /// triangles come first (in prototype order), then the scene's own
+    /// (src/accel/instance.rs).
     pub fn new(scene: &Scene) -> GpuScene {
-        let uv = |k: usize| scene.uvs.get(k).copied().unwrap_or(glam::Vec2::ZERO);
-        let vertices = scene
-            .positions
-            .iter()
-            .zip(&scene.normals)
-            .enumerate()
-            .map(|(k, (p, n))| GpuVertex { position: [p.x, p.y, p.z, uv(k).x], normal: [n.x, n.y, n.z, uv(k).y] })
-            .collect();
-        let triangles = scene
-            .triangles
-            .iter()
-            .zip(&scene.tri_material)
-            .map(|(t, m)| GpuTriangle { v: [t[0], t[1], t[2], *m] })
-            .collect();
+        let mut vertices = Vec::new();
+        let mut triangles = Vec::new();
+        let protos = scene.instancing.iter().flat_map(|i| i.prototypes.iter().map(|p| &p.geometry));
+        for g in protos.chain(std::iter::once(scene)) {
+            let base = vertices.len() as u32;
+            let uv = |k: usize| g.uvs.get(k).copied().unwrap_or(glam::Vec2::ZERO);
+            vertices.extend(
+                g.positions.iter().zip(&g.normals).enumerate().map(|(k, (p, n))| GpuVertex {
+                    position: [p.x, p.y, p.z, uv(k).x],
+                    normal: [n.x, n.y, n.z, uv(k).y],
+                }),
+            );
+            triangles.extend(
+                g.triangles
+                    .iter()
+                    .zip(&g.tri_material)
+                    .map(|(t, m)| GpuTriangle { v: [t[0] + base, t[1] + base, t[2] + base, *m] }),
+            );
+        }
         let spheres = scene
             .spheres
             .iter()

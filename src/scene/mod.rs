@@ -8,6 +8,7 @@ pub mod builtin;
 pub mod camera;
 pub mod gltf;
 pub mod images;
+pub mod instance;
 pub mod limits;
 pub mod mesh;
 pub mod obj;
@@ -22,6 +23,7 @@ use glam::{Vec2, Vec3};
 
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
+pub use instance::{Instance, Instancing, Prototype};
 pub use mesh::{Environment, Material, MaterialKind, MeshData, Texture};
 
 use crate::error::{Error, Result};
@@ -84,6 +86,9 @@ pub struct Scene {
     pub max_depth: u32,
     /// Zero-area triangles (kept; never hit).
     pub degenerate_triangles: usize,
+    /// Meshes stored once and drawn by instances ([`instance`]); `triangles` holds
+    /// only the scene's own.
+    pub instancing: Option<Instancing>,
 }
 
 /// Builds a scene piece by piece; `finish` validates.
@@ -115,6 +120,7 @@ impl SceneBuilder {
                 ambient: 0.05,
                 max_depth: 8,
                 degenerate_triangles: 0,
+                instancing: None,
             },
         }
     }
@@ -203,7 +209,7 @@ impl SceneBuilder {
     pub fn finish(self) -> Result<Scene> {
         let mut s = self.scene;
         let err = |msg: String| Error::scene(s.name.clone(), msg);
-        if s.triangles.is_empty() && s.spheres.is_empty() {
+        if s.triangles.is_empty() && s.spheres.is_empty() && !s.has_instances() {
             return Err(err("the scene is empty: it has no triangles and no spheres".into()));
         }
         if s.width == 0 || s.height == 0 || s.width > MAX_FILM_SIDE || s.height > MAX_FILM_SIDE {
@@ -322,6 +328,9 @@ impl SceneBuilder {
         if !(s.background.is_finite() && s.ambient.is_finite()) {
             return Err(err("background and ambient must be finite".into()));
         }
+        if let Err(e) = instance::validate(&mut s) {
+            return Err(Error::scene(s.name.clone(), e));
+        }
         s.max_depth = s.max_depth.clamp(1, crate::gpu::bindings::MAX_PATH_DEPTH);
         s.degenerate_triangles = s
             .triangles
@@ -419,8 +428,19 @@ impl Scene {
         b.finish()
     }
 
-    /// The bounding box of every primitive.
+    /// The bounding box of every primitive, instances included.
     pub fn bounds(&self) -> Aabb {
+        let own = self.own_bounds();
+        match &self.instancing {
+            None => own,
+            Some(inst) => {
+                inst.instances.iter().fold(own, |b, i| b.union(&i.world_bounds(&inst.prototypes[i.prototype as usize])))
+            }
+        }
+    }
+
+    /// The bounding box of the scene's own primitives (instances left out).
+    pub fn own_bounds(&self) -> Aabb {
         use rayon::prelude::*;
         let tris = self
             .triangles

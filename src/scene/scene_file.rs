@@ -36,6 +36,8 @@ struct SceneFile {
     material: Vec<Spanned<MaterialDef>>,
     #[serde(default)]
     light: Vec<Spanned<LightDef>>,
+    #[serde(default)]
+    instance: Vec<Spanned<InstanceDef>>,
     environment: Option<Spanned<EnvironmentDef>>,
 }
 
@@ -92,6 +94,22 @@ struct MeshDef {
     /// 16 numbers, row-major, last row 0 0 0 1; instead of scale, rotate and translate.
     matrix: Option<Vec<f32>>,
     material: Option<String>,
+    /// The name `[[instance]]` tables draw it by.
+    name: Option<String>,
+    /// Stored once and drawn only by `[[instance]]` tables (needs `name`).
+    #[serde(default)]
+    instanced: bool,
+}
+
+/// One placement of an instanced mesh: its transform keys are a mesh's.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InstanceDef {
+    mesh: String,
+    scale: Option<Scale>,
+    rotate: Option<[f32; 4]>,
+    translate: Option<[f32; 3]>,
+    matrix: Option<Vec<f32>>,
 }
 
 fn one() -> f32 {
@@ -108,8 +126,18 @@ enum Scale {
 
 /// The mesh table's transform: `matrix`, or scale, then rotate, then translate.
 fn mesh_transform(d: &MeshDef) -> std::result::Result<glam::Affine3A, String> {
-    if let Some(m) = &d.matrix {
-        if d.scale.is_some() || d.rotate.is_some() || d.translate.is_some() {
+    transform_of(d.scale, d.rotate, d.translate, d.matrix.as_deref())
+}
+
+/// `matrix`, or scale, then rotate, then translate.
+fn transform_of(
+    scale: Option<Scale>,
+    rotate: Option<[f32; 4]>,
+    translate: Option<[f32; 3]>,
+    matrix: Option<&[f32]>,
+) -> std::result::Result<glam::Affine3A, String> {
+    if let Some(m) = matrix {
+        if scale.is_some() || rotate.is_some() || translate.is_some() {
             return Err("give either matrix or scale / rotate / translate, not both".into());
         }
         if m.len() != 16 {
@@ -126,11 +154,11 @@ fn mesh_transform(d: &MeshDef) -> std::result::Result<glam::Affine3A, String> {
         ]);
         return check_transform(glam::Affine3A::from_mat4(cols));
     }
-    let scale = match d.scale.unwrap_or(Scale::Uniform(1.0)) {
+    let scale = match scale.unwrap_or(Scale::Uniform(1.0)) {
         Scale::Uniform(s) => Vec3::splat(s),
         Scale::Axes(a) => v3(a),
     };
-    let rotation = match d.rotate {
+    let rotation = match rotate {
         None => glam::Quat::IDENTITY,
         Some([x, y, z, deg]) => {
             let axis = Vec3::new(x, y, z);
@@ -141,7 +169,7 @@ fn mesh_transform(d: &MeshDef) -> std::result::Result<glam::Affine3A, String> {
             glam::Quat::from_axis_angle(axis, deg.to_radians())
         }
     };
-    let translate = v3(d.translate.unwrap_or_default());
+    let translate = v3(translate.unwrap_or_default());
     if !(scale.is_finite() && translate.is_finite()) {
         return Err("scale and translate must be finite".into());
     }
@@ -364,11 +392,54 @@ pub fn load(path: &Path) -> Result<Scene> {
                 ),
             ));
         }
-        meshes.push((mesh, transform, mat));
+        if d.instanced && d.name.is_none() {
+            return Err(at(
+                m.span(),
+                format!("mesh '{}': instanced = true needs a name for [[instance]] tables", d.file),
+            ));
+        }
+        if let Some(n) = &d.name {
+            if file.mesh[..meshes.len()].iter().any(|o| o.get_ref().name.as_ref() == Some(n)) {
+                return Err(at(m.span(), format!("mesh name '{n}' is used twice")));
+            }
+        }
+        meshes.push((mesh, transform, mat, d.instanced.then(|| d.name.clone()).flatten()));
     }
     drop(loaded);
-    for (mesh, transform, mat) in meshes {
-        b.mesh_transformed(&mesh, &transform, mat);
+    // Name -> prototype index.
+    let mut prototypes: HashMap<String, u32> = HashMap::new();
+    for (mesh, transform, mat, proto) in meshes {
+        match proto {
+            Some(name) => {
+                let k = b.prototype(&name, &mesh, &transform, mat);
+                prototypes.insert(name, k);
+            }
+            None => b.mesh_transformed(&mesh, &transform, mat),
+        }
+    }
+    if file.instance.len() > super::instance::MAX_INSTANCES {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "{} [[instance]] tables; at most {} are supported",
+                file.instance.len(),
+                super::instance::MAX_INSTANCES
+            ),
+        ));
+    }
+    for i in &file.instance {
+        let d = i.get_ref();
+        let Some(&k) = prototypes.get(&d.mesh) else {
+            let hint = if file.mesh.iter().any(|m| m.get_ref().name.as_ref() == Some(&d.mesh)) {
+                format!("mesh '{}' is drawn as it is; give it instanced = true to draw it by instances", d.mesh)
+            } else {
+                format!("no [[mesh]] is named '{}'", d.mesh)
+            };
+            return Err(at(i.span(), format!("instance: {hint}")));
+        };
+        let t = transform_of(d.scale, d.rotate, d.translate, d.matrix.as_deref())
+            .map_err(|e| at(i.span(), format!("instance of '{}': {e}", d.mesh)))?;
+        b.instance(k, t);
     }
     for s in &file.sphere {
         let d = s.get_ref();

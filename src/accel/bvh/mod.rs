@@ -530,6 +530,7 @@ fn tree_stats<const W: usize>(
         sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
         phases: Vec::new(),
         resolution: None,
+        levels: None,
     }
 }
 

@@ -304,6 +304,7 @@ impl KdTree {
             sah_cost: cost,
             phases: Vec::new(),
             resolution: None,
+            levels: None,
         }
     }
 

@@ -1,0 +1,156 @@
+// Two-level traversal for instanced scenes (HAS_INSTANCES), the layout of
+// src/accel/instance.rs: a top-level BVH (the `bvh` node layout) over entries, each an
+// instance of a prototype or the scene's own primitives, each with its own structure
+// of the kernel's kind, traversed by the structure's own code (blas_closest /
+// blas_any, renamed in trace.comp) after `inst_enter` points it at that structure and
+// moves the ray into its space. Mirrors TwoLevel::traverse. Every step of both levels
+// counts against the one budget, TREE_STEPS, beyond which the pixel is flagged.
+#ifndef ARBOR_INSTANCES_GLSL
+#define ARBOR_INSTANCES_GLSL
+
+#include "common/bvh_leaf.glsl"
+
+const uint ENTRY_OWN = 1u;
+const uint ENTRY_TEXELS = 9u;
+
+// Texel k of the node buffer, from its start.
+uvec4 inst_texel(uint k) { return texelFetch(accel_node_texels, int(k)); }
+// First texel of entry e's record.
+uint inst_record(uint e) { return inst_texel(0u).z + e * ENTRY_TEXELS; }
+
+// Points the bottom-level traversal at entry e's structure and returns `r` in its
+// space: origin and direction by the world-to-object transform, not renormalised, so
+// that t is the same in both spaces.
+Ray inst_enter(uint e, Ray r) {
+    uint base = inst_record(e);
+    uvec4 refs = inst_texel(base + 6u);
+    uvec4 lo = inst_texel(base + 7u);
+    g_node_base = refs.x;
+    g_index_base = refs.y;
+    g_prim_base = refs.z;
+    g_box_min = uintBitsToFloat(lo.xyz);
+    g_box_max = uintBitsToFloat(inst_texel(base + 8u).xyz);
+    if ((lo.w & ENTRY_OWN) != 0u) return r;
+    vec4 m0 = uintBitsToFloat(inst_texel(base));
+    vec4 m1 = uintBitsToFloat(inst_texel(base + 1u));
+    vec4 m2 = uintBitsToFloat(inst_texel(base + 2u));
+    Ray o = r;
+    o.origin = vec3(dot(m0.xyz, r.origin) + m0.w, dot(m1.xyz, r.origin) + m1.w, dot(m2.xyz, r.origin) + m2.w);
+    o.dir = vec3(dot(m0.xyz, r.dir), dot(m1.xyz, r.dir), dot(m2.xyz, r.dir));
+    return o;
+}
+
+bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
+    vec3 inv = safe_rcp3(r.dir);
+    float e0, e1;
+    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
+    uvec4 hdr = inst_texel(0u);
+    uint stack[STACK_SIZE];
+    uint sp = 0u;
+    uint cur = 0u;
+    bool found = false;
+    g_steps = 0u;
+    while (g_steps < TREE_STEPS) {
+        while ((cur & BVH_LEAF) == 0u && g_steps < TREE_STEPS) {
+            g_steps += 1u;
+            g_nodes += 1u;
+            uint n = hdr.x + 4u * cur;
+            uvec4 a = inst_texel(n);
+            uvec4 b = inst_texel(n + 1u);
+            uvec4 c = inst_texel(n + 2u);
+            uvec4 d = inst_texel(n + 3u);
+            uint lref = a.w;
+            uint rref = b.w;
+            precise float limit = h.t * (1.0 + BVH_T_MARGIN);
+            float l0, l1, r0, r1;
+            bool hl = lref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1);
+            bool hr = rref != BVH_EMPTY
+                && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1);
+            if (hl && hr) {
+                bool left_first = l0 <= r0;
+                stack[sp] = left_first ? rref : lref;
+                sp += 1u;
+                cur = left_first ? lref : rref;
+            } else if (hl) {
+                cur = lref;
+            } else if (hr) {
+                cur = rref;
+            } else {
+                if (sp == 0u) return found;
+                sp -= 1u;
+                cur = stack[sp];
+            }
+        }
+        if ((cur & BVH_LEAF) == 0u) break;
+        uint first = (cur & ~BVH_LEAF) >> 3u;
+        uint count = (cur & 7u) + 1u;
+        for (uint k = 0u; k < count && g_steps < TREE_STEPS; k++) {
+            g_steps += 1u;
+            uint w = hdr.y * 4u + first + k;
+            uint e = inst_texel(w >> 2u)[w & 3u];
+            Ray o = inst_enter(e, r);
+            if (any_hit) {
+                if (blas_any(o)) return true;
+            } else if (blas_closest(o, h)) {
+                found = true;
+                h.inst = e;
+            }
+        }
+        // An entry cut short by the step budget must not end the trace as if complete.
+        if (g_steps >= TREE_STEPS) break;
+        if (sp == 0u) return found;
+        sp -= 1u;
+        cur = stack[sp];
+    }
+    g_overflow = true;
+    return found;
+}
+
+bool trace_closest(Ray r, inout Hit h) { return inst_traverse(r, h, false); }
+bool trace_any(Ray r) {
+    Hit h;
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0; h.inst = 0u;
+    return inst_traverse(r, h, true);
+}
+// No packet traversal across instances: coherent rays trace one by one.
+bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
+bool trace_any_coherent(Ray r) { return trace_any(r); }
+
+// A hit on an instance, computed in its prototype's space, into the world: the point
+// by the object-to-world transform, its error bound carried through |M| plus the
+// rounding of the transform itself (pbrt-v4's transformed-point bound, with gamma(5)
+// for margin), normals by the inverse transpose.
+void inst_to_world(Hit h, inout vec3 p, inout vec3 err, inout vec3 gn, inout vec3 sn) {
+    uint base = inst_record(h.inst);
+    if ((inst_texel(base + 7u).w & ENTRY_OWN) != 0u) return;
+    vec4 w0 = uintBitsToFloat(inst_texel(base));
+    vec4 w1 = uintBitsToFloat(inst_texel(base + 1u));
+    vec4 w2 = uintBitsToFloat(inst_texel(base + 2u));
+    vec4 o0 = uintBitsToFloat(inst_texel(base + 3u));
+    vec4 o1 = uintBitsToFloat(inst_texel(base + 4u));
+    vec4 o2 = uintBitsToFloat(inst_texel(base + 5u));
+    vec3 po = p;
+    vec3 ap = abs(po);
+    p = vec3(dot(o0.xyz, po) + o0.w, dot(o1.xyz, po) + o1.w, dot(o2.xyz, po) + o2.w);
+    precise vec3 carried = vec3(dot(abs(o0.xyz), err), dot(abs(o1.xyz), err), dot(abs(o2.xyz), err));
+    precise vec3 own = vec3(dot(abs(o0.xyz), ap) + abs(o0.w), dot(abs(o1.xyz), ap) + abs(o1.w),
+                            dot(abs(o2.xyz), ap) + abs(o2.w));
+    err = (carried + GAMMA_5 * own) * (1.0 + GAMMA_5);
+    gn = normalize(w0.xyz * gn.x + w1.xyz * gn.y + w2.xyz * gn.z);
+    sn = normalize(w0.xyz * sn.x + w1.xyz * sn.y + w2.xyz * sn.z);
+}
+
+// The hit's number in the flattened scene: own triangles, then each instance's copy
+// of its prototype's triangles, then the spheres.
+uint inst_aov_prim(Hit h) {
+    uvec4 counts = inst_texel(1u);
+    uint base = inst_record(h.inst);
+    if ((inst_texel(base + 7u).w & ENTRY_OWN) != 0u) {
+        if (h.prim < params.dims.z) return h.prim - counts.x;
+        return h.prim - params.dims.z + counts.y + counts.z;
+    }
+    return counts.y + inst_texel(base + 6u).w + (h.prim - inst_texel(base + 6u).z);
+}
+
+#endif
