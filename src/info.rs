@@ -13,6 +13,7 @@ use crate::scene::Scene;
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Report {
     pub scene: String,
+    /// Triangles drawn (the scene's own plus every instance's; `build.levels` splits them).
     pub triangles: usize,
     /// Degenerate triangles (kept and never hit).
     pub degenerate_triangles: usize,
@@ -49,9 +50,10 @@ impl Report {
         let validation = built.validate(scene);
         let bounds = scene.bounds();
         let geometry = gpu::geometry_suffix(scene, KernelChoice::Specialized);
+        let family = built.gpu_image(scene).map(|i| i.family).unwrap_or(kind.kernel());
         Report {
             scene: scene.name.clone(),
-            triangles: scene.triangles.len(),
+            triangles: scene.drawn_triangles() as usize,
             degenerate_triangles: scene.degenerate_triangles,
             vertices: scene.positions.len(),
             spheres: scene.spheres.len(),
@@ -65,10 +67,10 @@ impl Report {
             accel_auto_reason: why,
             build: built.stats(scene),
             valid: validation.is_ok(),
-            kernel: format!("trace_{}_{geometry}", kind.kernel()),
-            buffers: gpu::trace_bindings(kind.kernel(), geometry).iter().map(|b| b.name.to_string()).collect(),
+            kernel: format!("trace_{family}_{geometry}"),
+            buffers: gpu::trace_bindings(family, geometry).iter().map(|b| b.name.to_string()).collect(),
             validation,
-            primitives: scene.prim_count(),
+            primitives: scene.drawn_triangles() as usize + scene.spheres.len(),
         }
     }
 
@@ -112,6 +114,18 @@ impl fmt::Display for Report {
         writeln!(f, "  refs/prim     {:.3} ({:.2} per leaf)", st.refs_per_prim, st.prims_per_leaf)?;
         writeln!(f, "  bytes         {} ({:.2} per primitive)", st.bytes, st.bytes as f64 / n)?;
         writeln!(f, "  SAH cost      {:.3}", st.sah_cost)?;
+        if let Some(l) = &st.levels {
+            writeln!(
+                f,
+                "  instances     {} of {} meshes: {} triangles stored, {} drawn by instances",
+                l.instances, l.prototypes, l.unique_triangles, l.instanced_triangles
+            )?;
+            writeln!(
+                f,
+                "  level bytes   top {}, instance records {}, instanced meshes {}, own primitives {}",
+                l.top_bytes, l.record_bytes, l.prototype_bytes, l.own_bytes
+            )?;
+        }
         for ph in &st.phases {
             match &ph.detail {
                 Some(d) => writeln!(f, "  phase         {:<22} {:.2} ms  ({d})", ph.name, ph.ms)?,

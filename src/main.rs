@@ -205,6 +205,7 @@ fn render(a: &RenderArgs) -> Result<()> {
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
     }
+    let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
     let opened = Instant::now();
     let ctx = context(&a.device)?;
     let device_ms = ms(opened);
@@ -263,12 +264,13 @@ fn render(a: &RenderArgs) -> Result<()> {
         };
         let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
         eprintln!(
-            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
+            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
             a.output.display(),
             st.integrator,
             st.samples_done,
             if st.samples_done < spp { format!(" of {spp}") } else { String::new() },
             st.triangles,
+            if st.instances > 0 { format!(" ({} instances)", st.instances) } else { String::new() },
             st.spheres,
             st.accel,
             st.device,
@@ -527,10 +529,23 @@ fn bench_convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()
     Ok(())
 }
 
+/// The scene with its instances flattened into copies where asked, or where brute
+/// force (which has no instance level) will trace it.
+fn flatten_if(scene: Scene, asked: bool, accel: AccelKind, quiet: bool) -> Result<Scene> {
+    if !scene.has_instances() || !(asked || accel.is_brute_force()) {
+        return Ok(scene);
+    }
+    if !asked && !quiet {
+        eprintln!("accel none: brute force has no instance level; drawing the instances as copies");
+    }
+    Ok(scene.flattened()?)
+}
+
 fn info(a: &InfoArgs) -> Result<()> {
     let params = a.structure.single()?;
     let scene = Scene::load(&a.scene)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
+    let scene = flatten_if(scene, a.flatten, accel, true)?;
     let built = match params.build {
         BuildOn::Cpu => Accel::build_with(accel, &scene, &params),
         BuildOn::Gpu => Accel::build_on(&context(&a.device)?, accel, &scene, &params)?,

@@ -227,6 +227,11 @@ pub(crate) struct RenderArgs {
     /// Aliases: brute-force (= none), kd (= kdtree), bvh (= bvh-sah).
     #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
     pub(crate) accel: String,
+    /// Draw instances as transformed copies of their meshes, under one structure,
+    /// instead of one structure per instanced mesh and a BVH over the instances
+    /// (brute force, --accel none, always does).
+    #[arg(long)]
+    pub(crate) flatten: bool,
     #[command(flatten)]
     pub(crate) structure: StructureArgs,
     /// Ray/triangle test: watertight (Woop, Benthin & Wald 2013: no ray slips
@@ -324,6 +329,9 @@ pub(crate) struct InfoArgs {
     /// chosen for the scene's own film size and 1 sample per pixel).
     #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
     pub(crate) accel: String,
+    /// Describe the scene with its instances flattened into copies (see `render --flatten`).
+    #[arg(long)]
+    pub(crate) flatten: bool,
     #[command(flatten)]
     pub(crate) structure: StructureArgs,
     /// Print JSON instead of text.

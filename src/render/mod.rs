@@ -341,8 +341,11 @@ pub struct Frame {
 pub struct RenderStats {
     pub device: String,
     pub scene: String,
+    /// Triangles drawn: the scene's own plus every instance's copy.
     pub triangles: usize,
     pub spheres: usize,
+    /// Instances drawn (0 without instancing).
+    pub instances: usize,
     pub width: u32,
     pub height: u32,
     pub spp: u32,
@@ -406,8 +409,9 @@ impl RenderStats {
         RenderStats {
             device: ctx.info().name.clone(),
             scene: scene.name.clone(),
-            triangles: scene.triangles.len(),
+            triangles: scene.drawn_triangles() as usize,
             spheres: scene.spheres.len(),
+            instances: scene.instancing.as_ref().map_or(0, |i| i.instances.len()),
             width: settings.width,
             height: settings.height,
             spp: settings.spp,
