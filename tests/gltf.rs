@@ -98,8 +98,17 @@ fn sample_models_have_the_expected_triangles_and_bounds() {
         ),
     ] {
         let s = load(rel);
-        assert_eq!(s.triangles.len(), tris, "{rel}");
+        assert_eq!(s.drawn_triangles() as usize, tris, "{rel}");
         assert_bounds(&s, lo, hi, tol);
+        // Meshes that several nodes draw are instances; flattened, they are the same
+        // triangles in the same box.
+        let f = s.flattened().expect("flattened");
+        assert_eq!(f.triangles.len(), tris, "{rel}: flattened");
+        assert_bounds(&f, lo, hi, tol);
+        if rel.contains("2CylinderEngine") {
+            let inst = s.instancing.as_ref().expect("2CylinderEngine's nodes share meshes");
+            assert!(inst.instances.len() > inst.prototypes.len(), "{rel}: {} instances", inst.instances.len());
+        }
         // Strips and fans keep one winding: every triangle faces +z like the quad.
         if rel.contains("PrimitiveMode") {
             for t in &s.triangles {

@@ -15,6 +15,10 @@
 //! - the emissive factor times KHR_materials_emissive_strength is the emission (an area
 //!   light); `doubleSided` makes it emit from both sides.
 //!
+//! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
+//! (`scene::instance`), unless one of its materials emits (instances cannot be
+//! lights); as the `file` of a TOML `[[mesh]]`, the whole file is one flat mesh.
+//!
 //! The base colour texture (texture coordinate set 0) becomes the albedo texture.
 //! Triangle strips and fans are triangulated; points and lines are an error naming
 //! the mesh. Spot lights are treated as point lights (their cone is ignored). Skins,
@@ -39,6 +43,54 @@ pub struct GltfScene {
     pub camera: Option<(Camera, Option<f32>)>,
     /// KHR_lights_punctual lights.
     pub lights: Vec<Light>,
+    /// Meshes drawn by several nodes, in their own coordinates: (name, mesh whose
+    /// `tri_material` indexes `mesh.materials`; it has no materials of its own).
+    pub prototypes: Vec<(String, MeshData)>,
+    /// (prototype, object-to-world transform) of each node drawing one.
+    pub instances: Vec<(u32, glam::Affine3A)>,
+}
+
+impl GltfScene {
+    /// Every triangle in world space in one mesh: the instances' copies appended.
+    pub fn into_mesh(self) -> MeshData {
+        let mut out = self.mesh;
+        let had_normals = out.normals.is_some();
+        let mut normals = out.normals.take().unwrap_or_else(|| vec![Vec3::ZERO; out.positions.len()]);
+        let any_uvs = out.uvs.is_some() || self.prototypes.iter().any(|(_, p)| p.uvs.is_some());
+        let mut uvs = out.uvs.take().unwrap_or_default();
+        let mut any_normals = had_normals;
+        for (k, t) in &self.instances {
+            let p = &self.prototypes[*k as usize].1;
+            let base = out.positions.len() as u32;
+            out.positions.extend(p.positions.iter().map(|v| t.transform_point3(*v)));
+            let nm = t.matrix3.inverse().transpose();
+            match &p.normals {
+                Some(ns) => {
+                    any_normals = true;
+                    normals.extend(ns.iter().map(|n| (nm * *n).try_normalize().unwrap_or(Vec3::ZERO)));
+                }
+                None => normals.extend(std::iter::repeat_n(Vec3::ZERO, p.positions.len())),
+            }
+            if any_uvs {
+                uvs.resize(base as usize, Vec2::ZERO);
+                if let Some(u) = &p.uvs {
+                    uvs.extend_from_slice(u);
+                }
+            }
+            let mirrored = t.matrix3.determinant() < 0.0;
+            for tri in &p.triangles {
+                let [a, b, c] = tri.map(|i| i + base);
+                out.triangles.push(if mirrored { [a, c, b] } else { [a, b, c] });
+            }
+            out.tri_material.extend_from_slice(&p.tri_material);
+        }
+        out.normals = any_normals.then_some(normals);
+        if any_uvs {
+            uvs.resize(out.positions.len(), Vec2::ZERO);
+            out.uvs = Some(uvs);
+        }
+        out
+    }
 }
 
 /// Deepest node hierarchy followed (a cycle or an absurd depth is an error).
@@ -103,6 +155,8 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
     let mut normals: Vec<Vec3> = Vec::new();
     let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     let mut visits = 0usize;
+    // (mesh, world transform) of every node that draws one, in traversal order.
+    let mut drawn: Vec<(gltf::Mesh, Mat4)> = Vec::new();
     while let Some((node, parent, depth)) = stack.pop() {
         visits += 1;
         if depth > MAX_DEPTH || visits > 1 << 20 {
@@ -114,7 +168,7 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
             return Err(format!("node {}: its transform is not finite", node.index()));
         }
         if let Some(mesh) = node.mesh() {
-            add_mesh(&mesh, &world, &buffers, default_material, &mut out.mesh, &mut normals, &mut uvs, &mut any_uvs)?;
+            drawn.push((mesh, world));
         }
         if let Some(cam) = node.camera() {
             if out.camera.is_none() {
@@ -140,6 +194,49 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         for c in node.children() {
             stack.push((c, world, depth + 1));
         }
+    }
+    // Meshes drawn by several nodes become prototypes, unless they emit light.
+    let mut uses = vec![0usize; document.meshes().count()];
+    for (m, _) in &drawn {
+        uses[m.index()] += 1;
+    }
+    let emits = |m: &gltf::Mesh| {
+        m.primitives().any(|p| {
+            let k = p.material().index().map_or(default_material, |i| i as u32);
+            out.mesh.materials[k as usize].emission != Vec3::ZERO
+        })
+    };
+    let instanced: Vec<bool> = document.meshes().map(|m| uses[m.index()] >= 2 && !emits(&m)).collect();
+    let mut proto_of: Vec<Option<u32>> = vec![None; uses.len()];
+    for (mesh, world) in &drawn {
+        if !instanced[mesh.index()] {
+            add_mesh(mesh, world, &buffers, default_material, &mut out.mesh, &mut normals, &mut uvs, &mut any_uvs)?;
+            continue;
+        }
+        let k = match proto_of[mesh.index()] {
+            Some(k) => k,
+            None => {
+                let mut p = MeshData::default();
+                let (mut pn, mut pu, mut pany) = (Vec::new(), Vec::new(), false);
+                add_mesh(mesh, &Mat4::IDENTITY, &buffers, default_material, &mut p, &mut pn, &mut pu, &mut pany)?;
+                p.normals = (pn.iter().any(|n| *n != Vec3::ZERO)).then_some(pn);
+                if pany {
+                    pu.resize(p.positions.len(), Vec2::ZERO);
+                    p.uvs = Some(pu);
+                }
+                let name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), str::to_string);
+                out.prototypes.push((name, p));
+                let k = (out.prototypes.len() - 1) as u32;
+                proto_of[mesh.index()] = Some(k);
+                k
+            }
+        };
+        let affine = glam::Affine3A::from_mat4(*world);
+        let det = affine.matrix3.determinant();
+        if !(det.is_finite() && det != 0.0) {
+            return Err(format!("mesh {}: a node draws it with a singular transform", mesh.index()));
+        }
+        out.instances.push((k, affine));
     }
     out.mesh.normals =
         (normals.len() == out.mesh.positions.len() && normals.iter().any(|n| *n != Vec3::ZERO)).then_some(normals);

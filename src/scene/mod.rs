@@ -402,7 +402,19 @@ impl Scene {
             return Err(Error::scene(name, msg));
         }
         let mut b = SceneBuilder::new(name);
+        let mat_base = b.scene.materials.len() as u32;
         b.mesh(&g.mesh, 1.0, Vec3::ZERO, None);
+        // Prototypes index the file's materials, which the mesh above brought in.
+        for (pname, p) in &g.prototypes {
+            let k = b.prototype(pname, p, &glam::Affine3A::IDENTITY, None);
+            if let Some(inst) = b.scene.instancing.as_mut() {
+                inst.prototypes[k as usize].geometry.tri_material =
+                    p.tri_material.iter().map(|m| mat_base + m).collect();
+            }
+        }
+        for (k, t) in &g.instances {
+            b.instance(*k, *t);
+        }
         match &g.camera {
             Some((camera, aspect)) => {
                 b.scene.camera = *camera;
@@ -411,10 +423,7 @@ impl Scene {
                 }
             }
             None => {
-                let mut bounds = Aabb::EMPTY;
-                for p in &b.scene.positions {
-                    bounds.grow(*p);
-                }
+                let bounds = b.scene.bounds();
                 if !bounds.is_empty() && bounds.min.is_finite() && bounds.max.is_finite() {
                     b.scene.camera = framed_camera(&bounds, 45.0);
                 }
@@ -491,7 +500,7 @@ pub fn load_mesh(path: &Path) -> Result<MeshData> {
         "obj" => obj::load(path),
         "ply" => ply::load(path),
         "off" => off::load(path),
-        "gltf" | "glb" => Ok(gltf::load(path)?.mesh),
+        "gltf" | "glb" => Ok(gltf::load(path)?.into_mesh()),
         _ => Err(Error::invalid(path, "unknown mesh type: expected .obj, .ply, .off, .gltf or .glb")),
     }
 }
