@@ -82,6 +82,7 @@ fn validate_names_what_is_wrong() {
         }
         Accel::Octree(t) => t.indices[0] = np,
         Accel::None(t) => t.bounds = arbor::math::Aabb::EMPTY,
+        Accel::TwoLevel(_) => unreachable!("the blob has no instances"),
     };
     for &kind in AccelKind::ALL {
         let mut accel = Accel::build(kind, &scene);

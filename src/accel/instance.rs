@@ -452,7 +452,7 @@ impl super::Structure for TwoLevel {
                 "{kind} tests every primitive and has no instance level; render the instanced scene with a structure"
             ))
         })?;
-        let parts = self.gpu.get_or_init(|| self.assemble(scene)).as_ref().map_err(|e| ValidateError::whole(e))?;
+        let parts = self.gpu.get_or_init(|| self.assemble(scene)).as_ref().map_err(ValidateError::whole)?;
         Ok(GpuImage {
             family,
             buffers: Some((std::borrow::Cow::Borrowed(&parts.nodes), &parts.indices)),
