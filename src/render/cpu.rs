@@ -34,7 +34,14 @@ pub fn shading_normal(scene: &Scene, hit: &Hit, p: Vec3) -> Vec3 {
 
 /// Traces the pixel-centre camera ray of every pixel of a `width` x `height` image
 /// (parallel over rows; the result does not depend on the thread count).
+///
+/// An instanced scene is traced as its flattened copy (same primitive numbers).
 pub fn reference_aovs(scene: &Scene, width: u32, height: u32) -> Frame {
+    if scene.has_instances() {
+        if let Ok(flat) = scene.flattened() {
+            return reference_aovs(&flat, width, height);
+        }
+    }
     let accel = BruteForce::build(scene);
     let basis = scene.camera.basis(width, height);
     let rows: Vec<Vec<(f32, u32, [f32; 3])>> = (0..height)
