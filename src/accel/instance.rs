@@ -86,6 +86,9 @@ pub struct TwoLevel {
     /// First drawn (flattened) triangle number of each instance's copy, counted after
     /// the scene's own triangles.
     first_drawn: Vec<u32>,
+    /// Triangles drawn through instances (where the spheres' numbers start, after the
+    /// scene's own triangles).
+    instanced_tris: u32,
     bounds: Aabb,
     build_ms: f64,
     phases: Vec<Phase>,
@@ -142,6 +145,7 @@ impl TwoLevel {
             prototypes,
             top,
             first_drawn,
+            instanced_tris: acc as u32,
             bounds: Aabb { min: bounds.min + Vec3::ZERO, max: bounds.max + Vec3::ZERO },
             build_ms: start.elapsed().as_secs_f64() * 1e3,
             phases,
@@ -277,12 +281,7 @@ impl Traverse for TwoLevel {
         let empty = crate::scene::Instancing::default();
         let inst = scene.instancing.as_ref().unwrap_or(&empty);
         let own_tris = scene.triangles.len() as u32;
-        let sphere_base = own_tris + inst.instanced_triangles() as u32;
-        let inv = Aabb::inv_dir(ray.dir);
-        if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
-            return false;
-        }
-        let mut found = false;
+        let sphere_base = own_tris + self.instanced_tris;
         // One entry: traced in its own space, its hit renumbered as the flattened scene's.
         let entry = |e: u32, best: &mut Hit| -> bool {
             let mut h = Hit::none(best.t);
@@ -319,42 +318,18 @@ impl Traverse for TwoLevel {
                 _ => false,
             }
         };
-        let mut stack: Vec<u32> = Vec::with_capacity(self.top.depth as usize + 1);
-        let mut cur = 0u32;
-        loop {
-            while cur & LEAF_REF == 0 {
-                let [(lr, lb), (rr, rb)] = self.top_children(cur as usize);
-                let limit = best.t * (1.0 + bvh::T_MARGIN);
-                let hl = if lr == EMPTY_REF { None } else { lb.ray_box(ray.origin, inv, ray.tmin, limit) };
-                let hr = if rr == EMPTY_REF { None } else { rb.ray_box(ray.origin, inv, ray.tmin, limit) };
-                match (hl, hr) {
-                    (Some((l0, _)), Some((r0, _))) => {
-                        let (near, far) = if l0 <= r0 { (lr, rr) } else { (rr, lr) };
-                        stack.push(far);
-                        cur = near;
-                    }
-                    (Some(_), None) => cur = lr,
-                    (None, Some(_)) => cur = rr,
-                    (None, None) => match stack.pop() {
-                        Some(c) => cur = c,
-                        None => return found,
-                    },
-                }
-            }
-            let (first, count) = bvh::leaf_range(cur);
-            for &e in &self.top.indices[first..first + count] {
+        self.top.walk(ray, best, |leaf, best| {
+            let mut found = false;
+            for &e in leaf {
                 if entry(e, best) {
                     found = true;
                     if any {
-                        return true;
+                        return (true, true);
                     }
                 }
             }
-            match stack.pop() {
-                Some(c) => cur = c,
-                None => return found,
-            }
-        }
+            (found, false)
+        })
     }
 }
 

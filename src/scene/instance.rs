@@ -191,14 +191,7 @@ impl Scene {
             }));
             s.tri_material.extend_from_slice(&g.tri_material);
         }
-        s.degenerate_triangles = s
-            .triangles
-            .iter()
-            .filter(|t| {
-                let [a, b, c] = t.map(|i| s.positions[i as usize]);
-                (b - a).cross(c - a).length_squared() == 0.0
-            })
-            .count();
+        s.degenerate_triangles = s.count_degenerate();
         Ok(s)
     }
 }

@@ -332,14 +332,7 @@ impl SceneBuilder {
             return Err(Error::scene(s.name.clone(), e));
         }
         s.max_depth = s.max_depth.clamp(1, crate::gpu::bindings::MAX_PATH_DEPTH);
-        s.degenerate_triangles = s
-            .triangles
-            .iter()
-            .filter(|t| {
-                let [a, b, c] = t.map(|i| s.positions[i as usize]);
-                (b - a).cross(c - a).length_squared() == 0.0
-            })
-            .count();
+        s.degenerate_triangles = s.count_degenerate();
         Ok(s)
     }
 }
@@ -472,6 +465,17 @@ impl Scene {
         // The parallel reduction may meet -0 and +0 in either order: one sign of zero,
         // so the box is the same bits whatever the thread count.
         Aabb { min: b.min + Vec3::ZERO, max: b.max + Vec3::ZERO }
+    }
+
+    /// Zero-area triangles among the scene's own.
+    pub fn count_degenerate(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize]);
+                (b - a).cross(c - a).length_squared() == 0.0
+            })
+            .count()
     }
 
     /// Number of primitives (triangles, then spheres).

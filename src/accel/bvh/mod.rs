@@ -415,6 +415,25 @@ impl Bvh {
     /// both child boxes are tested against [tmin, best t (1 + T_MARGIN)], the nearer
     /// hit child is visited first and the other pushed.
     fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
+        self.walk(ray, best, |leaf, best| {
+            let mut found = false;
+            for &p in leaf {
+                if super::prim::intersect_prim(prims, p, ray, best) {
+                    found = true;
+                    if any {
+                        return (true, true);
+                    }
+                }
+            }
+            (found, false)
+        })
+    }
+
+    /// The traversal of [`Bvh::traverse_impl`] with what a leaf does left to `leaf`:
+    /// it gets the leaf's indices and the best hit so far (whose t bounds the boxes
+    /// entered after it) and says (whether it hit, whether to stop). Returns whether
+    /// any leaf hit. The top level of instanced scenes walks its entries with it.
+    pub fn walk(&self, ray: &Ray, best: &mut Hit, mut leaf: impl FnMut(&[u32], &mut Hit) -> (bool, bool)) -> bool {
         let inv = Aabb::inv_dir(ray.dir);
         if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
             return false;
@@ -443,13 +462,10 @@ impl Bvh {
                 }
             }
             let (first, count) = leaf_range(cur);
-            for &p in &self.indices[first..first + count] {
-                if super::prim::intersect_prim(prims, p, ray, best) {
-                    found = true;
-                    if any {
-                        return true;
-                    }
-                }
+            let (hit, stop) = leaf(&self.indices[first..first + count], best);
+            found |= hit;
+            if stop {
+                return found;
             }
             match stack.pop() {
                 Some(c) => cur = c,
