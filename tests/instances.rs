@@ -213,6 +213,12 @@ fn scene_files_declare_instances_and_bad_ones_get_one_line() {
     // A named mesh without `instanced` is drawn once, as before.
     let drawn = load_toml("[[mesh]]\nfile = \"t.obj\"\nname = \"t\"\n").expect("scene");
     assert_eq!((drawn.triangles.len(), drawn.has_instances()), (4, false));
+    // An instanced mesh that no instance draws is dropped; the rest renders as before.
+    let unused = load_toml("[[mesh]]\nfile = \"t.obj\"\nname = \"t\"\ninstanced = true\n[[mesh]]\nfile = \"t.obj\"\n")
+        .expect("scene");
+    assert!(unused.instancing.is_none() && unused.stored_triangles() == 4);
+    let only_unused = load_toml("[[mesh]]\nfile = \"t.obj\"\nname = \"t\"\ninstanced = true\n");
+    assert!(only_unused.expect_err("empty").to_string().contains("empty"));
 
     let cases = [
         ("[[mesh]]\nfile = \"t.obj\"\ninstanced = true\n", 1, "needs a name"),
@@ -273,6 +279,10 @@ fn ten_thousand_instances_of_an_80k_mesh_fit() {
     // One mesh's structure plus a small cost per instance.
     assert!(l.top_bytes + l.record_bytes < 300 * 10_000, "{l:?}");
     assert!(st.bytes < 32 << 20, "{} bytes", st.bytes);
+    // `--accel auto` weighs builds by the triangles stored and rays by those drawn:
+    // brute force over 800 million triangles is never the pick.
+    let (auto, why) = arbor::accel::auto::choose(&s, 512 * 512, 1);
+    assert!(!auto.is_brute_force(), "{why}");
     let Some(ctx) = common::gpu() else { return };
     let mut settings = RenderSettings::for_size(64, 48);
     settings.accel = AccelKind::BvhSah;

@@ -32,14 +32,19 @@ const TREES: &[(AccelKind, f64, f64)] = &[
 const BRUTE_TEST_NS: f64 = 2.0;
 
 /// The estimated cost of each candidate, cheapest first: (kind, ms).
+///
+/// With instances, builds cost per primitive stored (each instanced mesh once) and
+/// rays per primitive drawn (brute force tests every copy).
 pub fn estimates(scene: &Scene, pixels: u64, spp: u32) -> Vec<(AccelKind, f64)> {
-    let n = scene.prim_count().max(1) as f64;
+    let spheres = scene.spheres.len() as f64;
+    let n = (scene.drawn_triangles() as f64 + spheres).max(1.0);
+    let stored = (scene.stored_triangles() as f64 + spheres).max(1.0);
     let rays_per_sample = 1.0 + scene.lights.len() as f64 + if scene.max_depth > 1 { 1.0 } else { 0.0 };
     let rays = pixels as f64 * f64::from(spp) * rays_per_sample;
     let mut out = vec![(AccelKind::None, rays * BRUTE_TEST_NS * n * 1e-6)];
     let depth_factor = (1.0 + 0.1 * (n / 1e5).log2()).max(0.3);
     for &(kind, build_ns, trace_ns) in TREES {
-        out.push((kind, (build_ns * n + rays * trace_ns * depth_factor) * 1e-6));
+        out.push((kind, (build_ns * stored + rays * trace_ns * depth_factor) * 1e-6));
     }
     out.sort_by(|a, b| a.1.total_cmp(&b.1));
     out
@@ -52,7 +57,7 @@ pub fn choose(scene: &Scene, pixels: u64, spp: u32) -> (AccelKind, String) {
     let runner = est.get(1).map(|(k, t)| format!(", then {k} at {t:.0} ms")).unwrap_or_default();
     let why = format!(
         "{} primitives, {pixels} pixels x {spp} spp: {best} expected fastest at {ms:.0} ms build + trace{runner} (cost model in src/accel/auto.rs)",
-        scene.prim_count()
+        scene.drawn_triangles() + scene.spheres.len() as u64
     );
     (best, why)
 }

@@ -201,6 +201,10 @@ pub fn validate(s: &mut Scene) -> std::result::Result<(), String> {
     let nm = s.materials.len() as u32;
     let spheres = s.spheres.len() as u64;
     let own = s.triangles.len() as u64;
+    // Instanced meshes that no instance draws are dropped: nothing would show them.
+    if s.instancing.as_ref().is_some_and(|i| i.instances.is_empty()) {
+        s.instancing = None;
+    }
     let materials = &s.materials;
     let Some(inst) = s.instancing.as_mut() else { return Ok(()) };
     if inst.instances.len() > MAX_INSTANCES {
