@@ -200,7 +200,8 @@ fn render(a: &RenderArgs) -> Result<()> {
     for (name, path) in &aovs {
         encoded.push((output::format_of(path, "aov")?, output::aov_channel_count(name)));
     }
-    memory::check_render(&format!("--size {w}x{h}"), w, h, scene.prim_count(), &encoded)?;
+    let stored = scene.stored_triangles() as usize + scene.spheres.len();
+    memory::check_render(&format!("--size {w}x{h}"), w, h, stored, &encoded)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp)?;
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");

@@ -199,3 +199,42 @@ fn a_gltf_file_is_a_mesh_of_a_scene_file_too() {
     assert_eq!(s.triangles.len(), 12);
     assert_bounds(&s, [9.0, -1.0, -1.0], [11.0, 1.0, 1.0], 1e-5);
 }
+
+/// A mesh three nodes draw: two become instances; the one scaled to nothing (as files
+/// hide nodes) has no inverse and is drawn flat instead of failing the file.
+#[test]
+fn shared_meshes_become_instances_and_a_node_scaled_to_nothing_stays_flat() {
+    let json = r#"{
+      "asset": {"version": "2.0"},
+      "scene": 0,
+      "scenes": [{"nodes": [0, 1, 2]}],
+      "nodes": [
+        {"mesh": 0},
+        {"mesh": 0, "scale": [0, 0, 0]},
+        {"mesh": 0, "translation": [2, 0, 0], "rotation": [0, 0, 0.7071068, 0.7071068]}
+      ],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36,
+                   "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
+    }"#;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("shared.gltf");
+    std::fs::write(&path, json).expect("gltf");
+    let s = Scene::load(&path.display().to_string()).expect("loads");
+    let inst = s.instancing.as_ref().expect("instances");
+    assert_eq!((inst.prototypes.len(), inst.instances.len()), (1, 2));
+    assert_eq!((s.triangles.len(), s.drawn_triangles()), (1, 3));
+    let f = s.flattened().expect("flattened");
+    assert_eq!(f.triangles.len(), 3);
+    // The rotated copy: (0,0,0), (1,0,0), (0,1,0) turned 90 degrees about z, moved by +2 x.
+    let last = f.triangles[2].map(|i| f.positions[i as usize]);
+    for (p, want) in last.iter().zip([[2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [1.0, 0.0, 0.0]]) {
+        assert!((*p - glam::Vec3::from(want)).length() < 1e-5, "{p} vs {want:?}");
+    }
+    // As the file of a [[mesh]], the whole file is one flat mesh.
+    let mesh = arbor::scene::load_mesh(&path).expect("mesh");
+    assert_eq!(mesh.triangles.len(), 3);
+}

@@ -112,7 +112,8 @@ fn run_scene(
         crate::render::cpu::reference_prims(base, &accel, w, h, stride)
     };
     let short = name.strip_prefix("builtin:").unwrap_or(name).to_string();
-    let sc = SceneRun { name, short, triangles: base.triangles.len(), side, reference };
+    // Triangles drawn: instances count each copy (bytes/tri is then per triangle drawn).
+    let sc = SceneRun { name, short, triangles: base.drawn_triangles() as usize, side, reference };
     for &rays in &opts.rays {
         let mut scene = base.clone();
         if rays == RayKind::Shadow {

@@ -209,7 +209,9 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
     let instanced: Vec<bool> = document.meshes().map(|m| uses[m.index()] >= 2 && !emits(&m)).collect();
     let mut proto_of: Vec<Option<u32>> = vec![None; uses.len()];
     for (mesh, world) in &drawn {
-        if !instanced[mesh.index()] {
+        // A singular transform (a node scaled to nothing, as files hide nodes) has no
+        // inverse to move rays with: that copy is drawn flat, degenerate as it is.
+        if !instanced[mesh.index()] || !super::instance::invertible(&glam::Affine3A::from_mat4(*world)) {
             add_mesh(mesh, world, &buffers, default_material, &mut out.mesh, &mut normals, &mut uvs, &mut any_uvs)?;
             continue;
         }
@@ -231,12 +233,7 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
                 k
             }
         };
-        let affine = glam::Affine3A::from_mat4(*world);
-        let det = affine.matrix3.determinant();
-        if !(det.is_finite() && det != 0.0) {
-            return Err(format!("mesh {}: a node draws it with a singular transform", mesh.index()));
-        }
-        out.instances.push((k, affine));
+        out.instances.push((k, glam::Affine3A::from_mat4(*world)));
     }
     out.mesh.normals =
         (normals.len() == out.mesh.positions.len() && normals.iter().any(|n| *n != Vec3::ZERO)).then_some(normals);

@@ -44,6 +44,17 @@ impl Instance {
     }
 }
 
+/// Whether `t` can place an instance: finite, non-singular, and with an inverse (which
+/// moves rays into the instance) finite in single precision.
+pub fn invertible(t: &Affine3A) -> bool {
+    let det = t.matrix3.determinant();
+    if !(det.is_finite() && det != 0.0 && t.translation.is_finite()) {
+        return false;
+    }
+    let inv = t.inverse();
+    inv.matrix3.determinant().is_finite() && inv.matrix3.is_finite() && inv.translation.is_finite()
+}
+
 /// The box around the eight transformed corners of `b`.
 pub fn transform_box(t: &Affine3A, b: &Aabb) -> Aabb {
     let mut out = Aabb::EMPTY;
@@ -254,12 +265,11 @@ pub fn validate(s: &mut Scene) -> std::result::Result<(), String> {
         if i.prototype >= np {
             return Err(format!("instance {k} names prototype {} of {np}", i.prototype));
         }
-        let det = i.transform.matrix3.determinant();
-        if !(det.is_finite() && det != 0.0 && i.transform.translation.is_finite()) {
-            return Err(format!("instance {k}: the transform is singular or not finite (determinant {det})"));
-        }
-        if !i.transform.inverse().matrix3.determinant().is_finite() {
-            return Err(format!("instance {k}: the transform cannot be inverted in single precision"));
+        if !invertible(&i.transform) {
+            let det = i.transform.matrix3.determinant();
+            return Err(format!(
+                "instance {k}: the transform is singular, not finite, or not invertible in single precision (determinant {det})"
+            ));
         }
     }
     // Primitive numbers of the flattened scene must fit a u32 below the "no hit" value.
