@@ -104,8 +104,11 @@ impl TwoLevel {
         let empty = crate::scene::Instancing::default();
         let inst = scene.instancing.as_ref().unwrap_or(&empty);
         let mut t = Instant::now();
-        let prototypes: Vec<Accel> =
-            inst.prototypes.iter().map(|p| Accel::build_own(kind, &p.geometry, params)).collect();
+        // Each builder is parallel inside; many small prototypes also build side by side.
+        let prototypes: Vec<Accel> = {
+            use rayon::prelude::*;
+            inst.prototypes.par_iter().map(|p| Accel::build_own(kind, &p.geometry, params)).collect()
+        };
         phases.push(Phase {
             name: "prototypes".into(),
             ms: t.elapsed().as_secs_f64() * 1e3,
