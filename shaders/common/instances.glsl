@@ -10,13 +10,12 @@
 
 #include "common/bvh_leaf.glsl"
 
-const uint ENTRY_OWN = 1u;
-const uint ENTRY_TEXELS = 9u;
+// INST_ENTRY_TEXELS, INST_ENTRY_OWN: src/gpu/bindings.rs.
 
 // Texel k of the node buffer, from its start.
 uvec4 inst_texel(uint k) { return texelFetch(accel_node_texels, int(k)); }
 // First texel of entry e's record.
-uint inst_record(uint e) { return inst_texel(0u).z + e * ENTRY_TEXELS; }
+uint inst_record(uint e) { return inst_texel(0u).z + e * INST_ENTRY_TEXELS; }
 
 // Points the bottom-level traversal at entry e's structure and returns `r` in its
 // space: origin and direction by the world-to-object transform, not renormalised, so
@@ -30,7 +29,7 @@ Ray inst_enter(uint e, Ray r) {
     g_prim_base = refs.z;
     g_box_min = uintBitsToFloat(lo.xyz);
     g_box_max = uintBitsToFloat(inst_texel(base + 8u).xyz);
-    if ((lo.w & ENTRY_OWN) != 0u) return r;
+    if ((lo.w & INST_ENTRY_OWN) != 0u) return r;
     vec4 m0 = uintBitsToFloat(inst_texel(base));
     vec4 m1 = uintBitsToFloat(inst_texel(base + 1u));
     vec4 m2 = uintBitsToFloat(inst_texel(base + 2u));
@@ -123,7 +122,7 @@ bool trace_any_coherent(Ray r) { return trace_any(r); }
 // for margin), normals by the inverse transpose.
 void inst_to_world(Hit h, inout vec3 p, inout vec3 err, inout vec3 gn, inout vec3 sn) {
     uint base = inst_record(h.inst);
-    if ((inst_texel(base + 7u).w & ENTRY_OWN) != 0u) return;
+    if ((inst_texel(base + 7u).w & INST_ENTRY_OWN) != 0u) return;
     vec4 w0 = uintBitsToFloat(inst_texel(base));
     vec4 w1 = uintBitsToFloat(inst_texel(base + 1u));
     vec4 w2 = uintBitsToFloat(inst_texel(base + 2u));
@@ -146,7 +145,7 @@ void inst_to_world(Hit h, inout vec3 p, inout vec3 err, inout vec3 gn, inout vec
 uint inst_aov_prim(Hit h) {
     uvec4 counts = inst_texel(1u);
     uint base = inst_record(h.inst);
-    if ((inst_texel(base + 7u).w & ENTRY_OWN) != 0u) {
+    if ((inst_texel(base + 7u).w & INST_ENTRY_OWN) != 0u) {
         if (h.prim < params.dims.z) return h.prim - counts.x;
         return h.prim - params.dims.z + counts.y + counts.z;
     }

@@ -40,10 +40,10 @@ use crate::accel::validate::ValidateError;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
-/// Texels of one entry record.
-pub const RECORD_TEXELS: usize = 9;
+/// Texels of one entry record (one source with the shaders: src/gpu/bindings.rs).
+pub const RECORD_TEXELS: usize = crate::gpu::bindings::INST_ENTRY_TEXELS as usize;
 /// Record flag: the entry is the scene's own primitives (identity transform).
-pub const ENTRY_OWN: u32 = 1;
+pub const ENTRY_OWN: u32 = crate::gpu::bindings::INST_ENTRY_OWN;
 
 /// What `arbor info` and the stats say of each level.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -243,6 +243,7 @@ impl TwoLevel {
             record(id, id, [nb, ib, proto_tris, 0], b, ENTRY_OWN);
         }
         let entries = inst.instances.len() + usize::from(own.is_some());
+        debug_assert_eq!(nodes.len(), (records + entries * RECORD_TEXELS) * 16, "entry record size");
         let header: [u32; 8] = [
             top_base as u32,
             top_index as u32,

@@ -169,6 +169,10 @@ pub const MIS_LIGHT: u32 = 1;
 pub const MIS_BSDF: u32 = 2;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
+/// Instanced scenes (src/accel/instance.rs): 16-byte texels of one entry record in
+/// the node buffer, and the record's flag for the scene's own primitives.
+pub const INST_ENTRY_TEXELS: u32 = 9;
+pub const INST_ENTRY_OWN: u32 = 1;
 
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
@@ -203,6 +207,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
     ("SPEC_PACKET", SPEC_PACKET),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
+    ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
+    ("INST_ENTRY_OWN", INST_ENTRY_OWN),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
     ("MIS_BOTH", MIS_BOTH),
