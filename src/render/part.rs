@@ -132,6 +132,23 @@ impl Fnv {
     }
 }
 
+/// A scene's (or a prototype's) triangle geometry: positions, normals, UVs, triangles
+/// and their materials, each list after its length.
+fn hash_geometry(h: &mut Fnv, g: &Scene) {
+    h.u32(g.positions.len() as u32);
+    g.positions.iter().for_each(|&p| h.vec3(p));
+    h.u32(g.normals.len() as u32);
+    g.normals.iter().for_each(|&n| h.vec3(n));
+    h.u32(g.uvs.len() as u32);
+    g.uvs.iter().for_each(|uv| {
+        h.f32(uv.x);
+        h.f32(uv.y)
+    });
+    h.u32(g.triangles.len() as u32);
+    g.triangles.iter().flatten().for_each(|&i| h.u32(i));
+    g.tri_material.iter().for_each(|&m| h.u32(m));
+}
+
 /// A hash of everything that decides a pixel's value: the program version, the
 /// scene's geometry, materials, textures, lights, environment and camera, and the
 /// settings (image size, integrator, seed, depth, MIS, ray test, structure). Not the
@@ -140,32 +157,11 @@ impl Fnv {
 pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
     let mut h = Fnv::new();
     h.str(env!("CARGO_PKG_VERSION"));
-    h.u32(scene.positions.len() as u32);
-    scene.positions.iter().for_each(|&p| h.vec3(p));
-    h.u32(scene.normals.len() as u32);
-    scene.normals.iter().for_each(|&n| h.vec3(n));
-    h.u32(scene.uvs.len() as u32);
-    scene.uvs.iter().for_each(|uv| {
-        h.f32(uv.x);
-        h.f32(uv.y)
-    });
-    h.u32(scene.triangles.len() as u32);
-    scene.triangles.iter().flatten().for_each(|&i| h.u32(i));
-    scene.tri_material.iter().for_each(|&m| h.u32(m));
+    hash_geometry(&mut h, scene);
     if let Some(inst) = &scene.instancing {
         h.str("instancing");
         for p in &inst.prototypes {
-            let g = &p.geometry;
-            h.u32(g.positions.len() as u32);
-            g.positions.iter().for_each(|&p| h.vec3(p));
-            g.normals.iter().for_each(|&n| h.vec3(n));
-            g.uvs.iter().for_each(|uv| {
-                h.f32(uv.x);
-                h.f32(uv.y)
-            });
-            h.u32(g.triangles.len() as u32);
-            g.triangles.iter().flatten().for_each(|&i| h.u32(i));
-            g.tri_material.iter().for_each(|&m| h.u32(m));
+            hash_geometry(&mut h, &p.geometry);
         }
         h.u32(inst.instances.len() as u32);
         for i in &inst.instances {
