@@ -191,6 +191,74 @@ fn bvh4_validate_finds_a_child_box_that_does_not_contain_its_subtree() {
 }
 
 #[test]
+fn cwbvh_keeps_the_binary_leaves_under_quantised_boxes_that_contain_them() {
+    use arbor::accel::bvh::cwbvh::{Cwbvh, WIDTH};
+    for scene in bvh_cases() {
+        for b in BUILDERS {
+            let bin = Bvh::build(&scene, b);
+            let wide = Cwbvh::collapse(&bin);
+            wide.validate(&scene).unwrap_or_else(|e| panic!("{} {}: {e}", scene.name, b.name()));
+            assert_eq!(wide.indices, bin.indices, "{}", scene.name);
+            assert!(wide.nodes.len() <= bin.nodes.len(), "{}", scene.name);
+            let leaves = |refs: Vec<u32>| {
+                let mut l: Vec<u32> = refs.into_iter().filter(|r| *r != EMPTY_REF && r & LEAF_REF != 0).collect();
+                l.sort_unstable();
+                l
+            };
+            let bin_refs = (0..bin.nodes.len()).flat_map(|n| bin.children(n).map(|c| c.0)).collect();
+            let wide_refs = (0..wide.nodes.len()).flat_map(|n| wide.children(n).map(|c| c.0)).collect();
+            assert_eq!(leaves(wide_refs), leaves(bin_refs), "{}: leaves differ", scene.name);
+            for n in 0..wide.nodes.len() {
+                let kids = wide.children(n);
+                if kids.iter().any(|c| c.0 == EMPTY_REF) {
+                    assert!(
+                        kids.iter().all(|c| c.0 == EMPTY_REF || c.0 & LEAF_REF != 0),
+                        "{}: node {n} has a free slot and an inner child",
+                        scene.name
+                    );
+                }
+                // Every primitive of a leaf child lies inside its decoded box, and the
+                // decoded box is no more than one grid step per side larger than the
+                // exact one (255 steps span the node).
+                for (k, (r, decoded)) in kids.iter().enumerate() {
+                    if *r == EMPTY_REF {
+                        continue;
+                    }
+                    let exact = wide.exact[n][k];
+                    let node_box = wide.exact[n].iter().fold(arbor::math::Aabb::EMPTY, |a, b| a.union(b));
+                    let slack = (node_box.max - node_box.min) * (2.0 / 255.0) + Vec3::splat(1e-30);
+                    assert!(
+                        (exact.min - decoded.min).cmple(slack + exact.min.abs() * 1e-6).all()
+                            && (decoded.max - exact.max).cmple(slack + exact.max.abs() * 1e-6).all(),
+                        "{}: node {n} child {k}: {decoded:?} is loose around {exact:?}",
+                        scene.name
+                    );
+                }
+            }
+            assert!(wide.depth <= bin.depth && WIDTH == 8);
+            compare_with_brute_force(&scene, &Accel::Cwbvh(wide), 800, 7, &[]);
+        }
+    }
+}
+
+#[test]
+fn cwbvh_validate_finds_a_quantised_box_that_does_not_contain_its_exact_box() {
+    use arbor::accel::bvh::cwbvh::Cwbvh;
+    let scene = scene_from("blob", Some(procedural::blob(2000, 0.25, 5)), &[]);
+    let mut wide = Cwbvh::build(&scene, BvhBuilder::Sah);
+    wide.validate(&scene).expect("valid");
+    // Child 0's qhi x (texel 2, third word, byte 0) to 0: its box ends at the grid origin.
+    wide.nodes[0][2][2] &= !0xff;
+    let e = wide.validate(&scene).expect_err("a shrunken box must be found");
+    assert!(e.to_string().contains("does not contain"), "{e}");
+    // A grid exponent of zero (a denormal step) is refused by itself.
+    let mut wide = Cwbvh::build(&scene, BvhBuilder::Sah);
+    wide.nodes[0][0][3] &= !0xff;
+    let e = wide.validate(&scene).expect_err("exponent 0");
+    assert!(e.to_string().contains("exponent"), "{e}");
+}
+
+#[test]
 fn build_is_identical_for_any_thread_count() {
     let scene = scene_from("blob", Some(procedural::blob(150_000, 0.2, 9)), &[(Vec3::ZERO, 0.7)]);
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");

@@ -190,9 +190,15 @@ fn no_shadow_acne_at_grazing_light_and_no_black_rings_in_glass() {
         b.scene.camera = Camera { eye: s + Vec3::new(0.0, 2.5, 2.5) * scale, look_at: s, up: Vec3::Y, vfov: 50.0 };
         let scene = b.finish().expect("scene");
         let nt = scene.triangles.len() as u32;
-        for kind in
-            [AccelKind::None, AccelKind::Kdtree, AccelKind::Trbvh, AccelKind::Bvh4, AccelKind::Grid, AccelKind::Octree]
-        {
+        for kind in [
+            AccelKind::None,
+            AccelKind::Kdtree,
+            AccelKind::Trbvh,
+            AccelKind::Bvh4,
+            AccelKind::Cwbvh,
+            AccelKind::Grid,
+            AccelKind::Octree,
+        ] {
             let f = render(&ctx, &scene, kind, 96, 96, false);
             // Plane pixels outside the sphere's shadow: those whose shadow ray toward the
             // light could only be blocked by the plane itself. Compare with the brightest.
@@ -229,9 +235,15 @@ fn no_shadow_acne_at_grazing_light_and_no_black_rings_in_glass() {
             up: Vec3::Y,
             vfov: 45.0,
         };
-        for kind in
-            [AccelKind::None, AccelKind::Kdtree, AccelKind::Trbvh, AccelKind::Bvh4, AccelKind::Grid, AccelKind::Octree]
-        {
+        for kind in [
+            AccelKind::None,
+            AccelKind::Kdtree,
+            AccelKind::Trbvh,
+            AccelKind::Bvh4,
+            AccelKind::Cwbvh,
+            AccelKind::Grid,
+            AccelKind::Octree,
+        ] {
             let f = render(&ctx, &glass_scene, kind, 96, 96, false);
             let lum = |i: usize| f.radiance[i].iter().sum::<f32>();
             let sphere_px: Vec<usize> = (0..f.prim.len()).filter(|&i| f.prim[i] == nt).collect();

@@ -76,6 +76,7 @@ fn validate_names_what_is_wrong() {
         Accel::Kd(t) => t.indices[0] = np,
         Accel::Bvh(t) => t.indices[0] = np,
         Accel::Bvh4(t) => t.indices[0] = np,
+        Accel::Cwbvh(t) => t.indices[0] = np,
         Accel::Grid(t) => {
             let i = t.indices.len() - 1;
             t.indices[i] = np;
@@ -106,13 +107,17 @@ fn gpu_image_checks_the_kernel_limits() {
     if let Accel::Bvh4(t) = &mut bvh4 {
         t.depth = arbor::accel::bvh::MAX_BVH_DEPTH + 1;
     }
+    let mut cwbvh = Accel::build(AccelKind::Cwbvh, &scene);
+    if let Accel::Cwbvh(t) = &mut cwbvh {
+        t.depth = arbor::accel::bvh::MAX_BVH_DEPTH + 1;
+    }
     if let Accel::Kd(t) = &mut kd {
         t.depth = arbor::accel::kdtree::MAX_KD_DEPTH + 1;
     }
     if let Accel::Bvh(t) = &mut bvh {
         t.depth = arbor::accel::bvh::MAX_BVH_DEPTH + 1;
     }
-    for a in [kd, bvh, bvh4] {
+    for a in [kd, bvh, bvh4, cwbvh] {
         let e = a.gpu_image(&scene).expect_err("too deep");
         assert!(e.to_string().contains("exceeds the kernel's stack"), "{e}");
     }

@@ -9,6 +9,7 @@
 //! - [`AccelKind::BvhSah`], [`AccelKind::Lbvh`], [`AccelKind::Trbvh`]: BVHs from
 //!   three builders, one layout and one kernel (see [`bvh`]).
 //! - [`AccelKind::Bvh4`]: the `bvh-sah` tree collapsed into 4-wide nodes
+//! - [`AccelKind::Cwbvh`]: the `bvh-sah` tree collapsed into 8-wide nodes with quantised boxes
 //!   ([`bvh::wide`]), its own layout and kernel.
 //! - [`AccelKind::Grid`]: uniform grid, 3D-DDA (Amanatides & Woo 1987).
 //! - [`AccelKind::Octree`]: octree with child masks, parametric traversal (Revelles 2000).
@@ -53,6 +54,9 @@ pub enum AccelKind {
     Trbvh,
     /// The binned SAH BVH collapsed into 4-wide nodes.
     Bvh4,
+    /// The binned SAH BVH collapsed into 8-wide nodes with quantised child boxes
+    /// (Ylitie, Karras & Laine 2017).
+    Cwbvh,
     /// Uniform grid, about lambda x N cells (Amanatides & Woo 1987).
     Grid,
     /// Octree, subdivided about node centres (Revelles et al. 2000 traversal).
@@ -69,6 +73,7 @@ impl AccelKind {
         AccelKind::Lbvh,
         AccelKind::Trbvh,
         AccelKind::Bvh4,
+        AccelKind::Cwbvh,
         AccelKind::Grid,
         AccelKind::Octree,
     ];
@@ -83,6 +88,7 @@ impl AccelKind {
             AccelKind::Lbvh => "lbvh",
             AccelKind::Trbvh => "trbvh",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
         }
@@ -113,7 +119,12 @@ impl AccelKind {
             AccelKind::Trbvh => Some("trbvh"),
             AccelKind::Grid => Some("grid"),
             AccelKind::Octree => Some("octree"),
-            AccelKind::None | AccelKind::BspCourse | AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Bvh4 => None,
+            AccelKind::None
+            | AccelKind::BspCourse
+            | AccelKind::BvhSah
+            | AccelKind::Lbvh
+            | AccelKind::Bvh4
+            | AccelKind::Cwbvh => None,
         }
     }
 
@@ -124,6 +135,7 @@ impl AccelKind {
             AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
             AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
         }
@@ -147,6 +159,7 @@ impl FromStr for AccelKind {
             "lbvh" => Ok(AccelKind::Lbvh),
             "trbvh" => Ok(AccelKind::Trbvh),
             "bvh4" => Ok(AccelKind::Bvh4),
+            "cwbvh" => Ok(AccelKind::Cwbvh),
             "grid" => Ok(AccelKind::Grid),
             "octree" => Ok(AccelKind::Octree),
             _ => Err(format!(
@@ -376,6 +389,7 @@ pub enum Accel {
     Kd(kdtree::KdTree),
     Bvh(bvh::Bvh),
     Bvh4(bvh::wide::Bvh4),
+    Cwbvh(bvh::cwbvh::Cwbvh),
     Grid(grid::Grid),
     Octree(octree::Octree),
     /// Any of the above per prototype of an instanced scene, under a top-level BVH.
@@ -407,6 +421,7 @@ impl Accel {
             AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
             AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build_with(scene, bvh::BvhBuilder::Trbvh, &params.treelet)),
             AccelKind::Bvh4 => Accel::Bvh4(bvh::wide::Bvh4::build(scene, bvh::BvhBuilder::Sah)),
+            AccelKind::Cwbvh => Accel::Cwbvh(bvh::cwbvh::Cwbvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
         }
@@ -463,6 +478,7 @@ impl Accel {
             Accel::Kd(t) => t,
             Accel::Bvh(t) => t,
             Accel::Bvh4(t) => t,
+            Accel::Cwbvh(t) => t,
             Accel::Grid(t) => t,
             Accel::Octree(t) => t,
             Accel::TwoLevel(t) => t.as_ref(),

@@ -9,7 +9,8 @@
 //! - `trbvh` ([`treelet`]): LBVH, then treelet restructuring after Karras & Aila
 //!   (2013), then collapse of subtrees into leaves where the SAH prefers it.
 //!
-//! `bvh4` ([`wide`]) collapses the `bvh-sah` tree into 4-wide nodes.
+//! `bvh4` ([`wide`]) collapses the `bvh-sah` tree into 4-wide nodes; `cwbvh` ([`cwbvh`])
+//! into 8-wide nodes with quantised child boxes.
 //!
 //! GPU layout: 64 bytes per inner node, holding both children's boxes so one fetch
 //! decides which children a ray enters and in which order. Leaves are not nodes but
@@ -38,6 +39,7 @@ use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
 pub mod binned;
+pub mod cwbvh;
 mod flatten;
 pub mod gpu_build;
 pub mod lbvh;

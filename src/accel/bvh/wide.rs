@@ -92,27 +92,7 @@ impl Bvh4 {
         w.nodes.push([[0; 4]; 7]);
         while let Some((b, slot, d)) = work.pop() {
             w.depth = w.depth.max(d);
-            let mut kids: Vec<(u32, Aabb)> = bin.children(b).into_iter().filter(|(r, _)| *r != EMPTY_REF).collect();
-            while kids.len() < WIDTH {
-                // Open the inner child of largest area (the first of equal ones).
-                let open = kids.iter().enumerate().filter(|(_, (r, _))| r & LEAF_REF == 0).fold(
-                    None::<(usize, f32)>,
-                    |best, (i, (_, bx))| {
-                        let a = sah::area(bx);
-                        match best {
-                            Some((_, ba)) if ba >= a => best,
-                            _ => Some((i, a)),
-                        }
-                    },
-                );
-                let Some((i, _)) = open else { break };
-                let (r, _) = kids.remove(i);
-                let grand: Vec<(u32, Aabb)> =
-                    bin.children(r as usize).into_iter().filter(|(r, _)| *r != EMPTY_REF).collect();
-                for (k, g) in grand.into_iter().enumerate() {
-                    kids.insert(i + k, g);
-                }
-            }
+            let kids = open_wide(bin, b, WIDTH);
             let mut node: GpuBvh4Node = [[0; 4]; 7];
             node[6] = [EMPTY_REF; 4];
             for (k, (r, bx)) in kids.iter().enumerate() {
@@ -224,6 +204,33 @@ impl Bvh4 {
             }
         }
     }
+}
+
+/// The children of a wide node collapsed from binary inner node `b`: its two children,
+/// then, while fewer than `width`, the inner child of largest surface area (the first
+/// of equal ones) replaced in place by its own two children. Empty references are
+/// left out.
+pub(super) fn open_wide(bin: &Bvh, b: usize, width: usize) -> Vec<(u32, Aabb)> {
+    let mut kids: Vec<(u32, Aabb)> = bin.children(b).into_iter().filter(|(r, _)| *r != EMPTY_REF).collect();
+    while kids.len() < width {
+        let open = kids.iter().enumerate().filter(|(_, (r, _))| r & LEAF_REF == 0).fold(
+            None::<(usize, f32)>,
+            |best, (i, (_, bx))| {
+                let a = sah::area(bx);
+                match best {
+                    Some((_, ba)) if ba >= a => best,
+                    _ => Some((i, a)),
+                }
+            },
+        );
+        let Some((i, _)) = open else { break };
+        let (r, _) = kids.remove(i);
+        let grand: Vec<(u32, Aabb)> = bin.children(r as usize).into_iter().filter(|(r, _)| *r != EMPTY_REF).collect();
+        for (k, g) in grand.into_iter().enumerate() {
+            kids.insert(i + k, g);
+        }
+    }
+    kids
 }
 
 impl crate::accel::Traverse for Bvh4 {
