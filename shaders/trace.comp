@@ -104,6 +104,8 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/grid.glsl"
 #elif defined(ACCEL_BVH4)
 #include "accel/bvh4.glsl"
+#elif defined(ACCEL_BVH8)
+#include "accel/bvh8.glsl"
 #elif defined(ACCEL_CWBVH)
 #include "accel/cwbvh.glsl"
 #elif defined(ACCEL_OCTREE)

@@ -139,28 +139,27 @@ fn cpu_traversal_equals_brute_force() {
     }
 }
 
-#[test]
-fn bvh4_keeps_the_binary_leaves_in_fewer_wider_nodes() {
-    use arbor::accel::bvh::wide::{Bvh4, WIDTH};
+fn check_wide<const W: usize>() {
+    use arbor::accel::bvh::wide::WideBvh;
     for scene in bvh_cases() {
         for b in BUILDERS {
             let bin = Bvh::build(&scene, b);
-            let wide = Bvh4::collapse(&bin);
-            wide.validate(&scene).unwrap_or_else(|e| panic!("{} {}: {e}", scene.name, b.name()));
+            let wide = WideBvh::<W>::collapse(&bin);
+            wide.validate(&scene).unwrap_or_else(|e| panic!("{} {} {W}: {e}", scene.name, b.name()));
             // The same leaves, so the same index array; every binary inner node but the
             // root is either kept as a node or opened into its parent.
             assert_eq!(wide.indices, bin.indices, "{}", scene.name);
-            assert!(wide.nodes.len() <= bin.nodes.len(), "{}", scene.name);
+            assert!(wide.node_count() <= bin.nodes.len(), "{}", scene.name);
             let leaves = |refs: Vec<u32>| {
                 let mut l: Vec<u32> = refs.into_iter().filter(|r| *r != EMPTY_REF && r & LEAF_REF != 0).collect();
                 l.sort_unstable();
                 l
             };
             let bin_refs = (0..bin.nodes.len()).flat_map(|n| bin.children(n).map(|c| c.0)).collect();
-            let wide_refs = (0..wide.nodes.len()).flat_map(|n| wide.children(n).map(|c| c.0)).collect();
+            let wide_refs = (0..wide.node_count()).flat_map(|n| wide.children(n).map(|c| c.0)).collect();
             assert_eq!(leaves(wide_refs), leaves(bin_refs), "{}: leaves differ", scene.name);
             // A node with a free slot has nothing left to open: all its children are leaves.
-            for n in 0..wide.nodes.len() {
+            for n in 0..wide.node_count() {
                 let kids = wide.children(n);
                 if kids.iter().any(|c| c.0 == EMPTY_REF) {
                     assert!(
@@ -170,10 +169,21 @@ fn bvh4_keeps_the_binary_leaves_in_fewer_wider_nodes() {
                     );
                 }
             }
-            assert!(wide.depth <= bin.depth && WIDTH == 4);
-            compare_with_brute_force(&scene, &Accel::Bvh4(wide), 800, 7, &[]);
+            assert!(wide.depth <= bin.depth && WideBvh::<W>::WIDTH == W);
+            let accel = if W == 4 {
+                Accel::Bvh4(arbor::accel::bvh::wide::Bvh4::collapse(&bin))
+            } else {
+                Accel::Bvh8(arbor::accel::bvh::wide::Bvh8::collapse(&bin))
+            };
+            compare_with_brute_force(&scene, &accel, 800, 7, &[]);
         }
     }
+}
+
+#[test]
+fn bvh4_and_bvh8_keep_the_binary_leaves_in_fewer_wider_nodes() {
+    check_wide::<4>();
+    check_wide::<8>();
 }
 
 #[test]
@@ -182,9 +192,10 @@ fn bvh4_validate_finds_a_child_box_that_does_not_contain_its_subtree() {
     let scene = scene_from("blob", Some(procedural::blob(2000, 0.25, 5)), &[]);
     let mut wide = Bvh4::build(&scene, BvhBuilder::Sah);
     wide.validate(&scene).expect("valid");
-    // Shrink child 0's box of the root to a point: its subtree sticks out.
+    // Shrink child 0's box of the root to a point: its subtree sticks out (node 0's
+    // rows are its first 7 texels, one per row at width 4).
     for row in 0..6 {
-        wide.nodes[0][row][0] = 0.0f32.to_bits();
+        wide.nodes[row][0] = 0.0f32.to_bits();
     }
     let e = wide.validate(&scene).expect_err("a shrunken box must be found");
     assert!(e.to_string().contains("does not contain"), "{e}");

@@ -173,7 +173,7 @@ fn instances_shade_like_their_flattened_copies() {
 /// stay within the 8 storage buffers of a stage.
 #[test]
 fn instancing_binds_no_more_than_eight_buffers_and_costs_plain_scenes_nothing() {
-    for family in ["inst_bvh", "inst_bvh4", "inst_cwbvh", "inst_kdtree", "inst_grid", "inst_octree"] {
+    for family in ["inst_bvh", "inst_bvh4", "inst_bvh8", "inst_cwbvh", "inst_kdtree", "inst_grid", "inst_octree"] {
         for geometry in ["tris", "all"] {
             let b = gpu::trace_bindings(family, geometry);
             let storage = b.iter().filter(|d| d.kind != arbor::gpu::BindingKind::Uniform).count();

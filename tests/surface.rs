@@ -76,6 +76,7 @@ fn validate_names_what_is_wrong() {
         Accel::Kd(t) => t.indices[0] = np,
         Accel::Bvh(t) => t.indices[0] = np,
         Accel::Bvh4(t) => t.indices[0] = np,
+        Accel::Bvh8(t) => t.indices[0] = np,
         Accel::Cwbvh(t) => t.indices[0] = np,
         Accel::Grid(t) => {
             let i = t.indices.len() - 1;

@@ -1,4 +1,4 @@
-// 4-wide BVH traversal (bvh4). Mirrors Bvh4::traverse in src/accel/bvh/wide.rs, where
+// 4-wide BVH traversal (bvh4). Mirrors WideBvh::<4>::traverse in src/accel/bvh/wide.rs, where
 // the layout is documented: 7 texels per node, the four children's boxes as
 // structure of arrays (min x, min y, min z, max x, max y, max z) and their references
 // (the binary BVH's encoding: bit 31 leaf, first << 3 | count - 1; 0xffffffff none).
@@ -13,17 +13,6 @@
 // flagged.
 
 #include "common/bvh_leaf.glsl"
-
-// Orders (ka, ra) before (kb, rb) when kb < ka.
-void bvh4_swap(inout float ka, inout uint ra, inout float kb, inout uint rb) {
-    bool s = kb < ka;
-    float k = ka;
-    uint r = ra;
-    ka = s ? kb : ka;
-    ra = s ? rb : ra;
-    kb = s ? k : kb;
-    rb = s ? r : rb;
-}
 
 // Entry distance of child box k of a node (components of lo, hi), +inf on a miss.
 float bvh4_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {
@@ -61,11 +50,11 @@ bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
             float k3 = bvh4_enter(refs.w, vec3(lx.w, ly.w, lz.w), vec3(hx.w, hy.w, hz.w), r, inv, limit);
             uint r0 = refs.x, r1 = refs.y, r2 = refs.z, r3 = refs.w;
             uint n = uint(k0 < INF) + uint(k1 < INF) + uint(k2 < INF) + uint(k3 < INF);
-            bvh4_swap(k0, r0, k1, r1);
-            bvh4_swap(k2, r2, k3, r3);
-            bvh4_swap(k0, r0, k2, r2);
-            bvh4_swap(k1, r1, k3, r3);
-            bvh4_swap(k1, r1, k2, r2);
+            wide_swap(k0, r0, k1, r1);
+            wide_swap(k2, r2, k3, r3);
+            wide_swap(k0, r0, k2, r2);
+            wide_swap(k1, r1, k3, r3);
+            wide_swap(k1, r1, k2, r2);
             stack[sp] = r3;
             sp += n > 3u ? 1u : 0u;
             stack[sp] = r2;

@@ -7,24 +7,13 @@
 // A child box decodes to p + q * s per plane (q * s is exact, so one rounding, as on
 // the CPU) and is tested as a full-precision box; quantisation only enlarges boxes.
 // Front to back: the eight boxes are tested against [tmin, best t (1 + 1e-5)], the hit
-// children sorted by entry distance with the 19-comparator network of SORT8, the
-// nearest visited and the others pushed, farthest first, as unconditional writes with
-// conditional increments; the stack holds 7 x depth + 1 entries (STACK_SIZE). Inner
+// children sorted by entry distance with the 19-comparator network SORT8 (shared
+// with bvh8.glsl in common/bvh_leaf.glsl), the nearest visited and the others
+// pushed, farthest first, as unconditional writes with conditional increments; the stack holds 7 x depth + 1 entries (STACK_SIZE). Inner
 // nodes are descended in an inner loop and leaves tested after it; every trace takes at
 // most TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is flagged.
 
 #include "common/bvh_leaf.glsl"
-
-// Orders (ka, ra) before (kb, rb) when kb < ka.
-void cw_swap(inout float ka, inout uint ra, inout float kb, inout uint rb) {
-    bool s = kb < ka;
-    float k = ka;
-    uint r = ra;
-    ka = s ? kb : ka;
-    ra = s ? rb : ra;
-    kb = s ? k : kb;
-    rb = s ? r : rb;
-}
 
 // Byte k (0..7) of the pair of words (lo: children 0..3, hi: 4..7), as a float.
 float cw_q(uint lo, uint hi, uint k) {
@@ -77,27 +66,8 @@ bool cwbvh_traverse(Ray r, inout Hit h, bool any_hit) {
             uint r4 = rb.x, r5 = rb.y, r6 = rb.z, r7 = rb.w;
             uint n = uint(k0 < INF) + uint(k1 < INF) + uint(k2 < INF) + uint(k3 < INF)
                    + uint(k4 < INF) + uint(k5 < INF) + uint(k6 < INF) + uint(k7 < INF);
-            // SORT8 of src/accel/bvh/cwbvh.rs, comparator for comparator.
-            cw_swap(k0, r0, k2, r2); cw_swap(k1, r1, k3, r3); cw_swap(k4, r4, k6, r6); cw_swap(k5, r5, k7, r7);
-            cw_swap(k0, r0, k4, r4); cw_swap(k1, r1, k5, r5); cw_swap(k2, r2, k6, r6); cw_swap(k3, r3, k7, r7);
-            cw_swap(k0, r0, k1, r1); cw_swap(k2, r2, k3, r3); cw_swap(k4, r4, k5, r5); cw_swap(k6, r6, k7, r7);
-            cw_swap(k2, r2, k4, r4); cw_swap(k3, r3, k5, r5);
-            cw_swap(k1, r1, k4, r4); cw_swap(k3, r3, k6, r6);
-            cw_swap(k1, r1, k2, r2); cw_swap(k3, r3, k4, r4); cw_swap(k5, r5, k6, r6);
-            stack[sp] = r7;
-            sp += n > 7u ? 1u : 0u;
-            stack[sp] = r6;
-            sp += n > 6u ? 1u : 0u;
-            stack[sp] = r5;
-            sp += n > 5u ? 1u : 0u;
-            stack[sp] = r4;
-            sp += n > 4u ? 1u : 0u;
-            stack[sp] = r3;
-            sp += n > 3u ? 1u : 0u;
-            stack[sp] = r2;
-            sp += n > 2u ? 1u : 0u;
-            stack[sp] = r1;
-            sp += n > 1u ? 1u : 0u;
+            WIDE_SORT8;
+            WIDE_PUSH8;
             if (n > 0u) {
                 cur = r0;
             } else {

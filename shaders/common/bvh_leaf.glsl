@@ -1,6 +1,6 @@
-// What both BVH kernels (bvh.glsl, bvh4.glsl; the binary kernel's single-ray and
-// packet traversals) share: the child-reference encoding of src/accel/bvh/mod.rs and
-// the test of one leaf.
+// What the BVH kernels (bvh.glsl with its single-ray and packet traversals, bvh4.glsl,
+// bvh8.glsl, cwbvh.glsl) share: the child-reference encoding of src/accel/bvh/mod.rs,
+// the test of one leaf, and the wide kernels' child ordering.
 #ifndef ARBOR_BVH_LEAF_GLSL
 #define ARBOR_BVH_LEAF_GLSL
 
@@ -27,5 +27,37 @@ bool bvh_leaf(uint ref, Ray r, inout Hit h, bool first_hit, bool testing, inout 
     }
     return found;
 }
+
+// Orders (ka, ra) before (kb, rb) when kb < ka: one comparator of a sorting network.
+void wide_swap(inout float ka, inout uint ra, inout float kb, inout uint rb) {
+    bool s = kb < ka;
+    float k = ka;
+    uint r = ra;
+    ka = s ? kb : ka;
+    ra = s ? rb : ra;
+    kb = s ? k : kb;
+    rb = s ? r : rb;
+}
+
+// The 8-wide kernels' child order and pushes, on their locals: keys k0..k7 (entry
+// distance, +inf for a child not entered), references r0..r7, n children entered,
+// the stack and sp. WIDE_SORT8 is SORT8 of src/accel/bvh/wide.rs, comparator for
+// comparator; WIDE_PUSH8 pushes r7..r1 as unconditional writes with conditional
+// increments (the entered ones, farthest first), leaving r0 the nearest.
+#define WIDE_SORT8 \
+    wide_swap(k0, r0, k2, r2); wide_swap(k1, r1, k3, r3); wide_swap(k4, r4, k6, r6); wide_swap(k5, r5, k7, r7); \
+    wide_swap(k0, r0, k4, r4); wide_swap(k1, r1, k5, r5); wide_swap(k2, r2, k6, r6); wide_swap(k3, r3, k7, r7); \
+    wide_swap(k0, r0, k1, r1); wide_swap(k2, r2, k3, r3); wide_swap(k4, r4, k5, r5); wide_swap(k6, r6, k7, r7); \
+    wide_swap(k2, r2, k4, r4); wide_swap(k3, r3, k5, r5); \
+    wide_swap(k1, r1, k4, r4); wide_swap(k3, r3, k6, r6); \
+    wide_swap(k1, r1, k2, r2); wide_swap(k3, r3, k4, r4); wide_swap(k5, r5, k6, r6)
+#define WIDE_PUSH8 \
+    stack[sp] = r7; sp += n > 7u ? 1u : 0u; \
+    stack[sp] = r6; sp += n > 6u ? 1u : 0u; \
+    stack[sp] = r5; sp += n > 5u ? 1u : 0u; \
+    stack[sp] = r4; sp += n > 4u ? 1u : 0u; \
+    stack[sp] = r3; sp += n > 3u ? 1u : 0u; \
+    stack[sp] = r2; sp += n > 2u ? 1u : 0u; \
+    stack[sp] = r1; sp += n > 1u ? 1u : 0u
 
 #endif

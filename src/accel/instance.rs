@@ -266,6 +266,7 @@ impl TwoLevel {
         Some(match family {
             "bvh" => "inst_bvh",
             "bvh4" => "inst_bvh4",
+            "bvh8" => "inst_bvh8",
             "cwbvh" => "inst_cwbvh",
             "kdtree" => "inst_kdtree",
             "grid" => "inst_grid",

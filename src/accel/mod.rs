@@ -8,9 +8,10 @@
 //! - [`AccelKind::BspCourse`]: the lecture's simple BSP tree, same layout and kernel.
 //! - [`AccelKind::BvhSah`], [`AccelKind::Lbvh`], [`AccelKind::Trbvh`]: BVHs from
 //!   three builders, one layout and one kernel (see [`bvh`]).
-//! - [`AccelKind::Bvh4`]: the `bvh-sah` tree collapsed into 4-wide nodes
-//! - [`AccelKind::Cwbvh`]: the `bvh-sah` tree collapsed into 8-wide nodes with quantised boxes
-//!   ([`bvh::wide`]), its own layout and kernel.
+//! - [`AccelKind::Bvh4`], [`AccelKind::Bvh8`]: the `bvh-sah` tree collapsed into 4- or
+//!   8-wide nodes ([`bvh::wide`]), their own layout and kernels.
+//! - [`AccelKind::Cwbvh`]: the `bvh-sah` tree collapsed into 8-wide nodes with quantised
+//!   boxes ([`bvh::cwbvh`]), its own layout and kernel.
 //! - [`AccelKind::Grid`]: uniform grid, 3D-DDA (Amanatides & Woo 1987).
 //! - [`AccelKind::Octree`]: octree with child masks, parametric traversal (Revelles 2000).
 
@@ -54,6 +55,8 @@ pub enum AccelKind {
     Trbvh,
     /// The binned SAH BVH collapsed into 4-wide nodes.
     Bvh4,
+    /// The binned SAH BVH collapsed into 8-wide nodes.
+    Bvh8,
     /// The binned SAH BVH collapsed into 8-wide nodes with quantised child boxes
     /// (Ylitie, Karras & Laine 2017).
     Cwbvh,
@@ -73,6 +76,7 @@ impl AccelKind {
         AccelKind::Lbvh,
         AccelKind::Trbvh,
         AccelKind::Bvh4,
+        AccelKind::Bvh8,
         AccelKind::Cwbvh,
         AccelKind::Grid,
         AccelKind::Octree,
@@ -88,6 +92,7 @@ impl AccelKind {
             AccelKind::Lbvh => "lbvh",
             AccelKind::Trbvh => "trbvh",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Bvh8 => "bvh8",
             AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
@@ -124,6 +129,7 @@ impl AccelKind {
             | AccelKind::BvhSah
             | AccelKind::Lbvh
             | AccelKind::Bvh4
+            | AccelKind::Bvh8
             | AccelKind::Cwbvh => None,
         }
     }
@@ -135,6 +141,7 @@ impl AccelKind {
             AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
             AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
             AccelKind::Bvh4 => "bvh4",
+            AccelKind::Bvh8 => "bvh8",
             AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
@@ -159,6 +166,7 @@ impl FromStr for AccelKind {
             "lbvh" => Ok(AccelKind::Lbvh),
             "trbvh" => Ok(AccelKind::Trbvh),
             "bvh4" => Ok(AccelKind::Bvh4),
+            "bvh8" => Ok(AccelKind::Bvh8),
             "cwbvh" => Ok(AccelKind::Cwbvh),
             "grid" => Ok(AccelKind::Grid),
             "octree" => Ok(AccelKind::Octree),
@@ -389,6 +397,7 @@ pub enum Accel {
     Kd(kdtree::KdTree),
     Bvh(bvh::Bvh),
     Bvh4(bvh::wide::Bvh4),
+    Bvh8(bvh::wide::Bvh8),
     Cwbvh(bvh::cwbvh::Cwbvh),
     Grid(grid::Grid),
     Octree(octree::Octree),
@@ -421,6 +430,7 @@ impl Accel {
             AccelKind::Lbvh => Accel::Bvh(bvh::Bvh::build(scene, bvh::BvhBuilder::Lbvh)),
             AccelKind::Trbvh => Accel::Bvh(bvh::Bvh::build_with(scene, bvh::BvhBuilder::Trbvh, &params.treelet)),
             AccelKind::Bvh4 => Accel::Bvh4(bvh::wide::Bvh4::build(scene, bvh::BvhBuilder::Sah)),
+            AccelKind::Bvh8 => Accel::Bvh8(bvh::wide::Bvh8::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Cwbvh => Accel::Cwbvh(bvh::cwbvh::Cwbvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
@@ -478,6 +488,7 @@ impl Accel {
             Accel::Kd(t) => t,
             Accel::Bvh(t) => t,
             Accel::Bvh4(t) => t,
+            Accel::Bvh8(t) => t,
             Accel::Cwbvh(t) => t,
             Accel::Grid(t) => t,
             Accel::Octree(t) => t,

@@ -222,7 +222,7 @@ pub(crate) struct RenderArgs {
     /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
     /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
     /// (LBVH + treelet restructuring), bvh4 (bvh-sah collapsed into 4-wide nodes),
-    /// cwbvh (bvh-sah collapsed into 8-wide nodes with 8-bit quantised boxes),
+    /// bvh8 (the same, 8-wide), cwbvh (8-wide with 8-bit quantised boxes),
     /// grid (uniform grid), octree, none (brute force), or auto: the one a cost model expects to build and trace this scene,
     /// image size and sample count fastest (`arbor info --accel auto` says why).
     /// Aliases: brute-force (= none), kd (= kdtree), bvh (= bvh-sah).

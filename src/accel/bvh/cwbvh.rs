@@ -58,29 +58,7 @@ pub const WIDTH: usize = 8;
 /// One node as the kernel reads it (see the module docs).
 pub type GpuCwbvhNode = [[u32; 4]; 6];
 
-/// The sorting network of the traversal's child order (optimal for 8 keys: 19
-/// comparators in 6 layers); the kernel runs the same comparators in the same order.
-pub const SORT8: [(usize, usize); 19] = [
-    (0, 2),
-    (1, 3),
-    (4, 6),
-    (5, 7),
-    (0, 4),
-    (1, 5),
-    (2, 6),
-    (3, 7),
-    (0, 1),
-    (2, 3),
-    (4, 5),
-    (6, 7),
-    (2, 4),
-    (3, 5),
-    (1, 4),
-    (3, 6),
-    (1, 2),
-    (3, 4),
-    (5, 6),
-];
+pub use super::wide::SORT8;
 
 /// A compressed 8-wide BVH in the GPU layout.
 #[derive(Debug, Clone)]
@@ -406,21 +384,6 @@ impl crate::accel::Structure for Cwbvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_network_sorts_every_input() {
-        // The 0-1 principle: a comparator network that sorts all 256 binary inputs
-        // sorts every input.
-        for bits in 0u32..256 {
-            let mut v: [u32; 8] = std::array::from_fn(|k| (bits >> k) & 1);
-            for (i, j) in SORT8 {
-                if v[j] < v[i] {
-                    v.swap(i, j);
-                }
-            }
-            assert!(v.windows(2).all(|w| w[0] <= w[1]), "{bits:08b} -> {v:?}");
-        }
-    }
 
     #[test]
     fn quantised_intervals_contain_the_exact_ones() {

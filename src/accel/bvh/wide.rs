@@ -1,32 +1,35 @@
-//! The 4-wide BVH (`bvh4`): the binary tree of a BVH builder (binned SAH, `bvh-sah`)
-//! collapsed so that each node holds up to four children. Fewer, wider nodes mean
-//! fewer traversal steps; on lavapipe each step pays the whole loop body for all 8
-//! lanes (docs/lavapipe.md), so halving the steps matters more than the extra boxes.
+//! The wide BVHs with full-precision boxes: `bvh4` and `bvh8`, the binary tree of a
+//! BVH builder (binned SAH, `bvh-sah`) collapsed so that each node holds up to four or
+//! eight children. Fewer, wider nodes mean fewer traversal steps and more boxes per
+//! step; which pays depends on the device (docs/lavapipe.md; docs/bvh.md).
 //!
 //! Collapse: a wide node starts with the two children of a binary node and, while it
-//! has fewer than four, replaces its inner child of largest surface area by that
-//! child's two children. Leaves and their index ranges are the binary tree's, and the
-//! child boxes are the binary tree's boxes, exactly (full precision, so every
-//! robustness guarantee of the binary BVH holds unchanged).
+//! has fewer than W, replaces its inner child of largest surface area by that child's
+//! two children ([`open_wide`], shared with `cwbvh`). Leaves and their index ranges are
+//! the binary tree's, and the child boxes are the binary tree's boxes, exactly (full
+//! precision, so every robustness guarantee of the binary BVH holds unchanged).
 //!
-//! GPU layout: 112 bytes (7 texels) per node, structure of arrays over the 4 children:
+//! GPU layout: 7 x W / 4 texels per node (112 bytes for W = 4, 224 for W = 8),
+//! structure of arrays over the W children, each row W / 4 texels (children 0..3,
+//! then 4..7):
 //!
 //! ```text
-//! uvec4 0: min x of children 0..3 (f32 bits)
-//! uvec4 1: min y
-//! uvec4 2: min z
-//! uvec4 3: max x
-//! uvec4 4: max y
-//! uvec4 5: max z
-//! uvec4 6: child references 0..3, encoded as the binary BVH's (bit 31: leaf, first
-//!          index << 3 | count - 1; 0xffffffff: no child, its box all zeros)
+//! row 0: min x of the children (f32 bits)
+//! row 1: min y
+//! row 2: min z
+//! row 3: max x
+//! row 4: max y
+//! row 5: max z
+//! row 6: child references, encoded as the binary BVH's (bit 31: leaf, first
+//!        index << 3 | count - 1; 0xffffffff: no child, its box all zeros)
 //! ```
 //!
-//! Traversal (`shaders/accel/bvh4.glsl`, mirrored by [`Bvh4`]'s CPU traversal): the
-//! four boxes are tested against [tmin, best t (1 + T_MARGIN)], the hit children are
-//! sorted by entry distance (a five-comparator network), the nearest is visited and
-//! the others pushed, farthest first. The order only changes the work: closest hits
-//! are exact in any order (ties at equal t go to the lower primitive index).
+//! Traversal (`shaders/accel/bvh4.glsl`, `bvh8.glsl`, mirrored by [`WideBvh`]'s CPU
+//! traversal): the W boxes are tested against [tmin, best t (1 + T_MARGIN)], the hit
+//! children sorted by entry distance (a sorting network: [`SORT4`], [`SORT8`]), the
+//! nearest is visited and the others pushed, farthest first. The order only changes
+//! the work: closest hits are exact in any order (ties at equal t go to the lower
+//! primitive index).
 
 use std::time::Instant;
 
@@ -40,17 +43,44 @@ use crate::accel::{BuildStats, GpuImage, Phase, TraceLoop};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
-/// Children per node.
-pub const WIDTH: usize = 4;
+/// The sorting network of the 4-wide traversal's child order (five comparators).
+pub const SORT4: [(usize, usize); 5] = [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)];
 
-/// One node as the kernel reads it (see the module docs).
-pub type GpuBvh4Node = [[u32; 4]; 7];
+/// The sorting network of the 8-wide traversals' child order (optimal for 8 keys: 19
+/// comparators in 6 layers); the kernels run the same comparators in the same order.
+pub const SORT8: [(usize, usize); 19] = [
+    (0, 2),
+    (1, 3),
+    (4, 6),
+    (5, 7),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
+    (0, 1),
+    (2, 3),
+    (4, 5),
+    (6, 7),
+    (2, 4),
+    (3, 5),
+    (1, 4),
+    (3, 6),
+    (1, 2),
+    (3, 4),
+    (5, 6),
+];
 
-/// A 4-wide BVH in the GPU layout.
+/// The 4-wide BVH (`bvh4`).
+pub type Bvh4 = WideBvh<4>;
+/// The 8-wide BVH (`bvh8`).
+pub type Bvh8 = WideBvh<8>;
+
+/// A W-wide BVH (W = 4 or 8) in the GPU layout.
 #[derive(Debug, Clone)]
-pub struct Bvh4 {
+pub struct WideBvh<const W: usize> {
     pub bounds: Aabb,
-    pub nodes: Vec<GpuBvh4Node>,
+    /// The nodes' texels, [`WideBvh::TEXELS`] per node (see the module docs).
+    pub nodes: Vec<[u32; 4]>,
     pub indices: Vec<u32>,
     /// Nodes on the longest root-to-leaf path.
     pub depth: u32,
@@ -61,25 +91,42 @@ pub struct Bvh4 {
     pub phases: Vec<Phase>,
 }
 
-impl Bvh4 {
+impl<const W: usize> WideBvh<W> {
+    /// Children per node.
+    pub const WIDTH: usize = W;
+    /// Texels per row of the layout.
+    const ROW: usize = W / 4;
+    /// Texels per node.
+    pub const TEXELS: usize = 7 * W / 4;
+
+    /// The structure's name (`bvh4`, `bvh8`).
+    pub fn name() -> &'static str {
+        if W == 8 {
+            "bvh8"
+        } else {
+            "bvh4"
+        }
+    }
+
     /// Builds the binary tree with `source` and collapses it.
-    pub fn build(scene: &Scene, source: BvhBuilder) -> Bvh4 {
+    pub fn build(scene: &Scene, source: BvhBuilder) -> Self {
         let start = Instant::now();
         let bin = Bvh::build(scene, source);
         let mut phases = bin.phases.clone();
         let t = Instant::now();
         let mut wide = Self::collapse(&bin);
-        phases.push(Phase { name: "collapse to 4-wide".into(), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
+        phases.push(Phase { name: format!("collapse to {W}-wide"), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
         wide.phases = phases;
         wide.build_ms = start.elapsed().as_secs_f64() * 1e3;
         wide
     }
 
-    /// Collapses a binary BVH (any builder's) into 4-wide nodes.
-    pub fn collapse(bin: &Bvh) -> Bvh4 {
-        let mut w = Bvh4 {
+    /// Collapses a binary BVH (any builder's) into W-wide nodes.
+    pub fn collapse(bin: &Bvh) -> Self {
+        assert!(W == 4 || W == 8, "wide BVHs are 4 or 8 wide");
+        let mut w = WideBvh {
             bounds: bin.bounds,
-            nodes: Vec::with_capacity(bin.nodes.len() / 2 + 1),
+            nodes: Vec::with_capacity((bin.nodes.len() / (W / 2) + 1) * Self::TEXELS),
             indices: bin.indices.clone(),
             depth: 0,
             prims: bin.prims,
@@ -89,63 +136,80 @@ impl Bvh4 {
         };
         // (binary inner node, wide slot to fill, depth of the wide node)
         let mut work = vec![(0usize, 0usize, 1u32)];
-        w.nodes.push([[0; 4]; 7]);
+        w.nodes.resize(Self::TEXELS, [0; 4]);
         while let Some((b, slot, d)) = work.pop() {
             w.depth = w.depth.max(d);
-            let kids = open_wide(bin, b, WIDTH);
-            let mut node: GpuBvh4Node = [[0; 4]; 7];
-            node[6] = [EMPTY_REF; 4];
+            let kids = open_wide(bin, b, W);
+            let base = slot * Self::TEXELS;
+            for k in 0..W {
+                w.set(base, 6, k, EMPTY_REF);
+            }
             for (k, (r, bx)) in kids.iter().enumerate() {
-                node[0][k] = bx.min.x.to_bits();
-                node[1][k] = bx.min.y.to_bits();
-                node[2][k] = bx.min.z.to_bits();
-                node[3][k] = bx.max.x.to_bits();
-                node[4][k] = bx.max.y.to_bits();
-                node[5][k] = bx.max.z.to_bits();
-                node[6][k] = if r & LEAF_REF != 0 {
+                let planes = [bx.min.x, bx.min.y, bx.min.z, bx.max.x, bx.max.y, bx.max.z];
+                for (row, v) in planes.iter().enumerate() {
+                    w.set(base, row, k, v.to_bits());
+                }
+                let reference = if r & LEAF_REF != 0 {
                     *r
                 } else {
-                    let child = w.nodes.len();
-                    w.nodes.push([[0; 4]; 7]);
+                    let child = w.node_count();
+                    w.nodes.resize((child + 1) * Self::TEXELS, [0; 4]);
                     work.push((*r as usize, child, d + 1));
                     child as u32
                 };
+                w.set(base, 6, k, reference);
             }
-            w.nodes[slot] = node;
         }
         w
     }
 
+    /// Sets word `k` (child k) of row `row` of the node whose texels start at `base`.
+    fn set(&mut self, base: usize, row: usize, k: usize, v: u32) {
+        self.nodes[base + row * Self::ROW + k / 4][k % 4] = v;
+    }
+
+    /// Word `k` of row `row` of node `n`.
+    pub fn word(&self, n: usize, row: usize, k: usize) -> u32 {
+        self.nodes[n * Self::TEXELS + row * Self::ROW + k / 4][k % 4]
+    }
+
+    /// Nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len() / Self::TEXELS
+    }
+
     /// Bytes as uploaded.
     pub fn bytes(&self) -> u64 {
-        (self.nodes.len() * std::mem::size_of::<GpuBvh4Node>() + self.indices.len() * 4) as u64
+        (self.nodes.len() * 16 + self.indices.len() * 4) as u64
     }
 
     /// Children of node `n`: (reference, box), empty slots included.
-    pub fn children(&self, n: usize) -> [(u32, Aabb); WIDTH] {
-        let c = &self.nodes[n];
+    pub fn children(&self, n: usize) -> [(u32, Aabb); W] {
         std::array::from_fn(|k| {
-            let f = |row: usize| f32::from_bits(c[row][k]);
-            (c[6][k], Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) })
+            let f = |row: usize| f32::from_bits(self.word(n, row, k));
+            (self.word(n, 6, k), Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) })
         })
     }
 
     /// Statistics, with the SAH cost computed as for every other structure (an empty
     /// slot is an empty leaf).
     pub fn stats(&self) -> BuildStats {
-        super::tree_stats("bvh4", self.nodes.len(), |n| self.children(n), self.bytes(), self.depth, self.prims)
+        super::tree_stats(Self::name(), self.node_count(), |n| self.children(n), self.bytes(), self.depth, self.prims)
             .with_timing(self.build_ms, &self.phases)
     }
 
     /// Checks the binary BVH's invariants ([`Bvh::validate`]), and that an empty slot
     /// has an all-zero box.
     pub fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
-        for n in 0..self.nodes.len() {
+        if self.nodes.is_empty() || self.nodes.len() % Self::TEXELS != 0 {
+            return Err(ValidateError::whole(format!("{} texels do not make whole nodes", self.nodes.len())));
+        }
+        for n in 0..self.node_count() {
             if self.children(n).iter().any(|(r, b)| *r == EMPTY_REF && (b.min != Vec3::ZERO || b.max != Vec3::ZERO)) {
                 return Err(ValidateError::node(n, "an empty slot has a box"));
             }
         }
-        super::validate_tree(scene, self.nodes.len(), &self.indices, self.depth, |n| self.children(n))
+        super::validate_tree(scene, self.node_count(), &self.indices, self.depth, |n| self.children(n))
     }
 
     /// The kernel's traversal on the CPU (see the module docs).
@@ -154,15 +218,15 @@ impl Bvh4 {
         if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
             return false;
         }
-        let mut stack: Vec<u32> = Vec::with_capacity(3 * self.depth as usize + 1);
+        let mut stack: Vec<u32> = Vec::with_capacity((W - 1) * self.depth as usize + 1);
         let mut cur = 0u32;
         let mut found = false;
         loop {
             while cur & LEAF_REF == 0 {
                 let limit = best.t * (1.0 + T_MARGIN);
                 let kids = self.children(cur as usize);
-                let mut keys = [f32::INFINITY; WIDTH];
-                let mut refs = [EMPTY_REF; WIDTH];
+                let mut keys = [f32::INFINITY; W];
+                let mut refs = [EMPTY_REF; W];
                 for (k, (r, b)) in kids.iter().enumerate() {
                     refs[k] = *r;
                     if *r != EMPTY_REF {
@@ -173,7 +237,8 @@ impl Bvh4 {
                 }
                 let n = keys.iter().filter(|k| **k < f32::INFINITY).count();
                 // The kernel's sorting network, comparator for comparator.
-                for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+                let network: &[(usize, usize)] = if W == 8 { &SORT8 } else { &SORT4 };
+                for &(i, j) in network {
                     if keys[j] < keys[i] {
                         keys.swap(i, j);
                         refs.swap(i, j);
@@ -233,18 +298,18 @@ pub(super) fn open_wide(bin: &Bvh, b: usize, width: usize) -> Vec<(u32, Aabb)> {
     kids
 }
 
-impl crate::accel::Traverse for Bvh4 {
+impl<const W: usize> crate::accel::Traverse for WideBvh<W> {
     fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
         self.traverse_impl(prims, ray, best, any)
     }
 }
 
-impl crate::accel::Structure for Bvh4 {
+impl<const W: usize> crate::accel::Structure for WideBvh<W> {
     fn validate(&self, scene: &Scene) -> Result<(), ValidateError> {
-        Bvh4::validate(self, scene)
+        WideBvh::validate(self, scene)
     }
     fn stats(&self, _scene: &Scene) -> BuildStats {
-        Bvh4::stats(self)
+        WideBvh::stats(self)
     }
     fn timing(&self) -> (f64, Vec<Phase>) {
         (self.build_ms, self.phases.clone())
@@ -266,12 +331,36 @@ impl crate::accel::Structure for Bvh4 {
             )));
         }
         Ok(GpuImage {
-            family: "bvh4",
+            family: Self::name(),
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
-            // Each node visited pushes at most 3 children.
-            stack_size: 3 * self.depth + 1,
-            cost_per_ray: 4 * (u64::from(self.depth) + 8),
+            // Each node visited pushes at most W - 1 children.
+            stack_size: (W as u32 - 1) * self.depth + 1,
+            cost_per_ray: W as u64 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_networks_sort_every_input() {
+        // The 0-1 principle: a comparator network that sorts all binary inputs sorts
+        // every input.
+        fn check<const N: usize>(network: &[(usize, usize)]) {
+            for bits in 0u32..(1 << N) {
+                let mut v: [u32; N] = std::array::from_fn(|k| (bits >> k) & 1);
+                for &(i, j) in network {
+                    if v[j] < v[i] {
+                        v.swap(i, j);
+                    }
+                }
+                assert!(v.windows(2).all(|w| w[0] <= w[1]), "{bits:b} -> {v:?}");
+            }
+        }
+        check::<4>(&SORT4);
+        check::<8>(&SORT8);
     }
 }
