@@ -1,4 +1,4 @@
-// 4-wide BVH traversal (bvh4). Mirrors WideBvh::<4>::traverse in src/accel/bvh/wide.rs, where
+// 4-wide BVH traversal (bvh4). Mirrors traverse_wide in src/accel/bvh/wide.rs, where
 // the layout is documented: 7 texels per node, the four children's boxes as
 // structure of arrays (min x, min y, min z, max x, max y, max z) and their references
 // (the binary BVH's encoding: bit 31 leaf, first << 3 | count - 1; 0xffffffff none).

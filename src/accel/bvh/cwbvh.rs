@@ -44,9 +44,9 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::wide::open_wide;
-use super::{leaf_range, Bvh, BvhBuilder, EMPTY_REF, LEAF_REF, MAX_BVH_DEPTH, MAX_BVH_PRIMS, T_MARGIN};
-use crate::accel::prim::{self, Prims};
+use super::wide::{check_limits, open_wide, traverse_wide};
+use super::{Bvh, BvhBuilder, EMPTY_REF, LEAF_REF};
+use crate::accel::prim::Prims;
 use crate::accel::validate::ValidateError;
 use crate::accel::{BuildStats, GpuImage, Phase, TraceLoop};
 use crate::math::{Aabb, Hit, Ray};
@@ -280,67 +280,11 @@ impl Cwbvh {
         }
         super::validate_tree(scene, self.nodes.len(), &self.indices, self.depth, |n| self.exact_children(n))
     }
-
-    /// The kernel's traversal on the CPU (see the module docs).
-    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        let inv = Aabb::inv_dir(ray.dir);
-        if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
-            return false;
-        }
-        let mut stack: Vec<u32> = Vec::with_capacity(7 * self.depth as usize + 1);
-        let mut cur = 0u32;
-        let mut found = false;
-        loop {
-            while cur & LEAF_REF == 0 {
-                let limit = best.t * (1.0 + T_MARGIN);
-                let kids = self.children(cur as usize);
-                let mut keys = [f32::INFINITY; WIDTH];
-                let mut refs = [EMPTY_REF; WIDTH];
-                for (k, (r, b)) in kids.iter().enumerate() {
-                    refs[k] = *r;
-                    if *r != EMPTY_REF {
-                        if let Some((t0, _)) = b.ray_box(ray.origin, inv, ray.tmin, limit) {
-                            keys[k] = t0;
-                        }
-                    }
-                }
-                let n = keys.iter().filter(|k| **k < f32::INFINITY).count();
-                for (i, j) in SORT8 {
-                    if keys[j] < keys[i] {
-                        keys.swap(i, j);
-                        refs.swap(i, j);
-                    }
-                }
-                if n > 0 {
-                    stack.extend(refs[1..n].iter().rev());
-                    cur = refs[0];
-                } else {
-                    match stack.pop() {
-                        Some(c) => cur = c,
-                        None => return found,
-                    }
-                }
-            }
-            let (first, count) = leaf_range(cur);
-            for &p in &self.indices[first..first + count] {
-                if prim::intersect_prim(prims, p, ray, best) {
-                    found = true;
-                    if any {
-                        return true;
-                    }
-                }
-            }
-            match stack.pop() {
-                Some(c) => cur = c,
-                None => return found,
-            }
-        }
-    }
 }
 
 impl crate::accel::Traverse for Cwbvh {
     fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(prims, ray, best, any)
+        traverse_wide(&self.bounds, self.depth, &self.indices, |n| self.children(n), &SORT8, prims, ray, best, any)
     }
 }
 
@@ -358,18 +302,7 @@ impl crate::accel::Structure for Cwbvh {
         self.bounds
     }
     fn gpu_image(&self, _scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
-        if self.depth > MAX_BVH_DEPTH {
-            return Err(ValidateError::whole(format!(
-                "BVH depth {} exceeds the kernel's stack of {MAX_BVH_DEPTH}",
-                self.depth
-            )));
-        }
-        if self.prims > MAX_BVH_PRIMS {
-            return Err(ValidateError::whole(format!(
-                "{} primitives exceed the BVH layout's {MAX_BVH_PRIMS}",
-                self.prims
-            )));
-        }
+        check_limits(self.depth, self.prims)?;
         Ok(GpuImage {
             family: "cwbvh",
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),

@@ -211,64 +211,86 @@ impl<const W: usize> WideBvh<W> {
         }
         super::validate_tree(scene, self.node_count(), &self.indices, self.depth, |n| self.children(n))
     }
+}
 
-    /// The kernel's traversal on the CPU (see the module docs).
-    fn traverse_impl(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        let inv = Aabb::inv_dir(ray.dir);
-        if self.bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
-            return false;
+/// The wide kernels' traversal on the CPU (bvh4, bvh8, cwbvh; see the module docs):
+/// node `n`'s children are `children(n)`, ordered by `network`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn traverse_wide<const W: usize>(
+    bounds: &Aabb,
+    depth: u32,
+    indices: &[u32],
+    children: impl Fn(usize) -> [(u32, Aabb); W],
+    network: &[(usize, usize)],
+    prims: &Prims,
+    ray: &Ray,
+    best: &mut Hit,
+    any: bool,
+) -> bool {
+    let inv = Aabb::inv_dir(ray.dir);
+    if bounds.ray_box(ray.origin, inv, ray.tmin, ray.tmax).is_none() {
+        return false;
+    }
+    let mut stack: Vec<u32> = Vec::with_capacity((W - 1) * depth as usize + 1);
+    let mut cur = 0u32;
+    let mut found = false;
+    loop {
+        while cur & LEAF_REF == 0 {
+            let limit = best.t * (1.0 + T_MARGIN);
+            let mut keys = [f32::INFINITY; W];
+            let mut refs = [EMPTY_REF; W];
+            for (k, (r, b)) in children(cur as usize).iter().enumerate() {
+                refs[k] = *r;
+                if *r != EMPTY_REF {
+                    if let Some((t0, _)) = b.ray_box(ray.origin, inv, ray.tmin, limit) {
+                        keys[k] = t0;
+                    }
+                }
+            }
+            let n = keys.iter().filter(|k| **k < f32::INFINITY).count();
+            // The kernel's sorting network, comparator for comparator.
+            for &(i, j) in network {
+                if keys[j] < keys[i] {
+                    keys.swap(i, j);
+                    refs.swap(i, j);
+                }
+            }
+            if n > 0 {
+                stack.extend(refs[1..n].iter().rev());
+                cur = refs[0];
+            } else {
+                match stack.pop() {
+                    Some(c) => cur = c,
+                    None => return found,
+                }
+            }
         }
-        let mut stack: Vec<u32> = Vec::with_capacity((W - 1) * self.depth as usize + 1);
-        let mut cur = 0u32;
-        let mut found = false;
-        loop {
-            while cur & LEAF_REF == 0 {
-                let limit = best.t * (1.0 + T_MARGIN);
-                let kids = self.children(cur as usize);
-                let mut keys = [f32::INFINITY; W];
-                let mut refs = [EMPTY_REF; W];
-                for (k, (r, b)) in kids.iter().enumerate() {
-                    refs[k] = *r;
-                    if *r != EMPTY_REF {
-                        if let Some((t0, _)) = b.ray_box(ray.origin, inv, ray.tmin, limit) {
-                            keys[k] = t0;
-                        }
-                    }
-                }
-                let n = keys.iter().filter(|k| **k < f32::INFINITY).count();
-                // The kernel's sorting network, comparator for comparator.
-                let network: &[(usize, usize)] = if W == 8 { &SORT8 } else { &SORT4 };
-                for &(i, j) in network {
-                    if keys[j] < keys[i] {
-                        keys.swap(i, j);
-                        refs.swap(i, j);
-                    }
-                }
-                if n > 0 {
-                    stack.extend(refs[1..n].iter().rev());
-                    cur = refs[0];
-                } else {
-                    match stack.pop() {
-                        Some(c) => cur = c,
-                        None => return found,
-                    }
+        let (first, count) = leaf_range(cur);
+        for &p in &indices[first..first + count] {
+            if prim::intersect_prim(prims, p, ray, best) {
+                found = true;
+                if any {
+                    return true;
                 }
             }
-            let (first, count) = leaf_range(cur);
-            for &p in &self.indices[first..first + count] {
-                if prim::intersect_prim(prims, p, ray, best) {
-                    found = true;
-                    if any {
-                        return true;
-                    }
-                }
-            }
-            match stack.pop() {
-                Some(c) => cur = c,
-                None => return found,
-            }
+        }
+        match stack.pop() {
+            Some(c) => cur = c,
+            None => return found,
         }
     }
+}
+
+/// The limits of the wide kernels' layouts: depth within the stack, primitives within
+/// the reference's 28 bits.
+pub(super) fn check_limits(depth: u32, prims: usize) -> Result<(), ValidateError> {
+    if depth > MAX_BVH_DEPTH {
+        return Err(ValidateError::whole(format!("BVH depth {depth} exceeds the kernel's stack of {MAX_BVH_DEPTH}")));
+    }
+    if prims > MAX_BVH_PRIMS {
+        return Err(ValidateError::whole(format!("{prims} primitives exceed the BVH layout's {MAX_BVH_PRIMS}")));
+    }
+    Ok(())
 }
 
 /// The children of a wide node collapsed from binary inner node `b`: its two children,
@@ -300,7 +322,8 @@ pub(super) fn open_wide(bin: &Bvh, b: usize, width: usize) -> Vec<(u32, Aabb)> {
 
 impl<const W: usize> crate::accel::Traverse for WideBvh<W> {
     fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {
-        self.traverse_impl(prims, ray, best, any)
+        let network: &[(usize, usize)] = if W == 8 { &SORT8 } else { &SORT4 };
+        traverse_wide(&self.bounds, self.depth, &self.indices, |n| self.children(n), network, prims, ray, best, any)
     }
 }
 
@@ -318,18 +341,7 @@ impl<const W: usize> crate::accel::Structure for WideBvh<W> {
         self.bounds
     }
     fn gpu_image(&self, _scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
-        if self.depth > MAX_BVH_DEPTH {
-            return Err(ValidateError::whole(format!(
-                "BVH depth {} exceeds the kernel's stack of {MAX_BVH_DEPTH}",
-                self.depth
-            )));
-        }
-        if self.prims > MAX_BVH_PRIMS {
-            return Err(ValidateError::whole(format!(
-                "{} primitives exceed the BVH layout's {MAX_BVH_PRIMS}",
-                self.prims
-            )));
-        }
+        check_limits(self.depth, self.prims)?;
         Ok(GpuImage {
             family: Self::name(),
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
