@@ -16,6 +16,19 @@ use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, MeshData, 
 use common::scenes::Rng;
 use glam::Vec3;
 
+/// One structure of each traversal kernel, for the shading tests (the BVH builders
+/// share one kernel, so trbvh stands for them).
+const SHADED_KINDS: [AccelKind; 8] = [
+    AccelKind::None,
+    AccelKind::Kdtree,
+    AccelKind::Trbvh,
+    AccelKind::Bvh4,
+    AccelKind::Bvh8,
+    AccelKind::Cwbvh,
+    AccelKind::Grid,
+    AccelKind::Octree,
+];
+
 /// (name, scale, shift): the transforms every test runs at.
 const SCALES: [(&str, f32, f32); 4] = [("unit", 1.0, 0.0), ("1e-6", 1e-6, 0.0), ("1e6", 1e6, 0.0), ("far", 1.0, 1e6)];
 
@@ -190,16 +203,7 @@ fn no_shadow_acne_at_grazing_light_and_no_black_rings_in_glass() {
         b.scene.camera = Camera { eye: s + Vec3::new(0.0, 2.5, 2.5) * scale, look_at: s, up: Vec3::Y, vfov: 50.0 };
         let scene = b.finish().expect("scene");
         let nt = scene.triangles.len() as u32;
-        for kind in [
-            AccelKind::None,
-            AccelKind::Kdtree,
-            AccelKind::Trbvh,
-            AccelKind::Bvh4,
-            AccelKind::Bvh8,
-            AccelKind::Cwbvh,
-            AccelKind::Grid,
-            AccelKind::Octree,
-        ] {
+        for kind in SHADED_KINDS {
             let f = render(&ctx, &scene, kind, 96, 96, false);
             // Plane pixels outside the sphere's shadow: those whose shadow ray toward the
             // light could only be blocked by the plane itself. Compare with the brightest.
@@ -236,16 +240,7 @@ fn no_shadow_acne_at_grazing_light_and_no_black_rings_in_glass() {
             up: Vec3::Y,
             vfov: 45.0,
         };
-        for kind in [
-            AccelKind::None,
-            AccelKind::Kdtree,
-            AccelKind::Trbvh,
-            AccelKind::Bvh4,
-            AccelKind::Bvh8,
-            AccelKind::Cwbvh,
-            AccelKind::Grid,
-            AccelKind::Octree,
-        ] {
+        for kind in SHADED_KINDS {
             let f = render(&ctx, &glass_scene, kind, 96, 96, false);
             let lum = |i: usize| f.radiance[i].iter().sum::<f32>();
             let sphere_px: Vec<usize> = (0..f.prim.len()).filter(|&i| f.prim[i] == nt).collect();

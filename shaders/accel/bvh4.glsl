@@ -14,13 +14,6 @@
 
 #include "common/bvh_leaf.glsl"
 
-// Entry distance of child box k of a node (components of lo, hi), +inf on a miss.
-float bvh4_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {
-    float t0, t1;
-    bool hit = ref != BVH_EMPTY && ray_box(lo, hi, r.origin, inv, r.tmin, limit, t0, t1);
-    return hit ? t0 : uintBitsToFloat(0x7f800000u);
-}
-
 bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;
@@ -44,10 +37,10 @@ bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
             vec4 hz = uintBitsToFloat(node_texel(base + 5u));
             uvec4 refs = node_texel(base + 6u);
             precise float limit = h.t * (1.0 + BVH_T_MARGIN);
-            float k0 = bvh4_enter(refs.x, vec3(lx.x, ly.x, lz.x), vec3(hx.x, hy.x, hz.x), r, inv, limit);
-            float k1 = bvh4_enter(refs.y, vec3(lx.y, ly.y, lz.y), vec3(hx.y, hy.y, hz.y), r, inv, limit);
-            float k2 = bvh4_enter(refs.z, vec3(lx.z, ly.z, lz.z), vec3(hx.z, hy.z, hz.z), r, inv, limit);
-            float k3 = bvh4_enter(refs.w, vec3(lx.w, ly.w, lz.w), vec3(hx.w, hy.w, hz.w), r, inv, limit);
+            float k0 = wide_enter(refs.x, vec3(lx.x, ly.x, lz.x), vec3(hx.x, hy.x, hz.x), r, inv, limit);
+            float k1 = wide_enter(refs.y, vec3(lx.y, ly.y, lz.y), vec3(hx.y, hy.y, hz.y), r, inv, limit);
+            float k2 = wide_enter(refs.z, vec3(lx.z, ly.z, lz.z), vec3(hx.z, hy.z, hz.z), r, inv, limit);
+            float k3 = wide_enter(refs.w, vec3(lx.w, ly.w, lz.w), vec3(hx.w, hy.w, hz.w), r, inv, limit);
             uint r0 = refs.x, r1 = refs.y, r2 = refs.z, r3 = refs.w;
             uint n = uint(k0 < INF) + uint(k1 < INF) + uint(k2 < INF) + uint(k3 < INF);
             wide_swap(k0, r0, k1, r1);

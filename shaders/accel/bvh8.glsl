@@ -6,13 +6,6 @@
 
 #include "common/bvh_leaf.glsl"
 
-// Entry distance of a child box, +inf on a miss or an empty slot.
-float bvh8_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {
-    float t0, t1;
-    bool hit = ref != BVH_EMPTY && ray_box(lo, hi, r.origin, inv, r.tmin, limit, t0, t1);
-    return hit ? t0 : uintBitsToFloat(0x7f800000u);
-}
-
 void wide8_keys(uint node, Ray r, vec3 inv, float limit,
                 out float k0, out float k1, out float k2, out float k3,
                 out float k4, out float k5, out float k6, out float k7,
@@ -29,14 +22,14 @@ void wide8_keys(uint node, Ray r, vec3 inv, float limit,
     uvec4 rb = node_texel(base + 13u);
     r0 = ra.x; r1 = ra.y; r2 = ra.z; r3 = ra.w;
     r4 = rb.x; r5 = rb.y; r6 = rb.z; r7 = rb.w;
-    k0 = bvh8_enter(r0, vec3(lxa.x, lya.x, lza.x), vec3(hxa.x, hya.x, hza.x), r, inv, limit);
-    k1 = bvh8_enter(r1, vec3(lxa.y, lya.y, lza.y), vec3(hxa.y, hya.y, hza.y), r, inv, limit);
-    k2 = bvh8_enter(r2, vec3(lxa.z, lya.z, lza.z), vec3(hxa.z, hya.z, hza.z), r, inv, limit);
-    k3 = bvh8_enter(r3, vec3(lxa.w, lya.w, lza.w), vec3(hxa.w, hya.w, hza.w), r, inv, limit);
-    k4 = bvh8_enter(r4, vec3(lxb.x, lyb.x, lzb.x), vec3(hxb.x, hyb.x, hzb.x), r, inv, limit);
-    k5 = bvh8_enter(r5, vec3(lxb.y, lyb.y, lzb.y), vec3(hxb.y, hyb.y, hzb.y), r, inv, limit);
-    k6 = bvh8_enter(r6, vec3(lxb.z, lyb.z, lzb.z), vec3(hxb.z, hyb.z, hzb.z), r, inv, limit);
-    k7 = bvh8_enter(r7, vec3(lxb.w, lyb.w, lzb.w), vec3(hxb.w, hyb.w, hzb.w), r, inv, limit);
+    k0 = wide_enter(r0, vec3(lxa.x, lya.x, lza.x), vec3(hxa.x, hya.x, hza.x), r, inv, limit);
+    k1 = wide_enter(r1, vec3(lxa.y, lya.y, lza.y), vec3(hxa.y, hya.y, hza.y), r, inv, limit);
+    k2 = wide_enter(r2, vec3(lxa.z, lya.z, lza.z), vec3(hxa.z, hya.z, hza.z), r, inv, limit);
+    k3 = wide_enter(r3, vec3(lxa.w, lya.w, lza.w), vec3(hxa.w, hya.w, hza.w), r, inv, limit);
+    k4 = wide_enter(r4, vec3(lxb.x, lyb.x, lzb.x), vec3(hxb.x, hyb.x, hzb.x), r, inv, limit);
+    k5 = wide_enter(r5, vec3(lxb.y, lyb.y, lzb.y), vec3(hxb.y, hyb.y, hzb.y), r, inv, limit);
+    k6 = wide_enter(r6, vec3(lxb.z, lyb.z, lzb.z), vec3(hxb.z, hyb.z, hzb.z), r, inv, limit);
+    k7 = wide_enter(r7, vec3(lxb.w, lyb.w, lzb.w), vec3(hxb.w, hyb.w, hzb.w), r, inv, limit);
 }
 
 #include "common/wide8.glsl"

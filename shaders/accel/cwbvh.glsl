@@ -19,9 +19,7 @@ float cw_q(uint lo, uint hi, uint k) {
 float cw_enter(uint k, uint ref, vec3 p, vec3 s, uvec4 t1, uvec4 t2, uvec4 t3, Ray r, vec3 inv, float limit) {
     vec3 lo = p + vec3(cw_q(t1.x, t1.y, k), cw_q(t1.z, t1.w, k), cw_q(t2.x, t2.y, k)) * s;
     vec3 hi = p + vec3(cw_q(t2.z, t2.w, k), cw_q(t3.x, t3.y, k), cw_q(t3.z, t3.w, k)) * s;
-    float t0, t1_;
-    bool hit = ref != BVH_EMPTY && ray_box(lo, hi, r.origin, inv, r.tmin, limit, t0, t1_);
-    return hit ? t0 : uintBitsToFloat(0x7f800000u);
+    return wide_enter(ref, lo, hi, r, inv, limit);
 }
 
 void wide8_keys(uint node, Ray r, vec3 inv, float limit,

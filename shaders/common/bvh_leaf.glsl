@@ -28,6 +28,14 @@ bool bvh_leaf(uint ref, Ray r, inout Hit h, bool first_hit, bool testing, inout 
     return found;
 }
 
+// Entry distance of a wide node's child box [lo, hi] into [tmin, limit], +inf on a miss
+// or an empty slot (reference BVH_EMPTY).
+float wide_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {
+    float t0, t1;
+    bool hit = ref != BVH_EMPTY && ray_box(lo, hi, r.origin, inv, r.tmin, limit, t0, t1);
+    return hit ? t0 : uintBitsToFloat(0x7f800000u);
+}
+
 // Orders (ka, ra) before (kb, rb) when kb < ka: one comparator of a sorting network.
 void wide_swap(inout float ka, inout uint ra, inout float kb, inout uint rb) {
     bool s = kb < ka;
