@@ -139,6 +139,37 @@ fn cpu_traversal_equals_brute_force() {
     }
 }
 
+/// What every collapse into wide nodes keeps: the binary tree's index array and leaves,
+/// no more nodes than the binary tree, and a free slot only in a node whose children
+/// are all leaves (nothing left to open).
+fn assert_collapsed<const W: usize>(
+    name: &str,
+    bin: &Bvh,
+    indices: &[u32],
+    node_count: usize,
+    children: impl Fn(usize) -> [(u32, arbor::math::Aabb); W],
+) {
+    assert_eq!(indices, bin.indices, "{name}");
+    assert!(node_count <= bin.nodes.len(), "{name}");
+    let leaves = |refs: Vec<u32>| {
+        let mut l: Vec<u32> = refs.into_iter().filter(|r| *r != EMPTY_REF && r & LEAF_REF != 0).collect();
+        l.sort_unstable();
+        l
+    };
+    let bin_refs = (0..bin.nodes.len()).flat_map(|n| bin.children(n).map(|c| c.0)).collect();
+    let wide_refs = (0..node_count).flat_map(|n| children(n).map(|c| c.0)).collect();
+    assert_eq!(leaves(wide_refs), leaves(bin_refs), "{name}: leaves differ");
+    for n in 0..node_count {
+        let kids = children(n);
+        if kids.iter().any(|c| c.0 == EMPTY_REF) {
+            assert!(
+                kids.iter().all(|c| c.0 == EMPTY_REF || c.0 & LEAF_REF != 0),
+                "{name}: node {n} has a free slot and an inner child"
+            );
+        }
+    }
+}
+
 fn check_wide<const W: usize>() {
     use arbor::accel::bvh::wide::WideBvh;
     for scene in bvh_cases() {
@@ -146,29 +177,7 @@ fn check_wide<const W: usize>() {
             let bin = Bvh::build(&scene, b);
             let wide = WideBvh::<W>::collapse(&bin);
             wide.validate(&scene).unwrap_or_else(|e| panic!("{} {} {W}: {e}", scene.name, b.name()));
-            // The same leaves, so the same index array; every binary inner node but the
-            // root is either kept as a node or opened into its parent.
-            assert_eq!(wide.indices, bin.indices, "{}", scene.name);
-            assert!(wide.node_count() <= bin.nodes.len(), "{}", scene.name);
-            let leaves = |refs: Vec<u32>| {
-                let mut l: Vec<u32> = refs.into_iter().filter(|r| *r != EMPTY_REF && r & LEAF_REF != 0).collect();
-                l.sort_unstable();
-                l
-            };
-            let bin_refs = (0..bin.nodes.len()).flat_map(|n| bin.children(n).map(|c| c.0)).collect();
-            let wide_refs = (0..wide.node_count()).flat_map(|n| wide.children(n).map(|c| c.0)).collect();
-            assert_eq!(leaves(wide_refs), leaves(bin_refs), "{}: leaves differ", scene.name);
-            // A node with a free slot has nothing left to open: all its children are leaves.
-            for n in 0..wide.node_count() {
-                let kids = wide.children(n);
-                if kids.iter().any(|c| c.0 == EMPTY_REF) {
-                    assert!(
-                        kids.iter().all(|c| c.0 == EMPTY_REF || c.0 & LEAF_REF != 0),
-                        "{}: node {n} has a free slot and an inner child",
-                        scene.name
-                    );
-                }
-            }
+            assert_collapsed(&scene.name, &bin, &wide.indices, wide.node_count(), |n| wide.children(n));
             assert!(wide.depth <= bin.depth && WideBvh::<W>::WIDTH == W);
             let accel = if W == 4 {
                 Accel::Bvh4(arbor::accel::bvh::wide::Bvh4::collapse(&bin))
@@ -209,28 +218,11 @@ fn cwbvh_keeps_the_binary_leaves_under_quantised_boxes_that_contain_them() {
             let bin = Bvh::build(&scene, b);
             let wide = Cwbvh::collapse(&bin);
             wide.validate(&scene).unwrap_or_else(|e| panic!("{} {}: {e}", scene.name, b.name()));
-            assert_eq!(wide.indices, bin.indices, "{}", scene.name);
-            assert!(wide.nodes.len() <= bin.nodes.len(), "{}", scene.name);
-            let leaves = |refs: Vec<u32>| {
-                let mut l: Vec<u32> = refs.into_iter().filter(|r| *r != EMPTY_REF && r & LEAF_REF != 0).collect();
-                l.sort_unstable();
-                l
-            };
-            let bin_refs = (0..bin.nodes.len()).flat_map(|n| bin.children(n).map(|c| c.0)).collect();
-            let wide_refs = (0..wide.nodes.len()).flat_map(|n| wide.children(n).map(|c| c.0)).collect();
-            assert_eq!(leaves(wide_refs), leaves(bin_refs), "{}: leaves differ", scene.name);
+            assert_collapsed(&scene.name, &bin, &wide.indices, wide.nodes.len(), |n| wide.children(n));
             for n in 0..wide.nodes.len() {
                 let kids = wide.children(n);
-                if kids.iter().any(|c| c.0 == EMPTY_REF) {
-                    assert!(
-                        kids.iter().all(|c| c.0 == EMPTY_REF || c.0 & LEAF_REF != 0),
-                        "{}: node {n} has a free slot and an inner child",
-                        scene.name
-                    );
-                }
-                // Every primitive of a leaf child lies inside its decoded box, and the
-                // decoded box is no more than one grid step per side larger than the
-                // exact one (255 steps span the node).
+                // The decoded box contains the exact one (validate) and is no more than
+                // about one grid step per side larger (255 steps span the node).
                 for (k, (r, decoded)) in kids.iter().enumerate() {
                     if *r == EMPTY_REF {
                         continue;
