@@ -510,8 +510,9 @@ fn bench_convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()
     };
     let ctx = context(&args.device)?;
     eprintln!(
-        "device: {}; {} at {}x{} against {}; brute force only on scenes of at most 4096 primitives",
+        "device: {} ({}); {} at {}x{} against {}; brute force only on scenes of at most 4096 primitives",
         ctx.info().name,
+        ctx.info().driver,
         scene.name,
         scene.width,
         scene.height,
@@ -622,9 +623,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
     }
     let ctx = context(&args.device)?;
     eprintln!(
-        "device: {} ({}); {}x{} camera rays, kinds {}; brute force on a smaller image of the same view; median of {} rounds (structures in turn) after 1 warm-up",
+        "device: {} ({}, {}); {}x{} camera rays, kinds {}; brute force on a smaller image of the same view; median of {} rounds (structures in turn) after 1 warm-up",
         ctx.info().name,
         ctx.info().kind,
+        ctx.info().driver,
         size.0,
         size.1,
         opts.rays.iter().map(|k| k.name()).collect::<Vec<_>>().join(", "),
