@@ -21,6 +21,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "width",
     "height",
     "device",
+    "driver",
     "build_ms",
     "build_ms_spread",
     "rebuild_ms",

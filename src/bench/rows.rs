@@ -97,6 +97,7 @@ pub(super) struct Row {
     pub width: u32,
     pub height: u32,
     pub device: String,
+    pub driver: String,
     pub build_ms: f64,
     pub build_ms_spread: f64,
     pub rebuild_ms: f64,
@@ -136,6 +137,7 @@ pub(super) struct RowKey<'a> {
     pub rays: &'a str,
     pub size: (u32, u32),
     pub device: &'a str,
+    pub driver: &'a str,
 }
 
 impl Row {
@@ -151,6 +153,7 @@ impl Row {
             width: k.size.0,
             height: k.size.1,
             device: k.device.into(),
+            driver: k.driver.into(),
             build_ms: 0.0,
             build_ms_spread: 0.0,
             rebuild_ms: 0.0,

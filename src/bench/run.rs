@@ -278,6 +278,7 @@ fn finish(
         rays: rays.name(),
         size: c.size,
         device: &ctx.info().name,
+        driver: &ctx.info().driver,
     });
     if let Some(msg) = error {
         row.error = Some(msg);
