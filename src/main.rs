@@ -565,7 +565,7 @@ fn devices() -> Result<()> {
     let mut text = String::new();
     for d in list {
         text += &format!(
-            "{}: {} ({}, Vulkan {}, {}), maxStorageBufferRange {} bytes, timestampPeriod {} ns, subgroup {}\n",
+            "{}: {} ({}, Vulkan {}, {}), maxStorageBufferRange {} bytes, timestampPeriod {} ns, subgroup {}, ray query {}\n",
             d.index,
             d.name,
             d.kind,
@@ -573,7 +573,11 @@ fn devices() -> Result<()> {
             d.driver,
             d.max_storage_buffer_range,
             d.timestamp_period_ns,
-            d.subgroup_size
+            d.subgroup_size,
+            match &d.ray_query_missing {
+                None => "yes".to_string(),
+                Some(m) => format!("no (lacks {m})"),
+            }
         );
     }
     Ok(print_out(&text)?)

@@ -48,7 +48,21 @@ pub struct DeviceInfo {
     /// Whether compute shaders have subgroup vote and arithmetic operations, which
     /// packet traversal (`--traversal packet`) and every trace kernel declare.
     pub subgroup_vote: bool,
+    /// Why `--accel rayquery` cannot run here: the first missing extension or feature
+    /// of VK_KHR_acceleration_structure + VK_KHR_ray_query; `None` where it can.
+    pub ray_query_missing: Option<String>,
 }
+
+impl DeviceInfo {
+    /// Whether the device traces with the driver's own structure (`--accel rayquery`).
+    pub fn ray_query(&self) -> bool {
+        self.ray_query_missing.is_none()
+    }
+}
+
+/// The device extensions `--accel rayquery` enables.
+pub(crate) const RAY_QUERY_EXTENSIONS: [&CStr; 3] =
+    [ash::khr::acceleration_structure::NAME, ash::khr::ray_query::NAME, ash::khr::deferred_host_operations::NAME];
 
 /// State shared by the context and every object it created; dropped last.
 pub(crate) struct Shared {
@@ -200,6 +214,7 @@ impl Context {
         let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut subgroup);
         // SAFETY: as above; Vulkan 1.1+ query with a valid chain.
         unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
+        let ray_query_missing = Self::ray_query_missing(instance, pd);
         DeviceInfo {
             index,
             name: props.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
@@ -214,7 +229,36 @@ impl Context {
                 && subgroup
                     .supported_operations
                     .contains(vk::SubgroupFeatureFlags::VOTE | vk::SubgroupFeatureFlags::ARITHMETIC),
+            ray_query_missing,
         }
+    }
+
+    /// The first extension or feature that ray queries need and `pd` lacks.
+    fn ray_query_missing(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Option<String> {
+        // SAFETY: `pd` was enumerated from `instance`.
+        let exts = unsafe { instance.enumerate_device_extension_properties(pd) }.unwrap_or_default();
+        for want in RAY_QUERY_EXTENSIONS {
+            if !exts.iter().any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == want)) {
+                return Some(want.to_string_lossy().into_owned());
+            }
+        }
+        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
+        let mut query = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+        let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
+        let mut f2 =
+            vk::PhysicalDeviceFeatures2::default().push_next(&mut accel).push_next(&mut query).push_next(&mut v12);
+        // SAFETY: as above; every struct in the chain is an extension the device has.
+        unsafe { instance.get_physical_device_features2(pd, &mut f2) };
+        if accel.acceleration_structure == vk::FALSE {
+            return Some("the accelerationStructure feature".into());
+        }
+        if query.ray_query == vk::FALSE {
+            return Some("the rayQuery feature".into());
+        }
+        if v12.buffer_device_address == vk::FALSE {
+            return Some("the bufferDeviceAddress feature".into());
+        }
+        None
     }
 
     /// Lists the Vulkan 1.2+ devices with a compute queue, in enumeration order.
