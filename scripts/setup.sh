@@ -8,16 +8,27 @@
 # bookworm-backports (Mesa 25), whose lavapipe traces 15-35% faster than Debian 12's
 # Mesa 22.3 (docs/lavapipe.md). It upgrades the system's Mesa (Vulkan and GL drivers)
 # and libdrm, so it is opt-in; CI uses Debian 12's own.
+#
+# --mesa-aside DIR: unpack Mesa 25's lavapipe (and the libdrm it needs) from
+# bookworm-backports into DIR without installing it, and write DIR/lvp_icd.json.
+# Use it with VK_DRIVER_FILES=DIR/lvp_icd.json
+# LD_LIBRARY_PATH=DIR/usr/lib/x86_64-linux-gnu: it has VK_KHR_ray_query
+# (`--accel rayquery`) while the system keeps Debian 12's Mesa. CI tests both.
 set -euo pipefail
 SUDO=""
 if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
 BACKPORTS=0
-for arg in "$@"; do
-  case "$arg" in
+ASIDE=""
+while [ $# -gt 0 ]; do
+  case "$1" in
     --mesa-backports) BACKPORTS=1 ;;
-    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-    *) echo "setup: unknown option '$arg' (known: --mesa-backports, --help)" >&2; exit 2 ;;
+    --mesa-aside)
+      [ $# -ge 2 ] && [ -n "$2" ] || { echo "setup: --mesa-aside needs a directory" >&2; exit 2; }
+      ASIDE="$2"; shift ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "setup: unknown option '$1' (known: --mesa-backports, --mesa-aside DIR, --help)" >&2; exit 2 ;;
   esac
+  shift
 done
 PACKAGES=(
   mesa-vulkan-drivers vulkan-tools vulkan-validationlayers libvulkan-dev
@@ -34,10 +45,10 @@ if [ ${#missing[@]} -gt 0 ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
-if [ "$BACKPORTS" = 1 ]; then
+backports_source() {
   codename=$(. /etc/os-release && echo "${VERSION_CODENAME:-}")
   if [ "$codename" != bookworm ]; then
-    echo "setup: --mesa-backports is for Debian 12 (bookworm); this is '${codename:-unknown}'" >&2
+    echo "setup: $1 is for Debian 12 (bookworm); this is '${codename:-unknown}'" >&2
     exit 1
   fi
   if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
@@ -46,6 +57,27 @@ if [ "$BACKPORTS" = 1 ]; then
       $SUDO tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
   fi
   $SUDO apt-get update -qq
+}
+if [ -n "$ASIDE" ]; then
+  backports_source --mesa-aside
+  mkdir -p "$ASIDE"
+  ASIDE=$(cd "$ASIDE" && pwd)
+  debs=$(mktemp -d)
+  # apt's sandbox user must be able to write the download directory.
+  chmod 777 "$debs"
+  (cd "$debs" && apt-get download -qq -t bookworm-backports mesa-vulkan-drivers libdrm2 libdrm-amdgpu1)
+  for d in "$debs"/*.deb; do dpkg-deb -x "$d" "$ASIDE"; done
+  ver=$(dpkg-deb -f "$debs"/mesa-vulkan-drivers_*.deb Version)
+  rm -rf "$debs"
+  lib="$ASIDE/usr/lib/x86_64-linux-gnu/libvulkan_lvp.so"
+  [ -f "$lib" ] || { echo "setup: $lib missing after unpacking" >&2; exit 1; }
+  api=$(sed -n 's/.*"api_version": *"\([^"]*\)".*/\1/p' "$ASIDE/usr/share/vulkan/icd.d/lvp_icd.json")
+  printf '{\n    "ICD": {\n        "api_version": "%s",\n        "library_path": "%s"\n    },\n    "file_format_version": "1.0.0"\n}\n' \
+    "${api:-1.3.0}" "$lib" > "$ASIDE/lvp_icd.json"
+  echo "setup: Mesa $ver lavapipe unpacked in $ASIDE; use VK_DRIVER_FILES=$ASIDE/lvp_icd.json LD_LIBRARY_PATH=$ASIDE/usr/lib/x86_64-linux-gnu" >&2
+fi
+if [ "$BACKPORTS" = 1 ]; then
+  backports_source --mesa-backports
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers >/dev/null
   echo "setup: mesa-vulkan-drivers $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers) installed" >&2
 fi

@@ -86,8 +86,9 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 }
 
-#ifdef HAS_INSTANCES
-// The structure's traversal becomes the bottom level of common/instances.glsl.
+#if defined(HAS_INSTANCES) && !defined(ACCEL_RAYQUERY)
+// The structure's traversal becomes the bottom level of common/instances.glsl (the
+// driver's structure has both levels in it).
 #define trace_closest blas_closest
 #define trace_any blas_any
 #define trace_closest_coherent blas_closest_coherent
@@ -110,6 +111,8 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #include "accel/cwbvh.glsl"
 #elif defined(ACCEL_OCTREE)
 #include "accel/octree.glsl"
+#elif defined(ACCEL_RAYQUERY)
+#include "accel/rayquery.glsl"
 #endif
 
 #if !defined(ACCEL_BVH)

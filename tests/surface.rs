@@ -85,6 +85,7 @@ fn validate_names_what_is_wrong() {
         Accel::Octree(t) => t.indices[0] = np,
         Accel::None(t) => t.bounds = arbor::math::Aabb::EMPTY,
         Accel::TwoLevel(_) => unreachable!("the blob has no instances"),
+        Accel::RayQuery(_) => unreachable!("AccelKind::ALL is arbor's own structures"),
     };
     for &kind in AccelKind::ALL {
         let mut accel = Accel::build(kind, &scene);

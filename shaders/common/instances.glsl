@@ -8,7 +8,13 @@
 #ifndef ARBOR_INSTANCES_GLSL
 #define ARBOR_INSTANCES_GLSL
 
+#ifdef ACCEL_RAYQUERY
+// The driver's structure traverses both levels (accel/rayquery.glsl); only the
+// records' readers below are used.
+#include "common/accel_texels.glsl"
+#else
 #include "common/bvh_leaf.glsl"
+#endif
 
 // INST_ENTRY_TEXELS, INST_ENTRY_OWN: src/gpu/bindings.rs.
 
@@ -17,6 +23,7 @@ uvec4 inst_texel(uint k) { return texelFetch(accel_node_texels, int(k)); }
 // First texel of entry e's record.
 uint inst_record(uint e) { return inst_texel(0u).z + e * INST_ENTRY_TEXELS; }
 
+#ifndef ACCEL_RAYQUERY
 // Points the bottom-level traversal at entry e's structure and returns `r` in its
 // space: origin and direction by the world-to-object transform, not renormalised, so
 // that t is the same in both spaces.
@@ -115,6 +122,7 @@ bool trace_any(Ray r) {
 // No packet traversal across instances: coherent rays trace one by one.
 bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
 bool trace_any_coherent(Ray r) { return trace_any(r); }
+#endif
 
 // A hit on an instance, computed in its prototype's space, into the world: the point
 // by the object-to-world transform, its error bound carried through |M| plus the

@@ -368,6 +368,7 @@ impl Grid {
             phases: self.phases.clone(),
             resolution: Some(self.res),
             levels: None,
+            opaque: None,
         }
     }
 
@@ -554,6 +555,7 @@ impl super::Structure for Grid {
             // About half the cells along the diagonal, a few primitives each.
             cost_per_ray: self.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,
             trace_loop: super::TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

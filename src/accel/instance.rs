@@ -415,6 +415,7 @@ impl super::Structure for TwoLevel {
             phases: self.phases.clone(),
             resolution: None,
             levels: Some(levels),
+            opaque: None,
         }
     }
 
@@ -440,6 +441,7 @@ impl super::Structure for TwoLevel {
             stack_size: parts.stack_size,
             cost_per_ray: parts.cost_per_ray,
             trace_loop: TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

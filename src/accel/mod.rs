@@ -14,6 +14,8 @@
 //!   boxes ([`bvh::cwbvh`]), its own layout and kernel.
 //! - [`AccelKind::Grid`]: uniform grid, 3D-DDA (Amanatides & Woo 1987).
 //! - [`AccelKind::Octree`]: octree with child masks, parametric traversal (Revelles 2000).
+//! - [`AccelKind::RayQuery`]: the device driver's own structure, traced with
+//!   VK_KHR_ray_query ([`rayquery`]): the peer a Vulkan user would pick instead.
 
 #![forbid(unsafe_code)]
 
@@ -27,6 +29,7 @@ pub mod none;
 pub mod octree;
 pub mod params;
 pub mod prim;
+pub mod rayquery;
 pub mod sah;
 pub mod validate;
 
@@ -64,10 +67,14 @@ pub enum AccelKind {
     Grid,
     /// Octree, subdivided about node centres (Revelles et al. 2000 traversal).
     Octree,
+    /// The driver's acceleration structure (VK_KHR_acceleration_structure), traced
+    /// with VK_KHR_ray_query; needs a device that has both.
+    RayQuery,
 }
 
 impl AccelKind {
-    /// Every kind, in CLI order.
+    /// arbor's own structures, in CLI order: every kind but [`AccelKind::RayQuery`],
+    /// which exists only on devices with ray queries (see [`AccelKind::EVERY`]).
     pub const ALL: &'static [AccelKind] = &[
         AccelKind::None,
         AccelKind::Kdtree,
@@ -80,6 +87,22 @@ impl AccelKind {
         AccelKind::Cwbvh,
         AccelKind::Grid,
         AccelKind::Octree,
+    ];
+
+    /// Every kind `--accel` takes: arbor's own, then the driver's.
+    pub const EVERY: &'static [AccelKind] = &[
+        AccelKind::None,
+        AccelKind::Kdtree,
+        AccelKind::BspCourse,
+        AccelKind::BvhSah,
+        AccelKind::Lbvh,
+        AccelKind::Trbvh,
+        AccelKind::Bvh4,
+        AccelKind::Bvh8,
+        AccelKind::Cwbvh,
+        AccelKind::Grid,
+        AccelKind::Octree,
+        AccelKind::RayQuery,
     ];
 
     /// The CLI / kernel name.
@@ -96,7 +119,14 @@ impl AccelKind {
             AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
+            AccelKind::RayQuery => "rayquery",
         }
+    }
+
+    /// Whether the device's driver builds and traverses this structure (ray queries),
+    /// so that it exists only on a device that has them.
+    pub fn driver_built(self) -> bool {
+        self == AccelKind::RayQuery
     }
 
     /// The structure `render` and `info` build unless told otherwise.
@@ -124,6 +154,7 @@ impl AccelKind {
             AccelKind::Trbvh => Some("trbvh"),
             AccelKind::Grid => Some("grid"),
             AccelKind::Octree => Some("octree"),
+            AccelKind::RayQuery => Some("rayquery"),
             AccelKind::None
             | AccelKind::BspCourse
             | AccelKind::BvhSah
@@ -145,6 +176,7 @@ impl AccelKind {
             AccelKind::Cwbvh => "cwbvh",
             AccelKind::Grid => "grid",
             AccelKind::Octree => "octree",
+            AccelKind::RayQuery => "rayquery",
         }
     }
 }
@@ -170,9 +202,10 @@ impl FromStr for AccelKind {
             "cwbvh" => Ok(AccelKind::Cwbvh),
             "grid" => Ok(AccelKind::Grid),
             "octree" => Ok(AccelKind::Octree),
+            "rayquery" | "ray-query" => Ok(AccelKind::RayQuery),
             _ => Err(format!(
                 "unknown structure '{s}'; available: {}",
-                AccelKind::ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
+                AccelKind::EVERY.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
             )),
         }
     }
@@ -212,6 +245,10 @@ pub struct BuildStats {
     /// Each level of a two-level structure (instanced scenes only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub levels: Option<instance::LevelStats>,
+    /// Set where the structure is the driver's (`rayquery`): what arbor cannot see of
+    /// it (node counts, depth and SAH cost are then 0, meaning unknown).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opaque: Option<String>,
 }
 
 /// One timed phase of a build.
@@ -309,6 +346,9 @@ pub struct GpuImage<'a> {
     /// Estimated work (primitive tests or traversal steps) of one ray, to size dispatches.
     pub cost_per_ray: u64,
     pub trace_loop: TraceLoop,
+    /// The driver's structure the kernel traces with ray queries (`rayquery`), bound
+    /// at `BINDING_TLAS`; `None` for every structure of arbor's own.
+    pub ray_structure: Option<&'a crate::gpu::RayStructure>,
 }
 
 /// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh and
@@ -351,11 +391,13 @@ pub struct AccelParams {
     pub octree: octree::OctreeParams,
     /// trbvh's treelet restructuring.
     pub treelet: bvh::treelet::TreeletParams,
+    /// The driver's build (`rayquery`).
+    pub rayquery: rayquery::RayQueryParams,
 }
 
 impl AccelParams {
     /// Every structure's parameter flag (see [`AccelKind::param_flag`]).
-    pub const FLAGS: &'static [&'static str] = &["kd", "grid", "octree", "trbvh"];
+    pub const FLAGS: &'static [&'static str] = &["kd", "grid", "octree", "trbvh", "rayquery"];
 
     /// Applies `spec` (a preset and/or KEY=VALUE pairs) to the parameters that
     /// `--<flag>` sets, on top of their current values.
@@ -366,6 +408,7 @@ impl AccelParams {
             "grid" => self.grid = self.grid.parse_onto(spec)?,
             "octree" => self.octree = self.octree.parse_onto(spec)?,
             "trbvh" => self.treelet = self.treelet.parse_onto(spec)?,
+            "rayquery" => self.rayquery = self.rayquery.parse_onto(spec)?,
             _ => {
                 return Err(params::ParamError {
                     flag: "accel",
@@ -403,6 +446,8 @@ pub enum Accel {
     Octree(octree::Octree),
     /// Any of the above per prototype of an instanced scene, under a top-level BVH.
     TwoLevel(Box<instance::TwoLevel>),
+    /// The driver's structure (ray queries), instanced scenes included.
+    RayQuery(Box<rayquery::RayQuery>),
 }
 
 impl Accel {
@@ -413,7 +458,12 @@ impl Accel {
 
     /// Builds `kind` for `scene` with `params` (each structure reads its own part); for
     /// a scene with instances, a two-level structure of `kind` ([`instance`]).
+    /// `rayquery` made this way has no device part: CPU traversal only (use
+    /// [`Accel::build_on`] to trace it).
     pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, params: &AccelParams) -> Accel {
+        if kind == AccelKind::RayQuery {
+            return Accel::RayQuery(Box::new(rayquery::RayQuery::cpu_only(scene, params)));
+        }
         if scene.has_instances() {
             return Accel::TwoLevel(Box::new(instance::TwoLevel::build(kind, scene, params)));
         }
@@ -434,6 +484,7 @@ impl Accel {
             AccelKind::Cwbvh => Accel::Cwbvh(bvh::cwbvh::Cwbvh::build(scene, bvh::BvhBuilder::Sah)),
             AccelKind::Grid => Accel::Grid(grid::Grid::build(scene, &params.grid)),
             AccelKind::Octree => Accel::Octree(octree::Octree::build(scene, &params.octree)),
+            AccelKind::RayQuery => Accel::RayQuery(Box::new(rayquery::RayQuery::cpu_only(scene, params))),
         }
     }
 
@@ -457,6 +508,15 @@ impl Accel {
         params: &AccelParams,
         pipelines: &mut Option<bvh::gpu_build::GpuBuilder>,
     ) -> crate::error::Result<Accel> {
+        if kind == AccelKind::RayQuery {
+            if params.build == BuildOn::Gpu {
+                return Err(crate::error::Error::Usage(
+                    "--build gpu builds lbvh and trbvh; rayquery is built by the device's driver (use --build cpu)"
+                        .into(),
+                ));
+            }
+            return Ok(Accel::RayQuery(Box::new(rayquery::RayQuery::build(ctx, scene, params)?)));
+        }
         match params.build {
             BuildOn::Cpu => Ok(Self::build_with(kind, scene, params)),
             BuildOn::Gpu if scene.has_instances() => {
@@ -493,6 +553,7 @@ impl Accel {
             Accel::Grid(t) => t,
             Accel::Octree(t) => t,
             Accel::TwoLevel(t) => t.as_ref(),
+            Accel::RayQuery(t) => t.as_ref(),
         }
     }
 

@@ -314,6 +314,7 @@ impl Octree {
             phases: self.phases.clone(),
             resolution: None,
             levels: None,
+            opaque: None,
         }
     }
 
@@ -702,6 +703,7 @@ impl super::Structure for Octree {
             // A descent from the root per cell visited.
             cost_per_ray: 8 * (u64::from(self.depth) + 4),
             trace_loop: super::TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

@@ -74,6 +74,7 @@ impl Request {
             repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
             json: self.json.clone(),
+            with_driver: self.accel == AccelKind::ALL,
         })
     }
 

@@ -111,10 +111,12 @@ pub(super) struct Row {
     pub bytes: u64,
     pub sah_cost: f64,
     pub depth: u32,
-    pub nodes_mean: f64,
-    pub nodes_p99: u32,
-    pub prims_mean: f64,
-    pub prims_p99: u32,
+    /// Nodes visited and primitives tested per camera ray: mean and 99th percentile;
+    /// null where the kernel cannot count them (`rayquery`: the driver's traversal).
+    pub nodes_mean: Option<f64>,
+    pub nodes_p99: Option<u32>,
+    pub prims_mean: Option<f64>,
+    pub prims_p99: Option<u32>,
     pub misses_per_million: f64,
     pub aimed_escapes_per_million: Option<f64>,
     pub disagree_per_million: Option<f64>,
@@ -166,10 +168,10 @@ impl Row {
             bytes: 0,
             sah_cost: 0.0,
             depth: 0,
-            nodes_mean: 0.0,
-            nodes_p99: 0,
-            prims_mean: 0.0,
-            prims_p99: 0,
+            nodes_mean: None,
+            nodes_p99: None,
+            prims_mean: None,
+            prims_p99: None,
             misses_per_million: 0.0,
             aimed_escapes_per_million: None,
             disagree_per_million: None,
@@ -199,10 +201,11 @@ impl Row {
         self.bytes = st.build.bytes;
         self.sah_cost = st.build.sah_cost;
         self.depth = st.build.max_depth;
+        let counted = st.mean_nodes_visited.is_some();
         self.nodes_mean = st.mean_nodes_visited;
-        self.nodes_p99 = c.nodes_p99;
+        self.nodes_p99 = counted.then_some(c.nodes_p99);
         self.prims_mean = st.mean_prims_tested;
-        self.prims_p99 = c.prims_p99;
+        self.prims_p99 = counted.then_some(c.prims_p99);
         self.misses_per_million = c.misses as f64 * 1e6 / pixels.max(1) as f64;
         self.build_phases = median_phases(&c.phases);
     }
@@ -211,8 +214,10 @@ impl Row {
     pub fn table_line(&self, short: &str) -> String {
         let nt = self.triangles;
         let opt = |v: Option<f64>| v.map(|a| format!("{a:.0}")).unwrap_or_else(|| "-".into());
+        let mean = |v: Option<f64>| v.map(|a| format!("{a:.1}")).unwrap_or_else(|| "-".into());
+        let p99 = |v: Option<u32>| v.map(|a| a.to_string()).unwrap_or_else(|| "-".into());
         format!(
-            "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8.1} {:>7} {:>8.1} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9} {:>9}",
+            "{:>16} {:>9} {:>16} {:>9} {:>10.2} {:>10.2} {:>10.2} {:>9.2} {:>11.4} {:>9} {:>8} {:>7} {:>8} {:>7} {:>8.1} {:>7.1} {:>5} {:>9.1} {:>9} {:>9}",
             short,
             nt,
             self.label,
@@ -223,10 +228,10 @@ impl Row {
             self.trace_ms_spread,
             self.mrays_per_s,
             self.speedup.map(|s| format!("{s:.0}x")).unwrap_or_else(|| "-".into()),
-            self.nodes_mean,
-            self.nodes_p99,
-            self.prims_mean,
-            self.prims_p99,
+            mean(self.nodes_mean),
+            p99(self.nodes_p99),
+            mean(self.prims_mean),
+            p99(self.prims_p99),
             self.bytes as f64 / nt.max(1) as f64,
             self.sah_cost,
             self.depth,

@@ -83,6 +83,25 @@ pub fn run(ctx: &Context, opts: &Options, scenes: Option<Vec<Scene>>, progress: 
         Some(s) => s,
         None => load_scenes(opts)?,
     };
+    let with_driver;
+    let opts = if opts.with_driver {
+        let mut o = opts.clone();
+        if ctx.has_ray_query() {
+            let base = o.variants.first().map(|v| v.1).unwrap_or_default();
+            let p = AccelParams { build: BuildOn::Cpu, ..base };
+            o.variants.push((AccelKind::RayQuery, p, AccelKind::RayQuery.name().to_string()));
+        } else {
+            progress.note(&format!(
+                "rayquery left out: {} lacks {} (`arbor devices`)",
+                ctx.info().name,
+                ctx.info().ray_query_missing.as_deref().unwrap_or("ray queries")
+            ));
+        }
+        with_driver = o;
+        &with_driver
+    } else {
+        opts
+    };
     let cases = opts.scenes.len() * opts.rays.len() * opts.intersect.len() * opts.variants.len();
     progress.set_length((cases * (opts.repeat.max(1) + 1)) as u64);
     let mut out = Results::default();

@@ -63,6 +63,11 @@ pub(crate) struct StructureArgs {
     /// subtree size as a multiple of leaves; sets the rounds), e.g. leaves=6,gamma=1/2/4.
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     pub(crate) trbvh: String,
+    /// The driver's build (`--accel rayquery`): a preset (fast-trace, the default:
+    /// PREFER_FAST_TRACE; fast-build: PREFER_FAST_BUILD) and/or compact=true|false
+    /// (compact the bottom-level structures after building, default true).
+    #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
+    pub(crate) rayquery: String,
     /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute
     /// kernels; the same tree as the CPU builder's, word for word). `bench` takes a
     /// list (cpu,gpu): one row per structure and build device.
@@ -82,7 +87,13 @@ impl StructureArgs {
     /// Every structure's parameters: each flag's spec applied over the defaults.
     pub(crate) fn params(&self) -> Result<AccelParams> {
         let mut p = AccelParams { build: self.build.first().copied().unwrap_or_default(), ..Default::default() };
-        for (flag, spec) in [("kd", &self.kd), ("grid", &self.grid), ("octree", &self.octree), ("trbvh", &self.trbvh)] {
+        for (flag, spec) in [
+            ("kd", &self.kd),
+            ("grid", &self.grid),
+            ("octree", &self.octree),
+            ("trbvh", &self.trbvh),
+            ("rayquery", &self.rayquery),
+        ] {
             p.set_flag(flag, spec).map_err(anyhow::Error::msg)?;
         }
         Ok(p)
@@ -223,7 +234,9 @@ pub(crate) struct RenderArgs {
     /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
     /// (LBVH + treelet restructuring), bvh4 (bvh-sah collapsed into 4-wide nodes),
     /// bvh8 (the same, 8-wide), cwbvh (8-wide with 8-bit quantised boxes),
-    /// grid (uniform grid), octree, none (brute force), or auto: the one a cost model expects to build and trace this scene,
+    /// grid (uniform grid), octree, none (brute force), rayquery (the device driver's
+    /// own structure, traced with VK_KHR_ray_query, where `arbor devices` says ray
+    /// query yes), or auto: the one a cost model expects to build and trace this scene,
     /// image size and sample count fastest (`arbor info --accel auto` says why).
     /// Aliases: brute-force (= none), kd (= kdtree), bvh (= bvh-sah).
     #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]

@@ -19,6 +19,9 @@ pub const BINDING_PIXELS: u32 = 5;
 pub const BINDING_ACCEL_NODES: u32 = 6;
 /// Storage: acceleration-structure primitive indices.
 pub const BINDING_ACCEL_INDICES: u32 = 7;
+/// The driver's top-level acceleration structure (`--accel rayquery`), traced with
+/// VK_KHR_ray_query; not a buffer.
+pub const BINDING_TLAS: u32 = 8;
 
 /// GPU BVH build (src/accel/bvh/gpu_build.rs, shaders/build_*.comp): a header of
 /// counters and the centroid box (`BUILD_HDR_*` words).
@@ -184,6 +187,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_PIXELS", BINDING_PIXELS),
     ("BINDING_ACCEL_NODES", BINDING_ACCEL_NODES),
     ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
+    ("BINDING_TLAS", BINDING_TLAS),
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
     ("SPEC_LIGHTS", SPEC_LIGHTS),

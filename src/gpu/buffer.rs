@@ -22,6 +22,13 @@ pub enum BufferKind {
     Staging,
     /// Host-visible transfer destination.
     Readback,
+    /// Device-local backing of a driver acceleration structure (ray queries).
+    AccelStorage,
+    /// Host-written input of an acceleration-structure build (vertices, indices,
+    /// boxes, instances), read by the driver through its device address.
+    AccelInput,
+    /// Device-local scratch memory of an acceleration-structure build.
+    AccelScratch,
 }
 
 /// A buffer and its memory; both freed on drop.
@@ -86,6 +93,19 @@ impl Context {
             BufferKind::Uniform => (vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu),
             BufferKind::Staging => (vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::CpuToGpu),
             BufferKind::Readback => (vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu),
+            BufferKind::AccelStorage => (
+                vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                MemoryLocation::GpuOnly,
+            ),
+            BufferKind::AccelInput => (
+                vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                MemoryLocation::CpuToGpu,
+            ),
+            BufferKind::AccelScratch => (
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                MemoryLocation::GpuOnly,
+            ),
         };
         let dev = &self.shared.device;
         let info = vk::BufferCreateInfo::default().size(size).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
@@ -133,6 +153,15 @@ impl Context {
         // SAFETY: memory was allocated for these requirements and is not bound elsewhere.
         unsafe { dev.bind_buffer_memory(raw, a.memory(), a.offset()) }.map_err(vk_err("vkBindBufferMemory"))?;
         Ok(buffer)
+    }
+
+    /// The device address of a buffer made for acceleration structures (only those
+    /// have SHADER_DEVICE_ADDRESS usage; the feature is on where ray queries are).
+    pub(crate) fn device_address(&self, buffer: &Buffer) -> u64 {
+        let info = vk::BufferDeviceAddressInfo::default().buffer(buffer.raw);
+        // SAFETY: `buffer` is live and was created with SHADER_DEVICE_ADDRESS usage
+        // (AccelStorage, AccelInput, AccelScratch) on a device with bufferDeviceAddress.
+        unsafe { self.shared.device.get_buffer_device_address(&info) }
     }
 
     /// Writes `data` into a host-visible buffer (uniform or staging) at offset 0.

@@ -76,6 +76,9 @@ pub(crate) struct Shared {
     /// Validation errors collected by the messenger. Boxed so its address, passed
     /// to the driver as user data, stays fixed.
     pub messages: Box<Mutex<Vec<String>>>,
+    /// VK_KHR_acceleration_structure's functions, where the device has ray queries
+    /// (they were enabled at device creation).
+    pub accel_ext: Option<ash::khr::acceleration_structure::Device>,
 }
 
 impl Shared {
@@ -122,6 +125,8 @@ pub struct Context {
     /// `maxTexelBufferElements`: texels a texel-buffer view may span.
     pub(crate) max_texel_elements: u64,
     pub(crate) max_workgroups: [u32; 3],
+    /// `minAccelerationStructureScratchOffsetAlignment` (ray queries only; else 1).
+    pub(crate) scratch_align: u64,
     info: DeviceInfo,
 }
 
@@ -342,7 +347,22 @@ impl Context {
         let priorities = [1.0f32];
         let qinfo =
             [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        let dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
+        // Ray queries (`--accel rayquery`) are enabled wherever the device has them;
+        // nothing else changes for the other structures.
+        let ray_query = info.ray_query();
+        let ext_ptrs: Vec<*const std::ffi::c_char> =
+            if ray_query { RAY_QUERY_EXTENSIONS.iter().map(|e| e.as_ptr()).collect() } else { Vec::new() };
+        let mut accel_features = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+        let mut query_features = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
+        let mut v12_features = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true);
+        let mut dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
+        if ray_query {
+            dev_info = dev_info
+                .enabled_extension_names(&ext_ptrs)
+                .push_next(&mut accel_features)
+                .push_next(&mut query_features)
+                .push_next(&mut v12_features);
+        }
         // SAFETY: `physical` is from `instance`; pointers in dev_info live for the call.
         let device = match unsafe { instance.create_device(physical, &dev_info, None) } {
             Ok(d) => d,
@@ -383,10 +403,11 @@ impl Context {
             device: device.clone(),
             physical_device: physical,
             debug_settings: Default::default(),
-            buffer_device_address: false,
+            buffer_device_address: ray_query,
             allocation_sizes: Default::default(),
         })
         .map_err(alloc_err("create allocator"))?;
+        let accel_ext = ray_query.then(|| ash::khr::acceleration_structure::Device::new(&instance, &device));
         let shared = Arc::new(Shared {
             entry,
             instance,
@@ -396,6 +417,7 @@ impl Context {
             debug_device,
             messenger,
             messages,
+            accel_ext,
         });
         let dev = &shared.device;
         // SAFETY: queue family/index were requested at device creation.
@@ -426,6 +448,15 @@ impl Context {
         }
         .map_err(vk_err("vkCreateQueryPool"))?;
         shared.set_name(query_pool, "arbor.timestamps");
+        let scratch_align = if ray_query {
+            let mut asp = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
+            let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut asp);
+            // SAFETY: the device has VK_KHR_acceleration_structure (checked by `describe`).
+            unsafe { shared.instance.get_physical_device_properties2(physical, &mut p2) };
+            u64::from(asp.min_acceleration_structure_scratch_offset_alignment).max(1)
+        } else {
+            1
+        };
         let mut max_storage_range = info.max_storage_buffer_range;
         if let Some(lim) = opts.max_storage_range {
             max_storage_range = max_storage_range.min(lim);
@@ -440,6 +471,7 @@ impl Context {
             max_storage_range,
             max_texel_elements: u64::from(props.limits.max_texel_buffer_elements),
             max_workgroups: props.limits.max_compute_work_group_count,
+            scratch_align,
             info,
         })
     }

@@ -20,6 +20,9 @@ pub enum BindingKind {
     /// texel fetch is one vector gather, where a storage-buffer load is a branchy loop
     /// over the lanes (docs/lavapipe.md); it does not count as a storage buffer.
     Texel,
+    /// The driver's top-level acceleration structure (GLSL `accelerationStructureEXT`,
+    /// traced with ray queries), bound with `Context::bind_ray_structure`.
+    RayStructure,
 }
 
 impl BindingKind {
@@ -28,6 +31,7 @@ impl BindingKind {
             BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
             BindingKind::Storage => vk::DescriptorType::STORAGE_BUFFER,
             BindingKind::Texel => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+            BindingKind::RayStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
         }
     }
 }
@@ -66,6 +70,28 @@ impl Kernel {
     /// The label given at creation.
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// The descriptor set, after checking that `binding` exists and is of `kind`.
+    pub(crate) fn descriptor_set_for(&self, binding: u32, kind: BindingKind) -> Result<vk::DescriptorSet> {
+        match self.bindings.iter().find(|b| b.binding == binding) {
+            Some(b) if b.kind == kind => Ok(self.set),
+            Some(b) => Err(Error::Vulkan {
+                what: format!("bind {} of kernel '{}'", b.name, self.name),
+                result: format!("binding {binding} is {:?}, not {kind:?}", b.kind),
+            }),
+            None => Err(Error::Vulkan {
+                what: format!("bind to kernel '{}'", self.name),
+                result: format!("the kernel has no binding {binding}"),
+            }),
+        }
+    }
+
+    /// Records that `binding` now has something of `size` bytes bound.
+    pub(crate) fn mark_bound(&mut self, binding: u32, size: u64) {
+        if let Some(i) = self.bindings.iter().position(|b| b.binding == binding) {
+            self.bound[i] = Some(size);
+        }
     }
 
     /// Checks the project rule: at most [`MAX_STORAGE_BUFFERS_PER_STAGE`] storage buffers.
@@ -194,7 +220,7 @@ impl Context {
         created.map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?;
         self.shared.set_name(k.pipeline, name);
         let mut sizes = Vec::new();
-        for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel] {
+        for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel, BindingKind::RayStructure] {
             let count = bindings.iter().filter(|b| b.kind == kind).count() as u32;
             if count > 0 {
                 sizes.push(vk::DescriptorPoolSize { ty: kind.descriptor_type(), descriptor_count: count });
@@ -230,6 +256,7 @@ impl Context {
         let ok_kind = match desc.kind {
             BindingKind::Storage | BindingKind::Texel => buffer.kind() == BufferKind::Storage,
             BindingKind::Uniform => buffer.kind() == BufferKind::Uniform,
+            BindingKind::RayStructure => false,
         };
         if !ok_kind {
             return Err(Error::Vulkan {

@@ -13,10 +13,12 @@ pub mod bindings;
 mod buffer;
 mod context;
 mod kernel;
+mod raytrace;
 
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};
 pub use kernel::{BindingDesc, BindingKind, Kernel, Step};
+pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 
 /// Embedded SPIR-V of every kernel, by name (`trace_none_all`, `layout_probe`, ...).
 pub mod spirv {

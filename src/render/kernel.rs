@@ -33,9 +33,14 @@ pub fn trace_bindings(family: &str, geometry: &str) -> Vec<BindingDesc> {
     }
     b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" });
     b.push(BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" });
-    if family != "none" {
+    // The driver's structure (ray queries) has no buffers of its own; over an
+    // instanced scene it reads the two-level records from the node buffer.
+    if family != "none" && family != "rayquery" {
         b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Texel, name: "accel_nodes" });
         b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Texel, name: "accel_indices" });
+    }
+    if family.ends_with("rayquery") {
+        b.push(BindingDesc { binding: BINDING_TLAS, kind: BindingKind::RayStructure, name: "tlas" });
     }
     b
 }

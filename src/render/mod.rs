@@ -383,10 +383,11 @@ pub struct RenderStats {
     pub rays: u64,
     pub mrays_per_s: Option<f64>,
     pub accel_bytes: u64,
-    /// Mean primitives tested by the pixel-centre camera ray.
-    pub mean_prims_tested: f64,
-    /// Mean nodes (or boxes) visited by the pixel-centre camera ray.
-    pub mean_nodes_visited: f64,
+    /// Mean primitives tested by the pixel-centre camera ray; null where the kernel
+    /// cannot count them (the driver's structure, `rayquery`).
+    pub mean_prims_tested: Option<f64>,
+    /// Mean nodes (or boxes) visited by the pixel-centre camera ray; null as above.
+    pub mean_nodes_visited: Option<f64>,
 }
 
 impl RenderStats {
@@ -406,6 +407,7 @@ impl RenderStats {
         let total_pixels = frame.depth.len().max(1) as f64;
         let rays: u64 = frame.rays.iter().map(|&r| u64::from(r)).sum();
         let mrays = totals.gpu_ms.filter(|&ms| ms > 0.0).map(|ms| rays as f64 / (ms * 1e3));
+        let counted = build.opaque.is_none();
         RenderStats {
             device: ctx.info().name.clone(),
             scene: scene.name.clone(),
@@ -434,8 +436,8 @@ impl RenderStats {
             dispatches: totals.dispatches,
             rays,
             mrays_per_s: mrays,
-            mean_prims_tested: frame.tests.iter().map(|&t| t as f64).sum::<f64>() / total_pixels,
-            mean_nodes_visited: frame.nodes.iter().map(|&t| t as f64).sum::<f64>() / total_pixels,
+            mean_prims_tested: counted.then(|| frame.tests.iter().map(|&t| t as f64).sum::<f64>() / total_pixels),
+            mean_nodes_visited: counted.then(|| frame.nodes.iter().map(|&t| t as f64).sum::<f64>() / total_pixels),
         }
     }
 }

@@ -133,6 +133,14 @@ pub fn bind_all(
             names.push("params".to_string());
             continue;
         }
+        if b.kind == BindingKind::RayStructure {
+            let tlas = image.ray_structure.ok_or_else(|| {
+                Error::Usage(format!("the {} kernel traces the driver's structure, which was not built", image.family))
+            })?;
+            ctx.bind_ray_structure(kernel, b.binding, tlas)?;
+            names.push(b.name.to_string());
+            continue;
+        }
         let buf = match b.binding {
             BINDING_VERTICES => upload_checked(ctx, "vertices", bytemuck::cast_slice(&scene.vertices))?,
             BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&scene.triangles))?,

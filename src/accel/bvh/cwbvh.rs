@@ -310,6 +310,7 @@ impl crate::accel::Structure for Cwbvh {
             stack_size: 7 * self.depth + 1,
             cost_per_ray: 8 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

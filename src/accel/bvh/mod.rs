@@ -549,6 +549,7 @@ fn tree_stats<const W: usize>(
         phases: Vec::new(),
         resolution: None,
         levels: None,
+        opaque: None,
     }
 }
 
@@ -686,6 +687,7 @@ impl super::Structure for Bvh {
             stack_size: self.depth + 1,
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

@@ -349,6 +349,7 @@ impl<const W: usize> crate::accel::Structure for WideBvh<W> {
             stack_size: (W as u32 - 1) * self.depth + 1,
             cost_per_ray: W as u64 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }

@@ -305,6 +305,7 @@ impl KdTree {
             phases: Vec::new(),
             resolution: None,
             levels: None,
+            opaque: None,
         }
     }
 
@@ -505,6 +506,7 @@ impl super::Structure for KdTree {
             // A few steps per level: about one step per level plus a few tests.
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,
+            ray_structure: None,
         })
     }
 }
