@@ -116,7 +116,7 @@ impl arbor::bench::Progress for BenchProgress {
         self.0.tick();
     }
     fn line(&self, l: &str) -> std::io::Result<()> {
-        self.0.bar.suspend(|| super::print_out(&format!("{l}\n")))
+        self.0.bar.suspend(|| crate::common::print_out(&format!("{l}\n")))
     }
     fn note(&self, l: &str) {
         self.0.bar.suspend(|| eprintln!("{l}"));

@@ -1,0 +1,80 @@
+//! What several commands share (included by main.rs only): opening the device, the
+//! `--accel` and `--size` values, flattening instances, writing to stdout, and the
+//! error type of bad input files (exit status 2).
+
+use std::io::Write;
+use std::time::Instant;
+
+use anyhow::{bail, Context as _, Result};
+use arbor::accel::AccelKind;
+use arbor::gpu::{Context, ContextOptions};
+use arbor::scene::Scene;
+
+use crate::args::DeviceArgs;
+
+/// An error in the files a command was given (`arbor compare`): exit status 2, like a
+/// command-line error.
+#[derive(Debug, thiserror::Error)]
+#[error(transparent)]
+pub(crate) struct BadInput(pub(crate) arbor::Error);
+
+/// Writes `text` to stdout (an error, not a panic, when the reader has gone).
+pub(crate) fn print_out(text: &str) -> std::io::Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())?;
+    out.flush()
+}
+
+/// Opens the Vulkan device `--device` names, with validation when asked (`--validation`
+/// or `ARBOR_VALIDATION=1`) and `ARBOR_MAX_STORAGE_RANGE` applied.
+pub(crate) fn context(d: &DeviceArgs) -> Result<Context> {
+    let validation = d.validation || std::env::var("ARBOR_VALIDATION").is_ok_and(|v| v == "1");
+    let max_storage_range = match std::env::var("ARBOR_MAX_STORAGE_RANGE") {
+        Ok(v) => Some(v.parse::<u64>().with_context(|| format!("ARBOR_MAX_STORAGE_RANGE={v:?} is not a byte count"))?),
+        Err(_) => None,
+    };
+    Ok(Context::new(&ContextOptions { device: d.device.clone(), validation, max_storage_range })?)
+}
+
+/// `--accel`: a structure name, or `auto` resolved by the cost model (with its reason).
+pub(crate) fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Result<(AccelKind, Option<String>)> {
+    if s == "auto" {
+        let (k, why) = arbor::accel::auto::choose(scene, pixels, spp);
+        return Ok((k, Some(why)));
+    }
+    let k: AccelKind = s.parse().map_err(|e: String| anyhow::anyhow!("--accel {s}: {e}, or auto"))?;
+    Ok((k, None))
+}
+
+/// `--size WIDTHxHEIGHT`, each side within the film limit.
+pub(crate) fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) =
+        s.split_once(['x', 'X']).with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size {s:?}: bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size {s:?}: bad height"))?;
+    if w == 0 || h == 0 || w > arbor::scene::MAX_FILM_SIDE || h > arbor::scene::MAX_FILM_SIDE {
+        bail!("--size {s}: each side must be 1..={}", arbor::scene::MAX_FILM_SIDE);
+    }
+    Ok((w, h))
+}
+
+/// Milliseconds since `since`.
+pub(crate) fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+/// Samples per pixel of `arbor render --integrator path` without --spp: enough for a
+/// clean image of the built-in scenes (README, "Path tracing").
+pub(crate) const DEFAULT_PATH_SPP: u32 = 64;
+
+/// The scene with its instances flattened into copies where asked, or where brute
+/// force (which has no instance level) will trace it.
+pub(crate) fn flatten_if(scene: Scene, asked: bool, accel: AccelKind, quiet: bool) -> Result<Scene> {
+    if !scene.has_instances() || !(asked || accel.is_brute_force()) {
+        return Ok(scene);
+    }
+    if !asked && !quiet {
+        eprintln!("accel none: brute force has no instance level; drawing the instances as copies");
+    }
+    Ok(scene.flattened()?)
+}

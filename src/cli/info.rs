@@ -1,0 +1,24 @@
+//! `arbor info` (included by main.rs only): one scene and the structure built over it.
+
+use anyhow::Result;
+use arbor::accel::{Accel, BuildOn};
+use arbor::scene::Scene;
+
+use crate::args::InfoArgs;
+use crate::common::{context, flatten_if, print_out, resolve_accel};
+
+/// `arbor info`: the scene, its structure's statistics and validation, as text or JSON;
+/// a structure that fails validation fails the command after the report.
+pub(crate) fn run(a: &InfoArgs) -> Result<()> {
+    let params = a.structure.single()?;
+    let scene = Scene::load(&a.scene)?;
+    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
+    let scene = flatten_if(scene, a.flatten, accel, true)?;
+    let built = match params.build {
+        BuildOn::Cpu => Accel::build_with(accel, &scene, &params),
+        BuildOn::Gpu => Accel::build_on(&context(&a.device)?, accel, &scene, &params)?,
+    };
+    let report = arbor::info::Report::new(&scene, accel, params.build, why, &built);
+    print_out(&if a.json { format!("{}\n", report.to_json()) } else { report.to_string() })?;
+    report.validation.map_err(|e| anyhow::anyhow!("{}: structure failed validation: {e}", scene.name))
+}

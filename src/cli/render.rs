@@ -1,0 +1,267 @@
+//! `arbor render` (included by main.rs only): the settings from the arguments, shards
+//! and `--resume`, the trace with progress and interruption, checkpoints, and the
+//! outputs written together.
+
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use arbor::gpu::Context;
+use arbor::render::{self, memory, output, KernelChoice, RenderSettings};
+use arbor::scene::Scene;
+
+use crate::args::RenderArgs;
+use crate::common::{context, flatten_if, ms, parse_size, resolve_accel, DEFAULT_PATH_SPP};
+use crate::interrupt;
+use crate::progress::Reporter;
+
+/// `arbor render`: every setting is checked and the memory it needs estimated before the
+/// device is opened; then the trace, the outputs (all or none) and the summary line.
+pub(crate) fn run(a: &RenderArgs) -> Result<()> {
+    let start = Instant::now();
+    let aovs = output::parse_aovs(&a.aov)?;
+    let params = a.structure.single()?;
+    let format = output::format_of(&a.output, "image")?;
+    let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats);
+    output::check_outputs(paths.map(|p| p.as_path()))?;
+    let integrator = render::Integrator::parse(&a.integrator).unwrap_or_default();
+    let spp = a.spp.unwrap_or(if integrator == render::Integrator::Path { DEFAULT_PATH_SPP } else { 1 });
+    if spp == 0 || spp > 1 << 20 {
+        bail!("--spp must be 1..=1048576, got {spp}");
+    }
+    if integrator == render::Integrator::Whitted && (a.time.is_some() || a.checkpoint.is_some()) {
+        bail!("--time and --checkpoint need --integrator path");
+    }
+    if let Some(c) = a.checkpoint {
+        if !(c.is_finite() && c > 0.0) {
+            bail!("--checkpoint must be a positive number of seconds, got {c}");
+        }
+    }
+    let size = a.size.as_deref().map(parse_size).transpose()?;
+    let scene = Scene::load(&a.scene)?;
+    let load_ms = ms(start);
+    warn_if_only_emissive(&scene, integrator);
+    let (w, h) = size.unwrap_or((scene.width, scene.height));
+    let mut encoded = vec![(format, 3)];
+    for (name, path) in &aovs {
+        encoded.push((output::format_of(path, "aov")?, output::aov_channel_count(name)));
+    }
+    let stored = scene.stored_triangles() as usize + scene.spheres.len();
+    memory::check_render(&format!("--size {w}x{h}"), w, h, stored, &encoded)?;
+    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp)?;
+    if let (Some(why), false) = (&why, a.quiet) {
+        eprintln!("accel auto: {why}");
+    }
+    let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
+    let opened = Instant::now();
+    let ctx = context(&a.device)?;
+    let device_ms = ms(opened);
+    let mut settings = RenderSettings::for_size(w, h);
+    settings.spp = spp;
+    settings.integrator = integrator;
+    settings.time_budget = a.time;
+    settings.max_depth = a.max_depth;
+    settings.mis = match a.mis.as_str() {
+        "light" => render::Mis::Light,
+        "bsdf" => render::Mis::Bsdf,
+        _ => render::Mis::Both,
+    };
+    settings.seed = a.seed;
+    settings.intersect = a.intersect;
+    settings.traversal = a.traversal.parse().map_err(anyhow::Error::msg)?;
+    settings.accel = accel;
+    settings.params = params;
+    settings.dispatch_budget = a.dispatch_budget.max(1);
+    settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
+    let (spp_total, shard_name) = shard_settings(a, &mut settings)?;
+    settings.check()?;
+    let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
+    if let Some(path) = &a.resume {
+        settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
+    }
+    let spp = settings.spp;
+    let mut part_note = String::new();
+    if let Some(c) = settings.crop {
+        part_note += &format!(", window {},{},{},{}", c.x0, c.x1, c.y0, c.y1);
+    }
+    if settings.first_sample > 0 {
+        part_note += &format!(", samples {}..{}", settings.first_sample, settings.first_sample + spp);
+    }
+    let (frame, mut st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
+    st.load_ms = load_ms;
+    st.device_ms = device_ms;
+    write_outputs(a, &aovs, &frame, Some(&st), &part)?;
+    if st.interrupted && interrupt::requested() {
+        let resume = if format == output::Format::Exr {
+            format!("; continue it with --resume {}", a.output.display())
+        } else {
+            String::new()
+        };
+        eprintln!(
+            "arbor: interrupted: wrote {} with {} of {spp} samples per pixel{resume}",
+            a.output.display(),
+            st.samples_done
+        );
+        std::process::exit(interrupt::EXIT_CODE);
+    }
+    if !a.quiet {
+        let trace = match st.trace_ms {
+            Some(t) => format!("{t:.1} ms GPU"),
+            None => format!("{:.0} ms wall (no GPU timestamps)", st.wall_ms),
+        };
+        let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
+        eprintln!(
+            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
+            a.output.display(),
+            st.integrator,
+            st.samples_done,
+            if st.samples_done < spp { format!(" of {spp}") } else { String::new() },
+            st.triangles,
+            if st.instances > 0 { format!(" ({} instances)", st.instances) } else { String::new() },
+            st.spheres,
+            st.accel,
+            st.device,
+            st.build_ms,
+            st.dispatches,
+            ms(start)
+        );
+    }
+    Ok(())
+}
+
+/// Writes the image, the AOVs and the statistics of a render: all of them or none.
+/// A checkpoint (`st` None) writes the image and the AOVs.
+fn write_outputs(
+    a: &RenderArgs,
+    aovs: &[(String, std::path::PathBuf)],
+    frame: &render::Frame,
+    st: Option<&render::RenderStats>,
+    part: &render::part::PartInfo,
+) -> Result<()> {
+    let (w, h) = (frame.width, frame.height);
+    let mut set = output::OutputSet::new();
+    output::write_frame(&mut set, &a.output, part, frame)?;
+    output::write_aovs(&mut set, aovs, frame, w, h)?;
+    if let (Some(p), Some(st)) = (&a.stats, st) {
+        let provenance = output::Provenance {
+            version: env!("CARGO_PKG_VERSION").into(),
+            seed: a.seed,
+            spp: st.spp,
+            width: w,
+            height: h,
+            integrator: st.integrator.clone(),
+            command_line: std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect(),
+        };
+        output::write_stats(&mut set, p, st, provenance)?;
+    }
+    Ok(set.commit()?)
+}
+
+/// Applies `--crop`, `--shard`, `--shard-by` and `--sample-offset` to `settings`
+/// (whose `spp` is the whole render's); returns what a part records: the total
+/// samples per pixel (the `--spp` split by a sample shard, else 0) and the shard
+/// (`I/N tiles`, empty when not a shard).
+fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32, String)> {
+    let mut window = render::Crop::full(settings.width, settings.height);
+    if let Some(c) = &a.crop {
+        window = render::Crop::parse(c).map_err(anyhow::Error::msg)?;
+        window.check(settings.width, settings.height)?;
+    }
+    let first = a.sample_offset.unwrap_or(0);
+    let by: render::shard::ShardBy = a.shard_by.parse().map_err(anyhow::Error::msg)?;
+    let shard = a.shard.as_deref().map(|s| render::shard::Shard::parse(s, |v| std::env::var(v).ok())).transpose()?;
+    let (window, first, count) = match &shard {
+        Some(s) => s.plan(by, window, first, settings.spp)?,
+        None => (window, first, settings.spp),
+    };
+    // Only a sample shard is a part of a known total; other parts may be extended.
+    let total = if a.shard.is_some() && by == render::shard::ShardBy::Samples { settings.spp } else { 0 };
+    settings.crop = (window != render::Crop::full(settings.width, settings.height)).then_some(window);
+    settings.first_sample = first;
+    settings.spp = count;
+    Ok((total, shard.map(|s| s.describe(by)).unwrap_or_default()))
+}
+
+/// Reads the part `--resume` names and checks that this command renders the same
+/// window and samples of the same image.
+fn resumable(path: &std::path::Path, part: &render::part::PartInfo) -> Result<render::Frame> {
+    let (info, frame) = render::part::read(path)?;
+    let why = if info.hash != part.hash || info.version != part.version {
+        Some("it was rendered from another scene or other settings than this command's".to_string())
+    } else if (info.width, info.height) != (part.width, part.height) || info.crop != part.crop {
+        Some(format!(
+            "it holds the window {},{},{},{} of a {}x{} image, this command renders {},{},{},{} of {}x{}",
+            info.crop.x0,
+            info.crop.x1,
+            info.crop.y0,
+            info.crop.y1,
+            info.width,
+            info.height,
+            part.crop.x0,
+            part.crop.x1,
+            part.crop.y0,
+            part.crop.y1,
+            part.width,
+            part.height
+        ))
+    } else if info.first_sample != part.first_sample || info.samples > part.samples {
+        // The same first sample and no more samples than this command's range: a
+        // larger --spp continues a finished render too.
+        Some(format!(
+            "it holds samples from the range {:?}, which does not start this command's {:?}",
+            info.sample_range(),
+            part.sample_range()
+        ))
+    } else {
+        None
+    };
+    match why {
+        Some(why) => bail!("--resume {}: {why}", path.display()),
+        None => Ok(frame),
+    }
+}
+
+/// With the Whitted integrator an emissive material lights nothing else: say so when
+/// it is the scene's only light.
+fn warn_if_only_emissive(scene: &Scene, integrator: render::Integrator) {
+    if integrator == render::Integrator::Whitted
+        && scene.lights.is_empty()
+        && scene.materials.iter().any(|m| m.emission != glam::Vec3::ZERO)
+    {
+        eprintln!(
+            "arbor: warning: {}: emissive materials do not light other surfaces with the whitted integrator (no point or directional light)",
+            scene.name
+        );
+    }
+}
+
+/// Renders with progress: a bar on an interactive stderr after the first second, else
+/// a plain line every few seconds; none with `quiet`.
+/// SIGINT and SIGTERM stop a path-traced render after its current sample wave; the
+/// image so far is written and the exit code is [`interrupt::EXIT_CODE`].
+fn trace(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    a: &RenderArgs,
+    aovs: &[(String, std::path::PathBuf)],
+    part: &render::part::PartInfo,
+) -> Result<(render::Frame, render::RenderStats)> {
+    interrupt::install();
+    let progress = Reporter::new("render", a.quiet, false);
+    progress.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
+    let checkpoint = a.checkpoint.map(|every| {
+        let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
+            write_outputs(a, aovs, frame, None, part)
+                .map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
+        };
+        (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
+    });
+    let control = render::path::Control {
+        progress: Box::new(|done, total| progress.update(done, total)),
+        interrupted: Box::new(interrupt::requested),
+        checkpoint,
+    };
+    let done = render::gpu::render_controlled(ctx, scene, settings, control);
+    progress.finish();
+    Ok(done?)
+}
