@@ -123,6 +123,33 @@ impl AccelKind {
         }
     }
 
+    /// 16-byte texel fetches of one node (or cell) visit in this structure's kernel:
+    /// the count `nodes` AOV multiplies by (shaders/accel/*.glsl: a BVH node is 4
+    /// texels, a 4-wide node 7, an 8-wide node 14, a quantised one 6; a kd-tree or
+    /// octree node one 8-byte pair, a grid cell its two range words). `None` for brute
+    /// force (no nodes) and the driver's structure (not visible).
+    pub fn texels_per_node(self) -> Option<u32> {
+        match self {
+            AccelKind::Kdtree | AccelKind::BspCourse | AccelKind::Octree => Some(1),
+            AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => Some(4),
+            AccelKind::Bvh4 => Some(7),
+            AccelKind::Bvh8 => Some(14),
+            AccelKind::Cwbvh => Some(6),
+            AccelKind::Grid => Some(2),
+            AccelKind::None | AccelKind::RayQuery => None,
+        }
+    }
+
+    /// Texel fetches of one triangle test: its index in the leaf (none for brute
+    /// force), the triangle record and three vertices.
+    pub fn texels_per_test(self) -> u32 {
+        if self.is_brute_force() {
+            4
+        } else {
+            5
+        }
+    }
+
     /// Whether the device's driver builds and traverses this structure (ray queries),
     /// so that it exists only on a device that has them.
     pub fn driver_built(self) -> bool {

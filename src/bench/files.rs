@@ -38,6 +38,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "nodes_p99",
     "prims_mean",
     "prims_p99",
+    "fetches_mean",
     "misses_per_million",
     "aimed_escapes_per_million",
     "disagree_per_million",

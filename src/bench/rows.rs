@@ -117,6 +117,10 @@ pub(super) struct Row {
     pub nodes_p99: Option<u32>,
     pub prims_mean: Option<f64>,
     pub prims_p99: Option<u32>,
+    /// Texel fetches (nodes and triangle records) per camera ray: nodes_mean x the
+    /// structure's texels per node + prims_mean x texels per test
+    /// ([`crate::accel::AccelKind::texels_per_node`]); null where not counted.
+    pub fetches_mean: Option<f64>,
     pub misses_per_million: f64,
     pub aimed_escapes_per_million: Option<f64>,
     pub disagree_per_million: Option<f64>,
@@ -172,6 +176,7 @@ impl Row {
             nodes_p99: None,
             prims_mean: None,
             prims_p99: None,
+            fetches_mean: None,
             misses_per_million: 0.0,
             aimed_escapes_per_million: None,
             disagree_per_million: None,
@@ -206,6 +211,14 @@ impl Row {
         self.nodes_p99 = counted.then_some(c.nodes_p99);
         self.prims_mean = st.mean_prims_tested;
         self.prims_p99 = counted.then_some(c.prims_p99);
+        let kind = self.accel.parse::<crate::accel::AccelKind>();
+        self.fetches_mean = match (self.nodes_mean, self.prims_mean, kind) {
+            (Some(n), Some(p), Ok(kind)) => {
+                let per_node = kind.texels_per_node().unwrap_or(0);
+                Some(n * f64::from(per_node) + p * f64::from(kind.texels_per_test()))
+            }
+            _ => None,
+        };
         self.misses_per_million = c.misses as f64 * 1e6 / pixels.max(1) as f64;
         self.build_phases = median_phases(&c.phases);
     }
