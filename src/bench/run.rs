@@ -327,7 +327,8 @@ fn finish(
     if gpu_builds && kind.builds_on_gpu() {
         print(progress, &row.phases_line())?;
     }
-    if opts.out.is_some() && !kind.is_brute_force() && rays == RayKind::Primary && mi == 0 {
+    // No heatmap for the driver's structure: its node counts are not visible (not zero).
+    if opts.out.is_some() && kind.texels_per_node().is_some() && rays == RayKind::Primary && mi == 0 {
         heatmaps.push(Heatmap {
             stem: format!("cost_{}_{}", files::file_part(&sc.short), files::file_part(&row.label)),
             title: format!("nodes per camera ray: {}, {}", sc.short, row.label),

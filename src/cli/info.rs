@@ -14,9 +14,10 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
     let scene = flatten_if(scene, a.flatten, accel, true)?;
+    // The driver's structure exists only on a device: it is built there, as on the GPU.
     let built = match params.build {
-        BuildOn::Cpu => Accel::build_with(accel, &scene, &params),
-        BuildOn::Gpu => Accel::build_on(&context(&a.device)?, accel, &scene, &params)?,
+        BuildOn::Cpu if !accel.driver_built() => Accel::build_with(accel, &scene, &params),
+        _ => Accel::build_on(&context(&a.device)?, accel, &scene, &params)?,
     };
     let report = arbor::info::Report::new(&scene, accel, params.build, why, &built);
     print_out(&if a.json { format!("{}\n", report.to_json()) } else { report.to_string() })?;

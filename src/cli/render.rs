@@ -51,6 +51,9 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
     }
+    if accel.driver_built() && aovs.iter().any(|(n, _)| n == "cost") {
+        bail!("--aov cost: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested");
+    }
     let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
     let opened = Instant::now();
     let ctx = context(&a.device)?;
