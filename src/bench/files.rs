@@ -121,11 +121,6 @@ pub(super) fn time_to_image_text(short: &str, rays: RayKind, t: &[serde_json::Va
     format!("  time to image, {short}, {} rays:\n{}", rays.name(), lines.join("\n"))
 }
 
-/// A file-name-safe version of `s`.
-pub(super) fn file_part(s: &str) -> String {
-    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' }).collect()
-}
-
 /// Writes bench.json to `opts.json`, and bench.json, bench.csv and the plots into
 /// `opts.out`.
 pub(super) fn write(

@@ -105,3 +105,8 @@ pub fn spread(v: &[f64]) -> f64 {
 
 /// The terminal table's header line.
 pub const HEADER: &str = "           scene triangles            accel    pixels   build_ms rebuild_ms   trace_ms    spread     Mrays/s   speedup nodes/ray   p99 prims/ray   p99 bytes/tri     SAH depth    miss/M  aimed/M  differ/M";
+
+/// A file-name-safe version of `s` (plot and heatmap file names).
+fn file_part(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '.' { c } else { '_' }).collect()
+}

@@ -251,7 +251,7 @@ pub(super) fn bench_plots(
     heatmaps: &[super::rows::Heatmap],
     first_mode: &str,
 ) -> Result<Vec<PathBuf>> {
-    use super::files::file_part;
+    use super::file_part;
     std::fs::create_dir_all(dir).map_err(|cause| Error::Io { path: dir.to_path_buf(), cause })?;
     let mut files = Vec::new();
     let ok: Vec<&super::rows::Row> = rows.iter().filter(|r| r.error.is_none() && r.intersect == first_mode).collect();

@@ -330,7 +330,7 @@ fn finish(
     // No heatmap for the driver's structure: its node counts are not visible (not zero).
     if opts.out.is_some() && kind.texels_per_node().is_some() && rays == RayKind::Primary && mi == 0 {
         heatmaps.push(Heatmap {
-            stem: format!("cost_{}_{}", files::file_part(&sc.short), files::file_part(&row.label)),
+            stem: format!("cost_{}_{}", super::file_part(&sc.short), super::file_part(&row.label)),
             title: format!("nodes per camera ray: {}, {}", sc.short, row.label),
             width: c.size.0,
             height: c.size.1,
