@@ -554,6 +554,7 @@ impl super::Structure for Grid {
             // About half the cells along the diagonal, a few primitives each.
             cost_per_ray: self.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,
             trace_loop: super::TraceLoop::StepBudget,
+            resume_words: super::resume_words(1, 1),
         })
     }
 }

@@ -440,6 +440,7 @@ impl super::Structure for TwoLevel {
             stack_size: parts.stack_size,
             cost_per_ray: parts.cost_per_ray,
             trace_loop: TraceLoop::StepBudget,
+            resume_words: super::resume_words(2, parts.stack_size),
         })
     }
 }

@@ -73,6 +73,7 @@ impl super::Structure for BruteForce {
             trace_loop: super::TraceLoop::Unrolled {
                 lengths: [scene.triangles.len() as u64, scene.spheres.len() as u64],
             },
+            resume_words: 0,
         })
     }
 }

@@ -702,6 +702,7 @@ impl super::Structure for Octree {
             // A descent from the root per cell visited.
             cost_per_ray: 8 * (u64::from(self.depth) + 4),
             trace_loop: super::TraceLoop::StepBudget,
+            resume_words: super::resume_words(1, 1),
         })
     }
 }

@@ -686,6 +686,7 @@ impl super::Structure for Bvh {
             stack_size: self.depth + 1,
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,
+            resume_words: super::resume_words(1, self.depth + 1),
         })
     }
 }

@@ -505,6 +505,7 @@ impl super::Structure for KdTree {
             // A few steps per level: about one step per level plus a few tests.
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,
+            resume_words: super::resume_words(1, self.depth + 1),
         })
     }
 }
