@@ -192,9 +192,9 @@ pub const RESUME_LEVEL_WORDS: u32 = 32;
 /// loops, at two levels in instanced scenes), beyond the traversal's steps.
 pub const RESUME_LOOPS_PER_TRACE: u64 = 8;
 /// The smallest per-trace step budget a render may force (`RenderSettings::trace_steps`):
-/// the grid's first-cell search (3 x 12 steps at most) must fit, or its traces could
-/// not advance.
-pub const MIN_FORCED_TRACE_STEPS: u32 = 64;
+/// the grid's first-cell search (3 x 12 steps at most, `grid::MAX_RES` = 4096 cells an
+/// axis) and the step into an instance must fit, or its traces could not advance.
+pub const MIN_FORCED_TRACE_STEPS: u32 = 40;
 /// Passes of the trace kernel (`GpuDispatch::chunk[2]`): the samples of a pixel range;
 /// the resume kernel over that range, for pixels behind (job list 0 out); over job
 /// list 0 (list 1 out); over list 1 (list 0 out).

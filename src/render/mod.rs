@@ -142,6 +142,9 @@ pub struct RenderSettings {
     /// `MIN_FORCED_TRACE_STEPS`), so that traces on small scenes run out of steps and
     /// are resumed (docs/kernels.md, "Resumed traces"). The image is the same.
     pub trace_steps: Option<u32>,
+    /// For tests: hold at most this many trace records per pass (at least 1), so that
+    /// stopped samples without one run again from their start.
+    pub resume_records: Option<u32>,
 }
 
 /// A pixel window of the image: columns `x0..x1`, rows `y0..y1` (half-open, from the
@@ -251,6 +254,7 @@ impl RenderSettings {
             first_sample: 0,
             resume: None,
             trace_steps: None,
+            resume_records: None,
         }
     }
 

@@ -364,9 +364,9 @@ pub fn render_with(
     let mut chunk_started = Instant::now();
     let mut resumer = Resumer::new(
         ctx,
+        settings,
         &scene.name,
-        &variant,
-        &spec,
+        (&variant, &spec),
         &bound,
         &image,
         (traces, bounds.steps),

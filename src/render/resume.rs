@@ -52,12 +52,14 @@ pub struct PoolShape {
 
 impl PoolShape {
     /// For `jobs` invocations a pass at most (a dispatch's pixels), `log` traces a
-    /// sample, the image's traversal state, within `max_range` bytes.
-    pub fn new(image: &GpuImage, log: u32, jobs: u64, max_range: u64) -> Result<PoolShape> {
+    /// sample, the image's traversal state, within `max_range` bytes, with at most
+    /// `most` records (a test's setting) where given.
+    pub fn new(image: &GpuImage, log: u32, jobs: u64, max_range: u64, most: Option<u32>) -> Result<PoolShape> {
         let record_words = RESUME_HEAD_WORDS + RESUME_LOG_WORDS * log + image.resume_words;
         let job_bytes = 2 * 4 * jobs;
         let room = RECORD_POOL_BYTES.min(max_range.saturating_sub(job_bytes));
         let records = jobs.min(room / (2 * 4 * u64::from(record_words)));
+        let records = most.map_or(records, |m| records.min(u64::from(m.max(1))));
         if records == 0 || jobs > u64::from(u32::MAX) {
             return Err(Error::Usage(format!(
                 "the device's storage buffers ({max_range} bytes) cannot hold the jobs of {jobs} pixels and one trace record of {} bytes; use a smaller --dispatch-budget",
@@ -104,9 +106,9 @@ impl<'a> Resumer<'a> {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &'a Context,
+        settings: &super::RenderSettings,
         scene: &'a str,
-        variant: &'a Variant,
-        spec: &[(u32, u32)],
+        (variant, spec): (&'a Variant, &[(u32, u32)]),
         bound: &'a Bound,
         image: &GpuImage,
         (traces, steps): (u64, u64),
@@ -114,7 +116,7 @@ impl<'a> Resumer<'a> {
     ) -> Result<Resumer<'a>> {
         let log = u32::try_from(traces).unwrap_or(u32::MAX);
         let shape = if image.resume_words > 0 {
-            PoolShape::new(image, log, pixels, ctx.max_storage_range())?
+            PoolShape::new(image, log, pixels, ctx.max_storage_range(), settings.resume_records)?
         } else {
             PoolShape { record_words: 0, records: 0, jobs: 0 }
         };

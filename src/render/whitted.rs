@@ -131,9 +131,9 @@ pub fn render_with(
     let resume = settings.resume.as_deref();
     let mut resumer = Resumer::new(
         ctx,
+        settings,
         &scene.name,
-        &variant,
-        &spec,
+        (&variant, &spec),
         &bound,
         &image,
         (traces, bounds.steps),
