@@ -38,6 +38,8 @@ uint g_tests = 0u;
 uint g_rays = 0u;
 bool g_overflow = false;
 
+#include "common/resume.glsl"
+
 #if HAS_TRIANGLES
 bool intersect_triangle(uint i, Ray r, inout Hit h) {
     g_tests += 1u;
@@ -86,13 +88,19 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 }
 
+// The structure's traversal is accel_* (wrapped by common/resume_trace.glsl) or, with
+// instances, the bottom level of common/instances.glsl (the driver's structure has
+// both levels in it: its traversal is accel_* with instances too).
 #if defined(HAS_INSTANCES) && !defined(ACCEL_RAYQUERY)
-// The structure's traversal becomes the bottom level of common/instances.glsl (the
-// driver's structure has both levels in it).
 #define trace_closest blas_closest
 #define trace_any blas_any
 #define trace_closest_coherent blas_closest_coherent
 #define trace_any_coherent blas_any_coherent
+#else
+#define trace_closest accel_closest
+#define trace_any accel_any
+#define trace_closest_coherent accel_closest_coherent
+#define trace_any_coherent accel_any_coherent
 #endif
 
 #if defined(ACCEL_NONE)
@@ -121,13 +129,22 @@ bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
 bool trace_any_coherent(Ray r) { return trace_any(r); }
 #endif
 
-#ifdef HAS_INSTANCES
 #undef trace_closest
 #undef trace_any
 #undef trace_closest_coherent
 #undef trace_any_coherent
+#ifdef HAS_INSTANCES
+#define trace_closest accel_closest
+#define trace_any accel_any
+#define trace_closest_coherent accel_closest_coherent
+#define trace_any_coherent accel_any_coherent
 #include "common/instances.glsl"
+#undef trace_closest
+#undef trace_any
+#undef trace_closest_coherent
+#undef trace_any_coherent
 #endif
+#include "common/resume_trace.glsl"
 
 // The primitive number the AOV reports: that of the flattened scene with instances.
 uint aov_prim(Hit h) {
@@ -255,9 +272,8 @@ vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
 #include "common/path.glsl"
 
 void whitted_main() {
-    uint gid = gl_GlobalInvocationID.x;
-    if (gid >= dispatch_range.y) return;
-    uint local = dispatch_range.x + gid;
+    uint local;
+    if (!job_begin(local)) return;
     uint slot = local - dispatch_chunk.x;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
@@ -268,6 +284,7 @@ void whitted_main() {
 
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {
+        sample_start();
         uint rng = rng_init(pixel, s, params.counts.z);
         // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
         float fx = 0.5, fy = 0.5;
@@ -334,12 +351,15 @@ void whitted_main() {
             r.tmin = 0.0;
             r.tmax = uintBitsToFloat(0x7f800000u);
         }
+        if (g_suspended) break;
         out_px.radiance += vec4(L, 1.0);
         float y = luminance(L);
         out_px.albedo_m2.w += y * y;
+        sample_done();
     }
-    out_px.prim_cost.w += g_rays;
+    out_px.prim_cost.w += job_rays();
     if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
+    job_end();
     pixels[slot] = out_px;
 }
 
@@ -351,13 +371,12 @@ void whitted_main() {
 // depth, cost), radiance 1 where the camera ray hit (or, with DIFFUSE_PROBE, where
 // the bounce escaped: ambient occlusion) and the background elsewhere.
 void probe_main() {
-    uint gid = gl_GlobalInvocationID.x;
-    uvec4 range = dispatch_range;
-    if (gid >= range.y) return;
-    uint local = range.x + gid;
+    uint local;
+    if (!job_begin(local)) return;
     uint slot = local - dispatch_chunk.x;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
+    sample_start();
     Ray r;
     r.origin = params.cam_eye.xyz;
     r.dir = camera_ray_dir(at.y, at.z, 0.5, 0.5);
@@ -386,11 +405,13 @@ void probe_main() {
         L = trace_closest(dr, dh) ? vec3(0.0) : params.background.rgb;
     }
     Pixel q;
-    q.radiance = vec4(L, 1.0);
+    // A stopped sample holds none: the resume kernel's sweep finds the pixel by it.
+    q.radiance = vec4(L, g_suspended ? 0.0 : 1.0);
     q.normal_depth = vec4(n, h.t);
     q.prim_cost = uvec4(cost, rays | (g_overflow ? OVERFLOW_FLAG : 0u));
     float y = luminance(L);
     q.albedo_m2 = vec4(0.0, 0.0, 0.0, y * y);
+    job_end();
     pixels[slot] = q;
 }
 

@@ -7,8 +7,11 @@
 // nearer hit child is visited and the other pushed. Inner nodes are descended in an
 // inner loop and leaves tested after it ("while-while"). The stack holds STACK_SIZE
 // references (tree depth + 1, checked at build time); every trace takes at most
-// TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is flagged.
+// TREE_STEPS steps (nodes + primitive tests), beyond which it stops and is resumed
+// (common/resume.glsl). Its state: word 0 the next reference (a leaf cut short: the
+// part of it left, bvh_leaf_rest), 1 sp, 2 found; the stack from RESUME_LEVEL_WORDS.
 
+#define ACCEL_RESUMABLE 1
 #include "common/bvh_leaf.glsl"
 
 bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
@@ -20,6 +23,7 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
     uint cur = 0u;
     bool found = false;
     STEPS_START;
+    BVH_RESTORE;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
@@ -52,17 +56,17 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
+        uint tested = steps;
         if (bvh_leaf(cur, r, h, any_hit, true, steps)) {
             found = true;
             if (any_hit) return true;
         }
-        // A leaf cut short by the step budget must not end the trace as if complete.
-        if (steps >= TREE_STEPS) break;
+        BVH_LEAF_CUT(tested);
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];
     }
-    g_overflow = true;
+    BVH_SUSPEND;
     return found;
 }
 
@@ -121,17 +125,20 @@ bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
+        uint tested = steps;
         if (bvh_leaf(cur, r, h, any_hit, live, steps)) {
             found = true;
             if (any_hit) live = false;
         }
-        if (steps >= TREE_STEPS) break;
+        BVH_LEAF_CUT(tested);
         if (any_hit && !subgroupAny(live)) return found;
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];
     }
-    g_overflow = true;
+    // A lane whose trace is complete (it missed the scene box, or found its any hit)
+    // ends here. Only the trace kernel has packets: it saves no state.
+    if (live) trace_suspend();
     return found;
 }
 
@@ -139,14 +146,16 @@ bool trace_closest(Ray r, inout Hit h) {
     return bvh_traverse(r, h, false);
 }
 
+// The resume kernel traces one ray per lane: a continued trace has its own stack, and
+// packets change the work, not the result.
 bool trace_closest_coherent(Ray r, inout Hit h) {
-    return PACKET ? bvh_traverse_packet(r, h, false) : bvh_traverse(r, h, false);
+    return PACKET && !RESUME_PASS ? bvh_traverse_packet(r, h, false) : bvh_traverse(r, h, false);
 }
 
 bool trace_any_coherent(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
-    return PACKET ? bvh_traverse_packet(r, h, true) : bvh_traverse(r, h, true);
+    return PACKET && !RESUME_PASS ? bvh_traverse_packet(r, h, true) : bvh_traverse(r, h, true);
 }
 
 bool trace_any(Ray r) {

@@ -9,9 +9,10 @@
 // followed by a conditional increment (no branch per child); the stack therefore
 // holds 3 x depth + 1 entries (STACK_SIZE, set at build time). Inner nodes are
 // descended in an inner loop and leaves tested after it ("while-while"); every trace
-// takes at most TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is
-// flagged.
+// takes at most TREE_STEPS steps (nodes + primitive tests), beyond which it stops and
+// is resumed with the state of bvh.glsl (BVH_RESTORE, common/bvh_leaf.glsl).
 
+#define ACCEL_RESUMABLE 1
 #include "common/bvh_leaf.glsl"
 
 bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
@@ -24,6 +25,7 @@ bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
     uint cur = 0u;
     bool found = false;
     STEPS_START;
+    BVH_RESTORE;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
@@ -63,17 +65,17 @@ bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
+        uint tested = steps;
         if (bvh_leaf(cur, r, h, any_hit, true, steps)) {
             found = true;
             if (any_hit) return true;
         }
-        // A leaf cut short by the step budget must not end the trace as if complete.
-        if (steps >= TREE_STEPS) break;
+        BVH_LEAF_CUT(tested);
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];
     }
-    g_overflow = true;
+    BVH_SUSPEND;
     return found;
 }
 

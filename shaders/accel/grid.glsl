@@ -5,7 +5,12 @@
 // The first cell comes from a binary search over the boundaries' t values, each step
 // crosses the boundary with the smallest t, and a hit ends traversal only when it lies
 // before the current cell's exit. Every trace takes at most TREE_STEPS steps (search
-// steps, cells and primitive tests), beyond which the pixel is flagged.
+// steps, cells and primitive tests), beyond which it stops and is resumed
+// (common/resume.glsl). Its state: word 0 whether the search was done (else the trace
+// starts over), 1..3 the cell's indices, 4 the primitives of that cell already tested,
+// 5 found; the t of the next boundaries follow from the indices.
+
+#define ACCEL_RESUMABLE 1
 
 // The head of this block is GpuGridHeader in src/accel/gpu_layout.rs.
 // Node buffer: grid_res (16 bytes), grid_cell (16 bytes), then the cell starts.
@@ -35,11 +40,23 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
     uvec3 idx = uvec3(0u);
     vec3 t_next = vec3(INF);
     STEPS_START;
+    bool found = false;
+    uint k_first = 0u;
+    // A resumed trace past the search enters the search with its answer.
+    bool searched = false;
+    if (RESUME_PASS && g_resuming) {
+        g_resuming = false;
+        searched = rs_get(0u) != 0u;
+        idx = uvec3(rs_get(1u), rs_get(2u), rs_get(3u));
+        k_first = rs_get(4u);
+        found = rs_get(5u) != 0u;
+    }
+    bool cut = false;
     for (uint a = 0u; a < 3u; a++) {
         bool flat_axis = abs(inv[a]) >= 1e30;
         // Largest k whose boundary the ray at t_enter lies at or above.
-        uint lo = 0u;
-        uint hi = res[a] - 1u;
+        uint lo = searched ? idx[a] : 0u;
+        uint hi = searched ? idx[a] : res[a] - 1u;
         while (lo < hi && steps < TREE_STEPS) {
             steps += 1u;
             uint mid = (lo + hi + 1u) / 2u;
@@ -53,24 +70,33 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
             }
             if (above) lo = mid; else hi = mid - 1u;
         }
+        cut = cut || lo < hi;
         idx[a] = lo;
         if (!flat_axis) t_next[a] = inv[a] > 0.0 ? grid_tb(a, lo + 1u, r, inv) : grid_tb(a, lo, r, inv);
     }
-    bool found = false;
+    // Whether the cell was counted but not finished when the budget ran out.
+    bool counted = false;
     while (steps < TREE_STEPS) {
         steps += 1u;
         g_nodes += 1u;
         uint c = idx.x + res.x * (idx.y + res.y * idx.z);
         uint first = node_word(8u + (c));
         uint last = node_word(8u + (c + 1u));
-        for (uint k = first; k < last && steps < TREE_STEPS; k++) {
+        uint k = first + k_first;
+        for (; k < last && steps < TREE_STEPS; k++) {
             steps += 1u;
             if (intersect_prim(accel_index(k), r, h)) {
                 found = true;
                 if (any_hit) return true;
             }
         }
-        if (steps >= TREE_STEPS) break;
+        // A cell cut short by the step budget resumes at its first untested primitive.
+        if (k < last) {
+            k_first = k - first;
+            counted = true;
+            break;
+        }
+        k_first = 0u;
         uint a = 0u;
         if (t_next.y < t_next[a]) a = 1u;
         if (t_next.z < t_next[a]) a = 2u;
@@ -86,7 +112,16 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
             t_next[a] = grid_tb(a, idx[a], r, inv);
         }
     }
-    g_overflow = true;
+    // The resumed trace counts that cell again.
+    if (counted) g_nodes -= 1u;
+    if (trace_suspend()) {
+        rs_put(0u, uint(!cut));
+        rs_put(1u, idx.x);
+        rs_put(2u, idx.y);
+        rs_put(3u, idx.z);
+        rs_put(4u, k_first);
+        rs_put(5u, uint(found));
+    }
     return found;
 }
 

@@ -5,8 +5,11 @@
 //               y = (above child or first index) << 2 | axis (3 = leaf)
 // The stack holds SPEC_STACK_SIZE entries (tree depth + 1, checked at build time);
 // every trace takes at most TREE_STEPS steps (nodes + primitive tests), beyond which
-// the pixel is flagged and the host reports an error (llvmpipe caps loop iterations).
+// it stops and is resumed (llvmpipe caps loop iterations; common/resume.glsl). Its
+// state: words 0 node, 1 tmin, 2 tmax, 3 sp, 4 found, 5 the primitives of leaf `node`
+// already tested; st_node from RESUME_LEVEL_WORDS, st_max STACK_SIZE words further.
 
+#define ACCEL_RESUMABLE 1
 #include "common/accel_texels.glsl"
 
 // The stack holds (node, tmax) only: the cell popped next always starts where the
@@ -28,6 +31,22 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
     uint node = 0u;
     bool found = false;
     STEPS_START;
+    uint k_first = 0u;
+    if (RESUME_PASS && g_resuming) {
+        g_resuming = false;
+        node = rs_get(0u);
+        tmin = rs_getf(1u);
+        tmax = rs_getf(2u);
+        sp = rs_get(3u);
+        found = rs_get(4u) != 0u;
+        k_first = rs_get(5u);
+        for (uint q = 0u; q < sp; q++) {
+            st_node[q] = rs_get(RESUME_LEVEL_WORDS + q);
+            st_max[q] = rs_getf(RESUME_LEVEL_WORDS + STACK_SIZE + q);
+        }
+    }
+    // Whether `node` was fetched and counted but not finished when the budget ran out.
+    bool counted = false;
     while (steps < TREE_STEPS) {
         // Descend through inner nodes to a leaf ("while-while": on SIMD hardware the
         // lanes then test their leaves' primitives together).
@@ -62,18 +81,25 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
             steps += 1u;
             g_nodes += 1u;
         }
+        counted = true;
         if ((nd.y & 3u) != 3u) break;
         uint first = nd.y >> 2u;
         uint count = nd.x;
-        for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
+        uint k = k_first;
+        for (; k < count && steps < TREE_STEPS; k++) {
             steps += 1u;
             if (intersect_prim(accel_index(first + k), r, h)) {
                 found = true;
                 if (any_hit) return true;
             }
         }
-        // A leaf cut short by the step budget must not end the trace as if complete.
-        if (steps >= TREE_STEPS) break;
+        // A leaf cut short by the step budget resumes at its first untested primitive.
+        if (k < count) {
+            k_first = k;
+            break;
+        }
+        k_first = 0u;
+        counted = false;
         // Pop until a cell may still hold a hit before the best (no early return
         // on this cell's tmax: a ray inside a split plane pushes a sibling with
         // the same interval).
@@ -91,7 +117,20 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
         }
         if (!resumed) return found;
     }
-    g_overflow = true;
+    // The resumed trace fetches that node again and counts it then.
+    if (counted) g_nodes -= 1u;
+    if (trace_suspend()) {
+        rs_put(0u, node);
+        rs_putf(1u, tmin);
+        rs_putf(2u, tmax);
+        rs_put(3u, sp);
+        rs_put(4u, uint(found));
+        rs_put(5u, k_first);
+        for (uint q = 0u; q < sp; q++) {
+            rs_put(RESUME_LEVEL_WORDS + q, st_node[q]);
+            rs_putf(RESUME_LEVEL_WORDS + STACK_SIZE + q, st_max[q]);
+        }
+    }
     return found;
 }
 

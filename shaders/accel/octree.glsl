@@ -10,7 +10,13 @@
 // the origin); test the leaf; move t to the cell's exit, a face that is bit for bit
 // an ancestor's centre, so the next descent crosses it. Stops when the best hit lies
 // before the cell's exit or the exit is the root's. At most TREE_STEPS steps (nodes
-// and primitive tests) per trace, beyond which the pixel is flagged.
+// and primitive tests) per trace, beyond which it stops and is resumed
+// (common/resume.glsl). Its state: words 0 t, 1 start, 2..5 start_mn, 5..8 start_mx,
+// 8 found, 9 where (0 the next descent, 1 within a descent at `node`, 2 in leaf
+// `node`), 10 node, 11..14 its box min, 14..17 max, 17 parent, 18..21 its box min,
+// 21..24 max, 24 the primitives of the leaf already tested.
+
+#define ACCEL_RESUMABLE 1
 
 // The head of this block is GpuOctreeHeader in src/accel/gpu_layout.rs.
 // Node buffer: oct_min (16 bytes), oct_max (16 bytes), then 8-byte nodes.
@@ -44,16 +50,40 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
     uint start = 0u;
     vec3 start_mn = rmin;
     vec3 start_mx = rmax;
+    // Where a resumed trace continues, and the primitives of its leaf already tested.
+    uint where = 0u;
+    uint r_node = 0u, r_parent = 0u, k_first = 0u;
+    vec3 r_mn = vec3(0.0), r_mx = vec3(0.0), r_pmn = vec3(0.0), r_pmx = vec3(0.0);
+    if (RESUME_PASS && g_resuming) {
+        g_resuming = false;
+        t = rs_getf(0u);
+        start = rs_get(1u);
+        start_mn = vec3(rs_getf(2u), rs_getf(3u), rs_getf(4u));
+        start_mx = vec3(rs_getf(5u), rs_getf(6u), rs_getf(7u));
+        found = rs_get(8u) != 0u;
+        where = rs_get(9u);
+        r_node = rs_get(10u);
+        r_mn = vec3(rs_getf(11u), rs_getf(12u), rs_getf(13u));
+        r_mx = vec3(rs_getf(14u), rs_getf(15u), rs_getf(16u));
+        r_parent = rs_get(17u);
+        r_pmn = vec3(rs_getf(18u), rs_getf(19u), rs_getf(20u));
+        r_pmx = vec3(rs_getf(21u), rs_getf(22u), rs_getf(23u));
+        k_first = rs_get(24u);
+    }
     while (steps < TREE_STEPS) {
-        vec3 mn = start_mn;
-        vec3 mx = start_mx;
-        uint node = start;
+        bool within = RESUME_PASS && where != 0u;
+        bool in_leaf = RESUME_PASS && where == 2u;
+        vec3 mn = within ? r_mn : start_mn;
+        vec3 mx = within ? r_mx : start_mx;
+        uint node = within ? r_node : start;
         uvec2 nd = node_pair(4u + (node));
-        uint parent = node;
-        vec3 parent_mn = mn;
-        vec3 parent_mx = mx;
+        uint parent = in_leaf ? r_parent : node;
+        vec3 parent_mn = in_leaf ? r_pmn : mn;
+        vec3 parent_mx = in_leaf ? r_pmx : mx;
+        where = 0u;
         steps += 1u;
         g_nodes += 1u;
+        bool empty = false;
         while ((nd.x & OCT_LEAF) == 0u && steps < TREE_STEPS) {
             parent = node; parent_mn = mn; parent_mx = mx;
             precise vec3 c = mn * 0.5 + mx * 0.5;
@@ -68,7 +98,10 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
             mn = mix(mn, c, upper);
             mx = mix(c, mx, upper);
             uint mask = nd.x & 0xffu;
-            if ((mask & (1u << k)) == 0u) break; // absent octant: empty space
+            if ((mask & (1u << k)) == 0u) { // absent octant: empty space
+                empty = true;
+                break;
+            }
             node = nd.y + uint(bitCount(mask & ((1u << k) - 1u)));
             nd = node_pair(4u + (node));
             steps += 1u;
@@ -77,15 +110,29 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
         if ((nd.x & OCT_LEAF) != 0u) {
             uint first = nd.y;
             uint count = nd.x & ~OCT_LEAF;
-            for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
+            uint k = k_first;
+            for (; k < count && steps < TREE_STEPS; k++) {
                 steps += 1u;
                 if (intersect_prim(accel_index(first + k), r, h)) {
                     found = true;
                     if (any_hit) return true;
                 }
             }
+            // A leaf cut short by the step budget resumes at its first untested primitive.
+            if (k < count) where = 2u;
+            k_first = k < count ? k : 0u;
+        } else if (!empty) {
+            where = 1u; // the budget ran out within the descent
         }
-        if (steps >= TREE_STEPS) break;
+        if (where != 0u) {
+            if (RESUME_PASS) {
+                r_node = node; r_mn = mn; r_mx = mx;
+                r_parent = parent; r_pmn = parent_mn; r_pmx = parent_mx;
+            }
+            // The resumed trace fetches that node again and counts it then.
+            g_nodes -= 1u;
+            break;
+        }
         float t_exit = oct_exit(mn, mx, r.origin, inv, flat_axis, up);
         if (before(h.t, t_exit) || t_exit >= root_exit) return found;
         if (t_exit < oct_exit(parent_mn, parent_mx, r.origin, inv, flat_axis, up)) {
@@ -95,7 +142,21 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
         }
         t = t_exit;
     }
-    g_overflow = true;
+    if (trace_suspend()) {
+        rs_putf(0u, t);
+        rs_put(1u, start);
+        rs_putf(2u, start_mn.x); rs_putf(3u, start_mn.y); rs_putf(4u, start_mn.z);
+        rs_putf(5u, start_mx.x); rs_putf(6u, start_mx.y); rs_putf(7u, start_mx.z);
+        rs_put(8u, uint(found));
+        rs_put(9u, where);
+        rs_put(10u, r_node);
+        rs_putf(11u, r_mn.x); rs_putf(12u, r_mn.y); rs_putf(13u, r_mn.z);
+        rs_putf(14u, r_mx.x); rs_putf(15u, r_mx.y); rs_putf(16u, r_mx.z);
+        rs_put(17u, r_parent);
+        rs_putf(18u, r_pmn.x); rs_putf(19u, r_pmn.y); rs_putf(20u, r_pmn.z);
+        rs_putf(21u, r_pmx.x); rs_putf(22u, r_pmx.y); rs_putf(23u, r_pmx.z);
+        rs_put(24u, k_first);
+    }
     return found;
 }
 

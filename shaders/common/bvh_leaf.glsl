@@ -28,6 +28,38 @@ bool bvh_leaf(uint ref, Ray r, inout Hit h, bool first_hit, bool testing, inout 
     return found;
 }
 
+// The part of leaf reference `ref` after its first `tested` primitives (tested < count).
+uint bvh_leaf_rest(uint ref, uint tested) {
+    uint first = (ref & ~BVH_LEAF) >> 3u;
+    return BVH_LEAF | ((first + tested) << 3u) | ((ref & 7u) - tested);
+}
+
+// Resuming the BVH kernels' traversals (common/resume.glsl), on their locals cur, sp,
+// found and stack: words 0 the next reference, 1 sp, 2 found, the stack from
+// RESUME_LEVEL_WORDS. BVH_LEAF_CUT(tested): after testing leaf cur from step count
+// `tested`, a leaf the step budget cut short leaves the loop with the rest of it in cur.
+#define BVH_RESTORE \
+    if (RESUME_PASS && g_resuming) { \
+        g_resuming = false; \
+        cur = rs_get(0u); \
+        sp = rs_get(1u); \
+        found = rs_get(2u) != 0u; \
+        for (uint q = 0u; q < sp; q++) stack[q] = rs_get(RESUME_LEVEL_WORDS + q); \
+    }
+#define BVH_LEAF_CUT(tested) \
+    tested = steps - tested; \
+    if (tested <= (cur & 7u)) { \
+        cur = bvh_leaf_rest(cur, tested); \
+        break; \
+    }
+#define BVH_SUSPEND \
+    if (trace_suspend()) { \
+        rs_put(0u, cur); \
+        rs_put(1u, sp); \
+        rs_put(2u, uint(found)); \
+        for (uint q = 0u; q < sp; q++) rs_put(RESUME_LEVEL_WORDS + q, stack[q]); \
+    }
+
 // Entry distance of a wide node's child box [lo, hi] into [tmin, limit], +inf on a miss
 // or an empty slot (reference BVH_EMPTY).
 float wide_enter(uint ref, vec3 lo, vec3 hi, Ray r, vec3 inv, float limit) {

@@ -4,7 +4,11 @@
 // of the kernel's kind, traversed by the structure's own code (blas_closest /
 // blas_any, renamed in trace.comp) after `inst_enter` points it at that structure and
 // moves the ray into its space. Mirrors TwoLevel::traverse. Every step of both levels
-// counts against the one budget, TREE_STEPS, beyond which the pixel is flagged.
+// counts against the one budget, TREE_STEPS, beyond which the trace stops and is
+// resumed (common/resume.glsl). The top level's state: words 0 cur, 1 sp, 2 found,
+// 3 the entries of leaf cur already done, 4 whether the next one was stopped inside
+// (its structure then saved the bottom level, at RS_LEVEL); the stack from
+// RESUME_LEVEL_WORDS.
 #ifndef ARBOR_INSTANCES_GLSL
 #define ARBOR_INSTANCES_GLSL
 
@@ -56,6 +60,17 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
     uint cur = 0u;
     bool found = false;
     g_steps = 0u;
+    uint k_first = 0u;
+    bool inside = false;
+    if (RESUME_PASS && g_resuming) {
+        cur = rs_get(0u);
+        sp = rs_get(1u);
+        found = rs_get(2u) != 0u;
+        k_first = rs_get(3u);
+        for (uint q = 0u; q < sp; q++) stack[q] = rs_get(RESUME_LEVEL_WORDS + q);
+        // The bottom level restores its own state when it was stopped inside.
+        g_resuming = rs_get(4u) != 0u;
+    }
     while (g_steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && g_steps < TREE_STEPS) {
             g_steps += 1u;
@@ -91,25 +106,48 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
         if ((cur & BVH_LEAF) == 0u) break;
         uint first = (cur & ~BVH_LEAF) >> 3u;
         uint count = (cur & 7u) + 1u;
-        for (uint k = 0u; k < count && g_steps < TREE_STEPS; k++) {
+        uint k = k_first;
+        for (; k < count && g_steps < TREE_STEPS; k++) {
             g_steps += 1u;
             uint w = hdr.y * 4u + first + k;
             uint e = inst_texel(w >> 2u)[w & 3u];
             Ray o = inst_enter(e, r);
+            g_level = RS_LEVEL;
+            bool hit;
             if (any_hit) {
-                if (blas_any(o)) return true;
-            } else if (blas_closest(o, h)) {
+                hit = blas_any(o);
+            } else {
+                hit = blas_closest(o, h);
+            }
+            g_level = 0u;
+            if (g_suspended) {
+                inside = true;
+                break;
+            }
+            if (hit) {
+                if (any_hit) return true;
                 found = true;
                 h.inst = e;
             }
         }
-        // An entry cut short by the step budget must not end the trace as if complete.
-        if (g_steps >= TREE_STEPS) break;
+        // A leaf cut short (by the step budget, or inside an entry) resumes at that entry.
+        if (k < count) {
+            k_first = k;
+            break;
+        }
+        k_first = 0u;
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];
     }
-    g_overflow = true;
+    if (trace_suspend()) {
+        rs_put(0u, cur);
+        rs_put(1u, sp);
+        rs_put(2u, uint(found));
+        rs_put(3u, k_first);
+        rs_put(4u, uint(inside));
+        for (uint q = 0u; q < sp; q++) rs_put(RESUME_LEVEL_WORDS + q, stack[q]);
+    }
     return found;
 }
 

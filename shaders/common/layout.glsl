@@ -88,7 +88,8 @@ vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int
 // values live in storage").
 layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_range;  // 0  first pixel, pixel count, first sample, end sample
-    uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer
+    uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer, y: resumed part, z: pass,
+                           //    w: samples stopped (common/resume.glsl)
     uvec4 dispatch_window; // 32 x, y: window origin, z: width, w: sample that starts from zero
     Pixel pixels[];        // 48
 };
@@ -105,7 +106,7 @@ uvec3 window_pixel(uint local) {
 // The pixel's state before this dispatch's samples: zero at the window's first sample,
 // else what earlier dispatches (or a resumed part, uploaded by the host) left.
 Pixel pixel_start(uint slot) {
-    if (dispatch_chunk.y == 0u && dispatch_range.z == dispatch_window.w) {
+    if (dispatch_chunk.y == 0u && dispatch_chunk.z == PASS_TRACE && dispatch_range.z == dispatch_window.w) {
         Pixel p;
         p.radiance = vec4(0.0);
         p.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
@@ -117,9 +118,10 @@ Pixel pixel_start(uint slot) {
 }
 
 // The first sample of this dispatch the pixel lacks. A resumed pixel (dispatch_chunk.y
-// set) holds samples from the window's first one up to its count already.
+// set), and one the resume kernel continues (dispatch_chunk.z, common/resume.glsl),
+// holds samples from the window's first one up to its count already.
 uint sample_begin(Pixel p) {
-    if (dispatch_chunk.y == 0u) return dispatch_range.z;
+    if (dispatch_chunk.y == 0u && dispatch_chunk.z == PASS_TRACE) return dispatch_range.z;
     return max(dispatch_range.z, dispatch_window.w + uint(p.radiance.w));
 }
 

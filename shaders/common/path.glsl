@@ -257,9 +257,8 @@ bool unoccluded(vec3 p, vec3 err, vec3 gnf, vec3 wi, float dist) {
 }
 
 void path_main() {
-    uint gid = gl_GlobalInvocationID.x;
-    if (gid >= dispatch_range.y) return;
-    uint local = dispatch_range.x + gid;
+    uint local;
+    if (!job_begin(local)) return;
     uint slot = local - dispatch_chunk.x;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
@@ -270,6 +269,7 @@ void path_main() {
 
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {
+        sample_start();
         uint rng = rng_init(pixel, s, params.counts.z);
         Ray r;
         r.origin = params.cam_eye.xyz;
@@ -386,14 +386,17 @@ void path_main() {
                 beta /= q;
             }
         }
+        if (g_suspended) break;
         // A sample that went non-finite (a degenerate configuration) counts as black.
         if (any(isnan(L)) || any(isinf(L))) L = vec3(0.0);
         out_px.radiance += vec4(L, 1.0);
         float y = luminance(L);
         out_px.albedo_m2.w += y * y;
+        sample_done();
     }
-    out_px.prim_cost.w += g_rays;
+    out_px.prim_cost.w += job_rays();
     if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
+    job_end();
     pixels[slot] = out_px;
 }
 

@@ -7,10 +7,11 @@
 // children sorted with SORT8 (WIDE_SORT8), the nearest visited and the others pushed
 // farthest first (WIDE_PUSH8), so the stack holds 7 x depth + 1 entries (STACK_SIZE).
 // Inner nodes are descended in an inner loop and leaves tested after it; every trace
-// takes at most TREE_STEPS steps (nodes + primitive tests), beyond which the pixel is
-// flagged.
+// takes at most TREE_STEPS steps (nodes + primitive tests), beyond which it stops and
+// is resumed with the state of bvh.glsl (BVH_RESTORE, common/bvh_leaf.glsl).
 #ifndef ARBOR_WIDE8_GLSL
 #define ARBOR_WIDE8_GLSL
+#define ACCEL_RESUMABLE 1
 
 bool wide8_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
@@ -22,6 +23,7 @@ bool wide8_traverse(Ray r, inout Hit h, bool any_hit) {
     uint cur = 0u;
     bool found = false;
     STEPS_START;
+    BVH_RESTORE;
     while (steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
@@ -43,17 +45,17 @@ bool wide8_traverse(Ray r, inout Hit h, bool any_hit) {
             }
         }
         if ((cur & BVH_LEAF) == 0u) break;
+        uint tested = steps;
         if (bvh_leaf(cur, r, h, any_hit, true, steps)) {
             found = true;
             if (any_hit) return true;
         }
-        // A leaf cut short by the step budget must not end the trace as if complete.
-        if (steps >= TREE_STEPS) break;
+        BVH_LEAF_CUT(tested);
         if (sp == 0u) return found;
         sp -= 1u;
         cur = stack[sp];
     }
-    g_overflow = true;
+    BVH_SUSPEND;
     return found;
 }
 

@@ -556,6 +556,7 @@ impl super::Structure for Grid {
             cost_per_ray: self.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,
             trace_loop: super::TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: super::resume_words(1, 1),
         })
     }
 }

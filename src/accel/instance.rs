@@ -442,6 +442,7 @@ impl super::Structure for TwoLevel {
             cost_per_ray: parts.cost_per_ray,
             trace_loop: TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: super::resume_words(2, parts.stack_size),
         })
     }
 }

@@ -344,8 +344,9 @@ pub trait Structure: Traverse + Send + Sync {
 pub enum TraceLoop {
     /// Loops over primitive lists of these lengths, unrolled by `SPEC_BRUTE_UNROLL`.
     Unrolled { lengths: [u64; 2] },
-    /// A traversal loop the kernel stops after `SPEC_TREE_STEPS` steps, flagging the
-    /// pixel.
+    /// A traversal loop the kernel stops after `SPEC_TREE_STEPS` steps: the trace is
+    /// resumed in a following dispatch where the family can ([`GpuImage::resume_words`]),
+    /// else the pixel is flagged.
     StepBudget,
 }
 
@@ -376,6 +377,19 @@ pub struct GpuImage<'a> {
     /// The driver's structure the kernel traces with ray queries (`rayquery`), bound
     /// at `BINDING_TLAS`; `None` for every structure of arbor's own.
     pub ray_structure: Option<&'a crate::gpu::RayStructure>,
+    /// Words of traversal state the family's kernel saves when a trace runs out of
+    /// steps, to resume it in a following dispatch ([`resume_words`]; docs/kernels.md,
+    /// "Resumed traces"). 0: the family cannot suspend a trace (brute force, which needs
+    /// no step budget; a traversal inside the driver), and a trace that runs out flags
+    /// its pixel and fails the render.
+    pub resume_words: u32,
+}
+
+/// [`GpuImage::resume_words`] of a kernel that traverses `levels` levels (2 with
+/// instances) with a stack of `stack_size` entries: per level the fixed words and two
+/// stack arrays (shaders/common/resume.glsl).
+pub fn resume_words(levels: u32, stack_size: u32) -> u32 {
+    levels * (crate::gpu::bindings::RESUME_LEVEL_WORDS + 2 * stack_size)
 }
 
 /// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh and

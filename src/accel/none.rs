@@ -74,6 +74,7 @@ impl super::Structure for BruteForce {
                 lengths: [scene.triangles.len() as u64, scene.spheres.len() as u64],
             },
             ray_structure: None,
+            resume_words: 0,
         })
     }
 }

@@ -704,6 +704,7 @@ impl super::Structure for Octree {
             cost_per_ray: 8 * (u64::from(self.depth) + 4),
             trace_loop: super::TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: super::resume_words(1, 1),
         })
     }
 }

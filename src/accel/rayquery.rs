@@ -292,6 +292,8 @@ impl super::Structure for RayQuery {
             cost_per_ray: 4 * u64::from(64 - self.prims.max(1).leading_zeros()) + 8,
             trace_loop: TraceLoop::StepBudget,
             ray_structure: Some(device),
+            // The traversal runs inside the driver: it cannot be suspended.
+            resume_words: 0,
         })
     }
 }

@@ -206,9 +206,9 @@ fn rounds(
                 &mut run.case,
                 &mut run.pipelines,
             );
-            // A structure can fail on a scene where it degenerates (the grid in the
-            // stadium needs more steps per ray than llvmpipe's loop limit; brute force
-            // too with shadow rays on big scenes): report it, go on.
+            // A structure can fail on a scene (brute force with shadow rays on big
+            // scenes cannot fit llvmpipe's loop limit; a trace that needs more steps than
+            // its budget is resumed instead, docs/kernels.md): report it, go on.
             if let Err(e) = done {
                 let msg = format!("{e:#}");
                 print(progress, &format!("{:>16} {:>9} {:>16} failed: {msg}", sc.short, sc.triangles, run.label))?;

@@ -74,6 +74,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     settings.accel = accel;
     settings.params = params;
     settings.dispatch_budget = a.dispatch_budget.max(1);
+    settings.trace_steps = a.trace_steps;
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
     let (spp_total, shard_name) = shard_settings(a, &mut settings)?;
     settings.check()?;
@@ -113,7 +114,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
         };
         let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
         eprintln!(
-            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches), total {:.0} ms",
+            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches{}), total {:.0} ms",
             a.output.display(),
             st.integrator,
             st.samples_done,
@@ -125,6 +126,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             st.device,
             st.build_ms,
             st.dispatches,
+            if st.resumed_samples > 0 {
+                format!(
+                    "; {} pixel samples ran out of traversal steps and were resumed in {} more",
+                    st.resumed_samples, st.resume_dispatches
+                )
+            } else {
+                String::new()
+            },
             ms(start)
         );
     }

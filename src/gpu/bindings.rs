@@ -22,6 +22,10 @@ pub const BINDING_ACCEL_INDICES: u32 = 7;
 /// The driver's top-level acceleration structure (`--accel rayquery`), traced with
 /// VK_KHR_ray_query; not a buffer.
 pub const BINDING_TLAS: u32 = 8;
+/// Storage: the resume pool of a resumable family's kernels (shaders/common/resume.glsl):
+/// two job lists, then two halves of trace records. A 16-byte stand-in for the trace
+/// kernel, the pool itself for the resume kernel (src/render/resume.rs).
+pub const BINDING_RESUME: u32 = 9;
 
 /// GPU BVH build (src/accel/bvh/gpu_build.rs, shaders/build_*.comp): a header of
 /// counters and the centroid box (`BUILD_HDR_*` words).
@@ -162,6 +166,14 @@ pub const SPEC_MATERIAL_KINDS: u32 = 18;
 /// Packet traversal (a subgroup walks one node sequence) for coherent rays: camera
 /// rays of the probe kernel and shadow rays toward point and directional lights. BVHs.
 pub const SPEC_PACKET: u32 = 19;
+/// Resumed traces: 1 in the resume kernel (its restore, replay and save code), 0 in
+/// the trace kernel, which only stops a sample whose trace ran out of steps.
+pub const SPEC_RESUME_PASS: u32 = 40;
+/// Resume kernel: trace results a record logs (the traces one sample may run), trace
+/// records per half of the pool, jobs per list.
+pub const SPEC_RESUME_LOG: u32 = 41;
+pub const SPEC_RESUME_RECORDS: u32 = 42;
+pub const SPEC_RESUME_JOBS: u32 = 43;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
@@ -172,6 +184,27 @@ pub const MIS_LIGHT: u32 = 1;
 pub const MIS_BSDF: u32 = 2;
 /// Bit of `GpuPixel::prim_cost[3]` set when a trace ran out of steps.
 pub const OVERFLOW_FLAG: u32 = 0x8000_0000;
+/// Resumed traces (docs/kernels.md, "Resumed traces"): words of a trace record's head
+/// (trace, log entries, counters, best hit so far), of one logged trace result, and of
+/// one traversal level's state besides its stack (which takes 2 x SPEC_STACK_SIZE
+/// words more).
+pub const RESUME_HEAD_WORDS: u32 = 16;
+pub const RESUME_LOG_WORDS: u32 = 8;
+pub const RESUME_LEVEL_WORDS: u32 = 32;
+/// Loop iterations the resume kernel may add to one trace (its restore, save and log
+/// loops, at two levels in instanced scenes), beyond the traversal's steps.
+pub const RESUME_LOOPS_PER_TRACE: u64 = 8;
+/// The smallest per-trace step budget a render may force (`RenderSettings::trace_steps`):
+/// the grid's first-cell search (3 x 12 steps at most, `grid::MAX_RES` = 4096 cells an
+/// axis) and the step into an instance must fit, or its traces could not advance.
+pub const MIN_FORCED_TRACE_STEPS: u32 = 40;
+/// Passes of the trace kernel (`GpuDispatch::chunk[2]`): the samples of a pixel range;
+/// the resume kernel over that range, for pixels behind (job list 0 out); over job
+/// list 0 (list 1 out); over list 1 (list 0 out).
+pub const PASS_TRACE: u32 = 0;
+pub const PASS_SWEEP: u32 = 1;
+pub const PASS_LIST0: u32 = 2;
+pub const PASS_LIST1: u32 = 3;
 /// Instanced scenes (src/accel/instance.rs): 16-byte texels of one entry record in
 /// the node buffer, and the record's flag for the scene's own primitives.
 pub const INST_ENTRY_TEXELS: u32 = 9;
@@ -188,6 +221,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_ACCEL_NODES", BINDING_ACCEL_NODES),
     ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
     ("BINDING_TLAS", BINDING_TLAS),
+    ("BINDING_RESUME", BINDING_RESUME),
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
     ("SPEC_LIGHTS", SPEC_LIGHTS),
@@ -210,6 +244,17 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
     ("SPEC_PACKET", SPEC_PACKET),
+    ("SPEC_RESUME_PASS", SPEC_RESUME_PASS),
+    ("SPEC_RESUME_LOG", SPEC_RESUME_LOG),
+    ("SPEC_RESUME_RECORDS", SPEC_RESUME_RECORDS),
+    ("SPEC_RESUME_JOBS", SPEC_RESUME_JOBS),
+    ("RESUME_HEAD_WORDS", RESUME_HEAD_WORDS),
+    ("RESUME_LOG_WORDS", RESUME_LOG_WORDS),
+    ("RESUME_LEVEL_WORDS", RESUME_LEVEL_WORDS),
+    ("PASS_TRACE", PASS_TRACE),
+    ("PASS_SWEEP", PASS_SWEEP),
+    ("PASS_LIST0", PASS_LIST0),
+    ("PASS_LIST1", PASS_LIST1),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),

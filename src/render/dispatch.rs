@@ -4,6 +4,7 @@
 //! kernel runs through it: the per-dispatch values travel in the pixel buffer's
 //! header (`GpuDispatch`), never in push constants (docs/kernels.md).
 
+use super::resume::{ResumeTotals, Resumer};
 use super::Frame;
 use crate::accel::gpu_layout::{GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
 use crate::error::Result;
@@ -87,16 +88,21 @@ fn upload_chunk(ctx: &Context, pixel_buf: &Buffer, resume: Option<&Frame>, first
 /// What the dispatches cost.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DispatchTotals {
-    /// Sum of the dispatches' GPU time; `None` without timestamps.
+    /// Sum of the dispatches' GPU time, resume passes included; `None` without
+    /// timestamps.
     pub gpu_ms: Option<f64>,
+    /// Trace dispatches (resume passes not counted).
     pub dispatches: u32,
+    /// Traces resumed after running out of steps, and the passes that did it.
+    pub resumes: ResumeTotals,
 }
 
 /// One dispatch: pixels `first..first + n` of the chunk at `chunk`, samples
-/// `s..s_end`; its GPU time joins `totals`.
+/// `s..s_end`, then the resume passes for the samples it stopped; its GPU time joins
+/// `totals`.
 fn dispatch_one(
     ctx: &Context,
-    kernel: &Kernel,
+    (kernel, resumer): (&Kernel, &mut Resumer<'_>),
     pixel_buf: &Buffer,
     waves: &Waves,
     (chunk, first, n): (u64, u64, u64),
@@ -112,15 +118,17 @@ fn dispatch_one(
         _ => None,
     };
     totals.dispatches += 1;
+    resumer.settle(pixel_buf, header, &mut totals.gpu_ms)?;
+    totals.resumes = resumer.totals;
     Ok(())
 }
 
-/// Runs `kernel` over every pixel and sample of `waves`. After each dispatch,
-/// `progress(done, total)` counts pixel-samples; after each chunk,
+/// Runs `kernel` (and its resume passes) over every pixel and sample of `waves`. After
+/// each dispatch, `progress(done, total)` counts pixel-samples; after each chunk,
 /// `chunk_done(first_pixel, pixels)` reads it back.
 pub fn run(
     ctx: &Context,
-    kernel: &Kernel,
+    kernel: (&Kernel, &mut Resumer<'_>),
     pixel_buf: &Buffer,
     waves: &Waves,
     resume: Option<&Frame>,
@@ -130,7 +138,7 @@ pub fn run(
     let total_work = waves.total_pixels * u64::from(waves.spp);
     let end = waves.first_sample + waves.spp;
     let mut done = 0u64;
-    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
+    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0, resumes: ResumeTotals::default() };
     let mut chunk_start = 0u64;
     while chunk_start < waves.total_pixels {
         let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
@@ -143,7 +151,7 @@ pub fn run(
                 let s_end = (s + waves.samples_per_dispatch).min(end);
                 dispatch_one(
                     ctx,
-                    kernel,
+                    (kernel.0, &mut *kernel.1),
                     pixel_buf,
                     waves,
                     (chunk_start, chunk_start + p, n),
@@ -179,7 +187,7 @@ pub enum Next {
 /// the render stopped before its end.
 pub fn run_progressive(
     ctx: &Context,
-    kernel: &Kernel,
+    kernel: (&Kernel, &mut Resumer<'_>),
     pixel_buf: &Buffer,
     waves: &Waves,
     resume: Option<&Frame>,
@@ -189,7 +197,7 @@ pub fn run_progressive(
     let total_work = waves.total_pixels * u64::from(waves.spp);
     let end = waves.first_sample + waves.spp;
     let mut done = 0u64;
-    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0 };
+    let mut totals = DispatchTotals { gpu_ms: Some(0.0), dispatches: 0, resumes: ResumeTotals::default() };
     let mut chunk_start = 0u64;
     while chunk_start < waves.total_pixels {
         let chunk_len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
@@ -202,7 +210,7 @@ pub fn run_progressive(
                 let n = waves.pixels_per_dispatch.min(chunk_len - p);
                 dispatch_one(
                     ctx,
-                    kernel,
+                    (kernel.0, &mut *kernel.1),
                     pixel_buf,
                     waves,
                     (chunk_start, chunk_start + p, n),

@@ -92,12 +92,16 @@ pub struct LoopBounds {
     /// The step budget the kernel enforces per trace (`SPEC_TREE_STEPS`; 0 for
     /// unrolled loops, which need none).
     pub steps: u64,
+    /// Iterations kept out of the driver's budget for what the resume kernel does once
+    /// per invocation (restore and save a traversal's stacks, copy the log).
+    pub reserve: u64,
 }
 
 impl LoopBounds {
     /// Bounds for `traces` traces per sample of a structure traversed as `image` says,
-    /// within `ctx`'s loop limit.
-    pub fn new(ctx: &Context, scene: &Scene, image: &GpuImage, traces: u64) -> Result<LoopBounds> {
+    /// within `ctx`'s loop limit, with the step budget lowered to `forced` (at least
+    /// `MIN_FORCED_TRACE_STEPS`) where given.
+    pub fn new(ctx: &Context, scene: &Scene, image: &GpuImage, traces: u64, forced: Option<u32>) -> Result<LoopBounds> {
         match image.trace_loop {
             TraceLoop::Unrolled { .. } => {
                 // The smallest unroll factor whose loops fit the driver's limit for one sample.
@@ -109,11 +113,19 @@ impl LoopBounds {
                     .into_iter()
                     .find(|&u| fits(u))
                     .unwrap_or(BRUTE_UNROLL_FACTORS[BRUTE_UNROLL_FACTORS.len() - 1]);
-                Ok(LoopBounds { unroll, per_trace: image.trace_loop.iterations(unroll, 0), steps: 0 })
+                Ok(LoopBounds { unroll, per_trace: image.trace_loop.iterations(unroll, 0), steps: 0, reserve: 0 })
             }
             TraceLoop::StepBudget => {
+                // The resume kernel's own loops: a few per trace (each runs at least once
+                // on llvmpipe, even for no lane) and, once, the stacks and the log.
+                let (extra, reserve) = match image.resume_words {
+                    0 => (0, 0),
+                    words => (RESUME_LOOPS_PER_TRACE, u64::from(words) + 10 * traces + 16),
+                };
                 let steps = match ctx.loop_budget() {
-                    Some(budget) => (budget / traces.max(1)).saturating_sub(2).min(TREE_STEPS_UNLIMITED),
+                    Some(budget) => (budget.saturating_sub(reserve) / traces.max(1))
+                        .saturating_sub(2 + extra)
+                        .min(TREE_STEPS_UNLIMITED),
                     None => TREE_STEPS_UNLIMITED,
                 };
                 if steps < MIN_TREE_STEPS {
@@ -123,7 +135,8 @@ impl LoopBounds {
                         ctx.info().name
                     )));
                 }
-                Ok(LoopBounds { unroll: 1, per_trace: steps, steps })
+                let steps = forced.map_or(steps, |f| steps.min(u64::from(f.max(MIN_FORCED_TRACE_STEPS))));
+                Ok(LoopBounds { unroll: 1, per_trace: steps + extra, steps, reserve })
             }
         }
     }
@@ -132,6 +145,7 @@ impl LoopBounds {
     /// error when even one sample crosses it.
     pub fn samples_within_limit(&self, ctx: &Context, scene: &Scene, traces: u64) -> Result<Option<u32>> {
         let Some(budget) = ctx.loop_budget() else { return Ok(None) };
+        let budget = budget.saturating_sub(self.reserve);
         let per_sample = loop_iterations_per_sample(traces, self.per_trace);
         if per_sample > budget {
             return Err(Error::Usage(format!(
@@ -160,7 +174,12 @@ impl Variant {
         let name = format!("{prefix}_{}_{geometry}", image.family);
         let spirv =
             crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
-        Ok(Variant { bindings: trace_bindings(image.family, geometry), name, spirv })
+        let mut bindings = trace_bindings(image.family, geometry);
+        if image.resume_words > 0 {
+            // A stand-in for the trace kernel, the pool for the resume kernel (resume.rs).
+            bindings.push(BindingDesc { binding: BINDING_RESUME, kind: BindingKind::Storage, name: "resume" });
+        }
+        Ok(Variant { bindings, name, spirv })
     }
 }
 
@@ -172,7 +191,8 @@ pub fn chunk_pixels(ctx: &Context, total_pixels: u64, most: u64) -> u64 {
     total_pixels.min(most).min(fits.max(1))
 }
 
-/// Refuses a render in which `overflow` pixels ran out of traversal steps.
+/// Refuses a render in which `overflow` pixels ran out of traversal steps (families
+/// that cannot resume a trace).
 pub fn check_overflow(ctx: &Context, scene: &Scene, bounds: &LoopBounds, overflow: u64) -> Result<()> {
     if overflow == 0 {
         return Ok(());

@@ -16,6 +16,7 @@ pub mod output;
 pub mod part;
 pub mod path;
 pub mod readback;
+pub mod resume;
 pub mod shard;
 pub mod upload;
 pub mod whitted;
@@ -137,6 +138,13 @@ pub struct RenderSettings {
     /// whose pixels hold samples `first_sample..first_sample + n` (n may differ per
     /// pixel); each pixel traces only the samples of the range it lacks.
     pub resume: Option<std::sync::Arc<Frame>>,
+    /// For tests and experiments: lower the per-trace step budget to this (at least
+    /// `MIN_FORCED_TRACE_STEPS`), so that traces on small scenes run out of steps and
+    /// are resumed (docs/kernels.md, "Resumed traces"). The image is the same.
+    pub trace_steps: Option<u32>,
+    /// For tests: hold at most this many trace records per pass (at least 1), so that
+    /// stopped samples without one run again from their start.
+    pub resume_records: Option<u32>,
 }
 
 /// A pixel window of the image: columns `x0..x1`, rows `y0..y1` (half-open, from the
@@ -245,6 +253,8 @@ impl RenderSettings {
             crop: None,
             first_sample: 0,
             resume: None,
+            trace_steps: None,
+            resume_records: None,
         }
     }
 
@@ -285,6 +295,12 @@ impl RenderSettings {
         if let Some(t) = self.time_budget {
             if !(t.is_finite() && t > 0.0) {
                 return Err(Error::Usage(format!("--time must be a positive number of seconds, got {t}")));
+            }
+        }
+        if let Some(n) = self.trace_steps {
+            let least = crate::gpu::bindings::MIN_FORCED_TRACE_STEPS;
+            if n < least {
+                return Err(Error::Usage(format!("--trace-steps must be at least {least}, got {n}")));
             }
         }
         if let Some(d) = self.max_depth {
@@ -379,6 +395,17 @@ pub struct RenderStats {
     /// Host time to open the Vulkan device (set by the command line; 0 otherwise).
     pub device_ms: f64,
     pub dispatches: u32,
+    /// Pixel samples whose trace ran out of its step budget in a trace dispatch and
+    /// were resumed (docs/kernels.md, "Resumed traces"); 0 on most scenes.
+    pub resumed_samples: u64,
+    /// Dispatches of the resume kernel (not counted in `dispatches`; their GPU time is
+    /// in `trace_ms`, and alone in `resume_ms`).
+    pub resume_dispatches: u32,
+    /// Jobs those dispatches ran: a sample continued (or, without a free record, run
+    /// again from its start) once per job.
+    pub resume_jobs: u64,
+    /// GPU time of the resume dispatches; null without timestamps.
+    pub resume_ms: Option<f64>,
     /// Every ray traced: camera, shadow and bounce rays.
     pub rays: u64,
     pub mrays_per_s: Option<f64>,
@@ -434,6 +461,10 @@ impl RenderStats {
             load_ms: 0.0,
             device_ms: 0.0,
             dispatches: totals.dispatches,
+            resumed_samples: totals.resumes.samples,
+            resume_dispatches: totals.resumes.dispatches,
+            resume_jobs: totals.resumes.jobs,
+            resume_ms: totals.resumes.gpu_ms,
             rays,
             mrays_per_s: mrays,
             mean_prims_tested: counted.then(|| frame.tests.iter().map(|&t| t as f64).sum::<f64>() / total_pixels),

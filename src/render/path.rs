@@ -17,6 +17,7 @@ use glam::Vec3;
 
 use super::dispatch::{self, Next, Waves};
 use super::kernel::{LoopBounds, Variant};
+use super::resume::Resumer;
 use super::upload::{self, GpuScene};
 use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
@@ -335,7 +336,7 @@ pub fn render_with(
     let ex = extras(scene, gs.shading.len() as u32)?;
     gs.shading.extend_from_slice(&ex.rows);
     let traces = traces_per_sample(scene, settings, &ex);
-    let bounds = LoopBounds::new(ctx, scene, &image, traces)?;
+    let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
     let spec = specialization(scene, settings, &image, &bounds, &ex);
     let compile = Instant::now();
     let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
@@ -361,9 +362,19 @@ pub fn render_with(
     let mut overflow = 0u64;
     let mut last_checkpoint = Instant::now();
     let mut chunk_started = Instant::now();
+    let mut resumer = Resumer::new(
+        ctx,
+        settings,
+        &scene.name,
+        (&variant, &spec),
+        &bound,
+        &image,
+        (traces, bounds.steps),
+        waves.pixels_per_dispatch,
+    )?;
     let (totals, stopped) = dispatch::run_progressive(
         ctx,
-        &kernel,
+        (&kernel, &mut resumer),
         bound.pixels(),
         &waves,
         settings.resume.as_deref(),
@@ -393,12 +404,13 @@ pub fn render_with(
             Ok(Next::Continue)
         },
     )?;
+    drop(resumer);
     ctx.check_validation()?;
     super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
     let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
     stats.interrupted = stopped;
-    stats.kernel_ms = kernel_ms;
+    stats.kernel_ms = kernel_ms + totals.resumes.kernel_ms;
     Ok((frame, stats))
 }

@@ -154,6 +154,8 @@ pub fn bind_all(
                 Some((_, indices)) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?,
                 None => return Err(Error::Usage(format!("the {} structure has no indices", image.family))),
             },
+            // Resumable families: the trace kernel never touches the pool (resume.rs).
+            BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
             BINDING_PIXELS => {
                 let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
                 check_range(ctx, "pixels", size)?;
@@ -172,6 +174,27 @@ pub fn bind_all(
     }
     let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
     Ok(Bound { uniform, storage, names, pixels })
+}
+
+/// Binds the buffers of `bound` (bound by [`bind_all`] for the same `bindings`) to
+/// another kernel of the variant, `replace` in place of the buffer at its binding.
+pub fn bind_again(
+    ctx: &Context,
+    kernel: &mut Kernel,
+    bindings: &[BindingDesc],
+    bound: &Bound,
+    replace: (u32, &Buffer),
+) -> Result<()> {
+    let mut storage = bound.storage.iter();
+    for b in bindings {
+        if b.kind == BindingKind::Uniform && b.binding == BINDING_PARAMS {
+            ctx.bind(kernel, b.binding, &bound.uniform)?;
+            continue;
+        }
+        let buf = storage.next().ok_or_else(|| Error::Usage(format!("binding {} has no buffer", b.binding)))?;
+        ctx.bind(kernel, b.binding, if b.binding == replace.0 { replace.1 } else { buf })?;
+    }
+    Ok(())
 }
 
 fn check_range(ctx: &Context, name: &str, size: u64) -> Result<()> {

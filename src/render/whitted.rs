@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use super::dispatch::{self, Waves};
 use super::kernel::{LoopBounds, Variant};
+use super::resume::Resumer;
 use super::upload::{self, GpuScene};
 use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
@@ -112,7 +113,8 @@ pub fn render_with(
     super::kernel::check_subgroups(ctx)?;
     let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
     let variant = Variant::new("trace", scene, settings, &image)?;
-    let bounds = LoopBounds::new(ctx, scene, &image, traces_per_sample(scene, settings))?;
+    let traces = traces_per_sample(scene, settings);
+    let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
     let spec = specialization(scene, settings, &image, &bounds);
     let compile = Instant::now();
     let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
@@ -127,15 +129,27 @@ pub fn render_with(
     let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
     let resume = settings.resume.as_deref();
-    let totals = dispatch::run(ctx, &kernel, bound.pixels(), &waves, resume, progress, |first, len| {
-        overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
-        Ok(())
-    })?;
+    let mut resumer = Resumer::new(
+        ctx,
+        settings,
+        &scene.name,
+        (&variant, &spec),
+        &bound,
+        &image,
+        (traces, bounds.steps),
+        waves.pixels_per_dispatch,
+    )?;
+    let totals =
+        dispatch::run(ctx, (&kernel, &mut resumer), bound.pixels(), &waves, resume, progress, |first, len| {
+            overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
+            Ok(())
+        })?;
+    drop(resumer);
     ctx.check_validation()?;
     super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
     let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
-    stats.kernel_ms = kernel_ms;
+    stats.kernel_ms = kernel_ms + totals.resumes.kernel_ms;
     Ok((frame, stats))
 }

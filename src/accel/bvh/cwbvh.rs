@@ -303,14 +303,16 @@ impl crate::accel::Structure for Cwbvh {
     }
     fn gpu_image(&self, _scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
         check_limits(self.depth, self.prims)?;
+        // Each node visited pushes at most 7 children.
+        let stack_size = 7 * self.depth + 1;
         Ok(GpuImage {
             family: "cwbvh",
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
-            // Each node visited pushes at most 7 children.
-            stack_size: 7 * self.depth + 1,
+            stack_size,
             cost_per_ray: 8 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: crate::accel::resume_words(1, stack_size),
         })
     }
 }

@@ -342,14 +342,16 @@ impl<const W: usize> crate::accel::Structure for WideBvh<W> {
     }
     fn gpu_image(&self, _scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
         check_limits(self.depth, self.prims)?;
+        // Each node visited pushes at most W - 1 children.
+        let stack_size = (W as u32 - 1) * self.depth + 1;
         Ok(GpuImage {
             family: Self::name(),
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
-            // Each node visited pushes at most W - 1 children.
-            stack_size: (W as u32 - 1) * self.depth + 1,
+            stack_size,
             cost_per_ray: W as u64 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: crate::accel::resume_words(1, stack_size),
         })
     }
 }

@@ -507,6 +507,7 @@ impl super::Structure for KdTree {
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,
             ray_structure: None,
+            resume_words: super::resume_words(1, self.depth + 1),
         })
     }
 }

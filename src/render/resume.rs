@@ -1,0 +1,222 @@
+//! Resumed traces (docs/kernels.md, "Resumed traces"). On llvmpipe every trace has a
+//! step budget; a trace that runs out of it stops its sample, and the trace kernel
+//! leaves the pixel with the samples before that one and counts it in the dispatch
+//! header. After such a dispatch, the resume kernel (the same variant specialised with
+//! `SPEC_RESUME_PASS`, created the first time one is needed, with the pool bound)
+//! runs those samples on: a first pass over the dispatch's pixels takes those behind,
+//! each following pass the jobs the one before gave out, until none is left. So the
+//! pixels of a dispatch hold all its samples when it returns, as without a budget,
+//! and sum them in the same order. The pool's layout and the kernel side:
+//! `shaders/common/resume.glsl`.
+
+use super::kernel::Variant;
+use super::upload::{self, Bound};
+use crate::accel::gpu_layout::GpuDispatch;
+use crate::accel::GpuImage;
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{Buffer, BufferKind, Context, Kernel};
+
+/// Bytes of trace records the pool holds at most (two halves), besides its job lists.
+/// More pixels stopped in one pass than the records fit run their sample again from
+/// the start in the next one.
+const RECORD_POOL_BYTES: u64 = 64 << 20;
+
+/// Resume passes after one trace dispatch before a render gives up: every pass takes
+/// each saved trace at least one step further, so only a trace that cannot advance
+/// within its budget gets near this.
+const MAX_PASSES: u32 = 1 << 16;
+
+/// What resuming cost a render (`RenderStats`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ResumeTotals {
+    /// Pixel samples the trace dispatches stopped.
+    pub samples: u64,
+    /// Resume dispatches.
+    pub dispatches: u32,
+    /// Jobs they ran (one per stopped sample per pass).
+    pub jobs: u64,
+    /// Their GPU time; `None` without timestamps.
+    pub gpu_ms: Option<f64>,
+    /// Host time to create the resume kernel.
+    pub kernel_ms: f64,
+}
+
+/// How the pool is cut: words per record, records per half, jobs per list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PoolShape {
+    pub record_words: u32,
+    pub records: u32,
+    pub jobs: u32,
+}
+
+impl PoolShape {
+    /// For `jobs` invocations a pass at most (a dispatch's pixels), `log` traces a
+    /// sample, the image's traversal state, within `max_range` bytes, with at most
+    /// `most` records (a test's setting) where given.
+    pub fn new(image: &GpuImage, log: u32, jobs: u64, max_range: u64, most: Option<u32>) -> Result<PoolShape> {
+        let record_words = RESUME_HEAD_WORDS + RESUME_LOG_WORDS * log + image.resume_words;
+        let job_bytes = 2 * 4 * jobs;
+        let room = RECORD_POOL_BYTES.min(max_range.saturating_sub(job_bytes));
+        let records = jobs.min(room / (2 * 4 * u64::from(record_words)));
+        let records = most.map_or(records, |m| records.min(u64::from(m.max(1))));
+        if records == 0 || jobs > u64::from(u32::MAX) {
+            return Err(Error::Usage(format!(
+                "the device's storage buffers ({max_range} bytes) cannot hold the jobs of {jobs} pixels and one trace record of {} bytes; use a smaller --dispatch-budget",
+                4 * record_words
+            )));
+        }
+        Ok(PoolShape { record_words, records: records as u32, jobs: jobs as u32 })
+    }
+
+    /// Bytes of the pool.
+    pub fn bytes(&self) -> u64 {
+        2 * 4 * (u64::from(self.jobs) + u64::from(self.records) * u64::from(self.record_words))
+    }
+}
+
+/// Runs the resume passes of a render's trace dispatches.
+pub struct Resumer<'a> {
+    ctx: &'a Context,
+    scene: &'a str,
+    variant: &'a Variant,
+    /// The trace kernel's specialization constants.
+    spec: Vec<(u32, u32)>,
+    bound: &'a Bound,
+    /// Words of the family's traversal state; 0: it cannot stop a trace.
+    resume_words: u32,
+    shape: PoolShape,
+    /// Trace results a record logs.
+    log: u32,
+    steps: u64,
+    /// The resume kernel and its pool, once needed.
+    kernel: Option<(Kernel, Buffer)>,
+    pub totals: ResumeTotals,
+}
+
+impl std::fmt::Debug for Resumer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Resumer").field("shape", &self.shape).field("totals", &self.totals).finish_non_exhaustive()
+    }
+}
+
+impl<'a> Resumer<'a> {
+    /// For the kernel of `variant` with specialization `spec` and buffers `bound`,
+    /// `traces` traces a sample, `steps` a trace, dispatches of `pixels` pixels at most.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        ctx: &'a Context,
+        settings: &super::RenderSettings,
+        scene: &'a str,
+        (variant, spec): (&'a Variant, &[(u32, u32)]),
+        bound: &'a Bound,
+        image: &GpuImage,
+        (traces, steps): (u64, u64),
+        pixels: u64,
+    ) -> Result<Resumer<'a>> {
+        let log = u32::try_from(traces).unwrap_or(u32::MAX);
+        let shape = if image.resume_words > 0 {
+            PoolShape::new(image, log, pixels, ctx.max_storage_range(), settings.resume_records)?
+        } else {
+            PoolShape { record_words: 0, records: 0, jobs: 0 }
+        };
+        Ok(Resumer {
+            ctx,
+            scene,
+            variant,
+            spec: spec.to_vec(),
+            bound,
+            resume_words: image.resume_words,
+            shape,
+            log,
+            steps,
+            kernel: None,
+            totals: ResumeTotals { gpu_ms: Some(0.0), ..Default::default() },
+        })
+    }
+
+    /// Samples the last dispatch stopped, or the jobs the last resume pass gave out
+    /// (the header's counter).
+    fn count(&self, pixel_buf: &Buffer) -> Result<u32> {
+        let chunk = self.ctx.read_storage_pod::<u32>(pixel_buf, 16, 4)?;
+        Ok(chunk[3])
+    }
+
+    fn kernel(&mut self) -> Result<&Kernel> {
+        if self.kernel.is_none() {
+            let start = std::time::Instant::now();
+            let s = self.shape;
+            let pool = self.ctx.create_buffer("resume pool", s.bytes(), BufferKind::Storage)?;
+            let mut spec = self.spec.clone();
+            spec.extend([
+                (SPEC_RESUME_PASS, 1),
+                (SPEC_RESUME_LOG, self.log),
+                (SPEC_RESUME_RECORDS, s.records),
+                (SPEC_RESUME_JOBS, s.jobs),
+            ]);
+            let name = format!("{}.resume", self.variant.name);
+            let mut kernel = self.ctx.create_kernel(&name, self.variant.spirv, &self.variant.bindings, &spec, 0)?;
+            upload::bind_again(self.ctx, &mut kernel, &self.variant.bindings, self.bound, (BINDING_RESUME, &pool))?;
+            self.totals.kernel_ms += start.elapsed().as_secs_f64() * 1e3;
+            self.kernel = Some((kernel, pool));
+        }
+        match &self.kernel {
+            Some((k, _)) => Ok(k),
+            None => Err(Error::Usage("no resume kernel".into())),
+        }
+    }
+
+    /// After the trace dispatch of `header` (its GPU time already in `gpu_ms`): runs
+    /// the samples it stopped to their end, adding the passes' time to `gpu_ms`.
+    pub fn settle(&mut self, pixel_buf: &Buffer, header: GpuDispatch, gpu_ms: &mut Option<f64>) -> Result<()> {
+        if self.resume_words == 0 {
+            return Ok(());
+        }
+        let stopped = self.count(pixel_buf)?;
+        if stopped == 0 {
+            return Ok(());
+        }
+        self.totals.samples += u64::from(stopped);
+        let (mut pass, mut jobs) = (PASS_SWEEP, stopped);
+        let mut passes = 0u32;
+        while jobs > 0 {
+            if passes == MAX_PASSES {
+                return Err(Error::scene(
+                    self.scene.to_string(),
+                    format!(
+                        "{jobs} pixel samples still had a trace to resume after {passes} resume dispatches: a trace makes no progress within its budget of {} steps",
+                        self.steps
+                    ),
+                ));
+            }
+            let mut h = header;
+            h.chunk[2] = pass;
+            h.chunk[3] = 0;
+            // The sweep covers the dispatch's pixels, a list pass its jobs.
+            if pass != PASS_SWEEP {
+                h.range[1] = jobs;
+            }
+            let groups = h.range[1].div_ceil(WORKGROUP_SIZE);
+            let label =
+                format!("resume pass {passes}: {} {}", if pass == PASS_SWEEP { "pixels" } else { "jobs" }, h.range[1]);
+            let ctx = self.ctx;
+            let kernel = self.kernel()?;
+            let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&h), [groups, 1, 1], &label)?;
+            *gpu_ms = add(*gpu_ms, ms);
+            self.totals.gpu_ms = add(self.totals.gpu_ms, ms);
+            self.totals.dispatches += 1;
+            self.totals.jobs += u64::from(jobs);
+            jobs = self.count(pixel_buf)?;
+            pass = if pass == PASS_LIST0 { PASS_LIST1 } else { PASS_LIST0 };
+            passes += 1;
+        }
+        Ok(())
+    }
+}
+
+fn add(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a + b),
+        _ => None,
+    }
+}
