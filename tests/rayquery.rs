@@ -28,7 +28,13 @@ fn rq_gpu() -> Option<Context> {
     None
 }
 
-fn render_stats(ctx: &Context, scene: &Scene, w: u32, h: u32, f: impl FnOnce(&mut RenderSettings)) -> (Frame, RenderStats) {
+fn render_stats(
+    ctx: &Context,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    f: impl FnOnce(&mut RenderSettings),
+) -> (Frame, RenderStats) {
     let mut s = RenderSettings::for_size(w, h);
     s.accel = AccelKind::RayQuery;
     f(&mut s);
@@ -96,9 +102,19 @@ fn mismatches(a: &Frame, b: &Frame, rel: f32) -> (Vec<usize>, Vec<usize>) {
 /// the same depth), and the same depth within 1e-5 relative everywhere.
 fn assert_matches_reference(name: &str, g: &Frame, c: &Frame) {
     let (prim, depth) = mismatches(g, c, 1e-5);
-    assert!(depth.is_empty(), "{name}: {} pixels with another depth, first {:?}", depth.len(), &depth[..depth.len().min(5)]);
+    assert!(
+        depth.is_empty(),
+        "{name}: {} pixels with another depth, first {:?}",
+        depth.len(),
+        &depth[..depth.len().min(5)]
+    );
     // Ties at shared edges: at most 1 pixel in 500.
-    assert!(prim.len() * 500 <= g.prim.len(), "{name}: {} of {} pixels with another primitive", prim.len(), g.prim.len());
+    assert!(
+        prim.len() * 500 <= g.prim.len(),
+        "{name}: {} of {} pixels with another primitive",
+        prim.len(),
+        g.prim.len()
+    );
     let hits = c.prim.iter().filter(|&&p| p != u32::MAX).count();
     assert!(hits > 0 && hits < c.prim.len(), "{name}: the image must contain hits and misses ({hits})");
 }

@@ -87,9 +87,8 @@ impl RayQuery {
     /// The structure without a device: CPU traversal only (`arbor info`, tests).
     pub fn cpu_only(scene: &Scene, params: &super::AccelParams) -> RayQuery {
         let start = std::time::Instant::now();
-        let records = scene
-            .has_instances()
-            .then(|| Box::new(Accel::build_with(AccelKind::CPU_REFERENCE, scene, params)));
+        let records =
+            scene.has_instances().then(|| Box::new(Accel::build_with(AccelKind::CPU_REFERENCE, scene, params)));
         RayQuery {
             params: params.rayquery,
             device: None,
@@ -228,9 +227,7 @@ impl super::Structure for RayQuery {
             bytes: self.report.blas_bytes + self.report.tlas_bytes,
             refs_per_prim: if self.prims > 0 { 1.0 } else { 0.0 },
             phases,
-            opaque: Some(
-                "the driver's structure: nodes, leaves, depth and SAH cost are not visible to arbor".into(),
-            ),
+            opaque: Some("the driver's structure: nodes, leaves, depth and SAH cost are not visible to arbor".into()),
             ..Default::default()
         }
     }
@@ -263,7 +260,9 @@ impl super::Structure for RayQuery {
             phases.push(Phase {
                 name: "instance records".into(),
                 ms: self.records_ms,
-                detail: Some("CPU: the bvh-sah two-level records the kernel reads per instance (not in build_ms)".into()),
+                detail: Some(
+                    "CPU: the bvh-sah two-level records the kernel reads per instance (not in build_ms)".into(),
+                ),
             });
         }
         (r.blas_ms + r.compact_ms + r.tlas_ms, phases)

@@ -352,7 +352,8 @@ impl Context {
         let ray_query = info.ray_query();
         let ext_ptrs: Vec<*const std::ffi::c_char> =
             if ray_query { RAY_QUERY_EXTENSIONS.iter().map(|e| e.as_ptr()).collect() } else { Vec::new() };
-        let mut accel_features = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+        let mut accel_features =
+            vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut query_features = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
         let mut v12_features = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true);
         let mut dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);

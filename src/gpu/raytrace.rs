@@ -150,7 +150,13 @@ impl Context {
         Ok(b)
     }
 
-    fn structure(&self, ext: &ash::khr::acceleration_structure::Device, name: &str, size: u64, top: bool) -> Result<Handle> {
+    fn structure(
+        &self,
+        ext: &ash::khr::acceleration_structure::Device,
+        name: &str,
+        size: u64,
+        top: bool,
+    ) -> Result<Handle> {
         let buffer = self.create_buffer(name, size, BufferKind::AccelStorage)?;
         let ty = if top {
             vk::AccelerationStructureTypeKHR::TOP_LEVEL
@@ -189,9 +195,13 @@ impl Context {
         let start = std::time::Instant::now();
         let ext = self.shared.accel_ext.as_ref().ok_or_else(|| self.ray_query_error())?;
         if inputs.blases.len() > 1 << 24 {
-            return Err(Error::Usage(format!("{label}: {} bottom-level structures, more than 2^24", inputs.blases.len())));
+            return Err(Error::Usage(format!(
+                "{label}: {} bottom-level structures, more than 2^24",
+                inputs.blases.len()
+            )));
         }
-        let mut report = RayBuildReport { blases: inputs.blases.len(), instances: inputs.instances.len(), ..Default::default() };
+        let mut report =
+            RayBuildReport { blases: inputs.blases.len(), instances: inputs.instances.len(), ..Default::default() };
         let prefer = if opts.fast_build {
             vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_BUILD
         } else {
@@ -332,7 +342,11 @@ impl Context {
         let mut inst_bytes = Vec::with_capacity(inputs.instances.len() * 64);
         for i in inputs.instances {
             let h = blases.get(i.blas).ok_or_else(|| {
-                Error::Usage(format!("{label}: an instance names bottom-level structure {}, of {}", i.blas, blases.len()))
+                Error::Usage(format!(
+                    "{label}: an instance names bottom-level structure {}, of {}",
+                    i.blas,
+                    blases.len()
+                ))
             })?;
             inst_bytes.extend_from_slice(&instance_bytes(&i.transform, i.custom, Self::structure_address(ext, h)));
         }
@@ -431,7 +445,12 @@ impl Context {
             let mut sizes = vec![0u64; n as usize];
             // SAFETY: all `n` queries were written by the completed submission.
             unsafe {
-                dev.get_query_pool_results(pool, 0, &mut sizes, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                dev.get_query_pool_results(
+                    pool,
+                    0,
+                    &mut sizes,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
             let mut out = Vec::with_capacity(blases.len());
@@ -459,12 +478,7 @@ impl Context {
     }
 
     /// Points `binding` of `kernel` at the TLAS of `structure`.
-    pub fn bind_ray_structure(
-        &self,
-        kernel: &mut super::Kernel,
-        binding: u32,
-        structure: &RayStructure,
-    ) -> Result<()> {
+    pub fn bind_ray_structure(&self, kernel: &mut super::Kernel, binding: u32, structure: &RayStructure) -> Result<()> {
         let set = kernel.descriptor_set_for(binding, super::BindingKind::RayStructure)?;
         let handles = [structure.tlas.raw];
         let mut as_info = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
