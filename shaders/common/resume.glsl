@@ -8,7 +8,8 @@
 // variant with this constant set) runs that sample again: the first resume pass over
 // the dispatch's pixels (PASS_SWEEP) takes those behind, later passes take a job list.
 // When one of its traces runs out of steps, the pixel gets a job in the next list and,
-// while the half has one free, a record: the trace's index, the best hit so far and
+// while the half has one free (jobs with a record run first, src/render/resume.rs, so
+// they keep one), a record: the trace's index, the best hit so far and
 // the counters (the head), the results of the sample's traces that were themselves
 // resumed (the log), and each traversal level's state. The next pass replays the
 // logged results, traces the sample's other earlier traces again (each fit its budget

@@ -181,7 +181,8 @@ bool trace_any_coherent(Ray r) {
 
 // The pixel this invocation renders, false when it has none: pixel range.x + gid of
 // the trace pass; of the sweep, only a pixel behind (fewer samples than range.w, the
-// probe kernel's: none); job gid of a list pass, with its record when it has one.
+// probe kernel's: none); job range.x + gid of a list pass, with its record when it
+// has one (the host runs the jobs with a record in a dispatch of their own, first).
 bool job_begin(out uint local) {
     uint gid = gl_GlobalInvocationID.x;
     local = dispatch_range.x + gid;
@@ -193,9 +194,10 @@ bool job_begin(out uint local) {
         if (!behind) return false;
     } else if (RESUME_PASS) {
         uint list = dispatch_chunk.z == PASS_LIST0 ? 0u : 1u;
-        local = resume_pool[list * RESUME_JOBS + gid];
-        if (gid < RESUME_RECORDS) {
-            g_in = 2u * RESUME_JOBS + (list * RESUME_RECORDS + gid) * RECORD_WORDS;
+        uint job = dispatch_range.x + gid;
+        local = resume_pool[list * RESUME_JOBS + job];
+        if (job < RESUME_RECORDS) {
+            g_in = 2u * RESUME_JOBS + (list * RESUME_RECORDS + job) * RECORD_WORDS;
             g_resume_at = resume_pool[g_in];
             g_log_n = resume_pool[g_in + 1u];
             if (g_log_n > 0u) g_log_next = log_trace(0u);

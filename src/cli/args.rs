@@ -279,7 +279,7 @@ pub(crate) struct RenderArgs {
     /// with a watchdog); the output is identical for any value.
     #[arg(long, default_value_t = render::DEFAULT_DISPATCH_BUDGET, value_name = "TESTS")]
     pub(crate) dispatch_budget: u64,
-    /// For tests: lower the traversal step budget of a trace to N (at least 40), so
+    /// For tests: lower the traversal step budget of a trace to N (at least 48), so
     /// that traces run out of steps and are resumed; the output is identical.
     #[arg(long, hide = true, value_name = "N")]
     pub(crate) trace_steps: Option<u32>,

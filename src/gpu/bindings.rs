@@ -196,8 +196,9 @@ pub const RESUME_LEVEL_WORDS: u32 = 32;
 pub const RESUME_LOOPS_PER_TRACE: u64 = 8;
 /// The smallest per-trace step budget a render may force (`RenderSettings::trace_steps`):
 /// the grid's first-cell search (3 x 12 steps at most, `grid::MAX_RES` = 4096 cells an
-/// axis) and the step into an instance must fit, or its traces could not advance.
-pub const MIN_FORCED_TRACE_STEPS: u32 = 40;
+/// axis) after the step into an instance (INST_ENTRY_STEPS) must fit, or its traces
+/// could not advance.
+pub const MIN_FORCED_TRACE_STEPS: u32 = 48;
 /// Passes of the trace kernel (`GpuDispatch::chunk[2]`): the samples of a pixel range;
 /// the resume kernel over that range, for pixels behind (job list 0 out); over job
 /// list 0 (list 1 out); over list 1 (list 0 out).
@@ -209,6 +210,10 @@ pub const PASS_LIST1: u32 = 3;
 /// the node buffer, and the record's flag for the scene's own primitives.
 pub const INST_ENTRY_TEXELS: u32 = 9;
 pub const INST_ENTRY_OWN: u32 = 1;
+/// Steps of the trace's budget an entry of the top level costs before its structure's
+/// own: about the loop passes a bottom-level traversal makes when it has nothing to do
+/// (llvmpipe counts them), the resume kernel's restore and save loops included.
+pub const INST_ENTRY_STEPS: u32 = 8;
 
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
@@ -258,6 +263,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),
+    ("INST_ENTRY_STEPS", INST_ENTRY_STEPS),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
     ("MIS_BOTH", MIS_BOTH),

@@ -23,8 +23,8 @@ use crate::gpu::{Buffer, BufferKind, Context, Kernel};
 const RECORD_POOL_BYTES: u64 = 64 << 20;
 
 /// Resume passes after one trace dispatch before a render gives up: every pass takes
-/// each saved trace at least one step further, so only a trace that cannot advance
-/// within its budget gets near this.
+/// each saved trace at least one step further (`Resumer::settle`), so only a trace
+/// that cannot advance within its budget gets near this.
 const MAX_PASSES: u32 = 1 << 16;
 
 /// What resuming cost a render (`RenderStats`).
@@ -166,8 +166,32 @@ impl<'a> Resumer<'a> {
         }
     }
 
+    /// One resume dispatch of `header` running `jobs` jobs, its time added to `gpu_ms`;
+    /// the header's counter after it.
+    fn dispatch(&mut self, pixel_buf: &Buffer, h: &GpuDispatch, jobs: u32, gpu_ms: &mut Option<f64>) -> Result<u32> {
+        let groups = h.range[1].div_ceil(WORKGROUP_SIZE);
+        let label = match h.chunk[2] {
+            PASS_SWEEP => format!("resume: pixels {}+{}", h.range[0], h.range[1]),
+            _ => format!("resume: jobs {}+{}", h.range[0], h.range[1]),
+        };
+        let ctx = self.ctx;
+        let kernel = self.kernel()?;
+        let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(h), [groups, 1, 1], &label)?;
+        *gpu_ms = add(*gpu_ms, ms);
+        self.totals.gpu_ms = add(self.totals.gpu_ms, ms);
+        self.totals.dispatches += 1;
+        self.totals.jobs += u64::from(jobs);
+        self.count(pixel_buf)
+    }
+
     /// After the trace dispatch of `header` (its GPU time already in `gpu_ms`): runs
     /// the samples it stopped to their end, adding the passes' time to `gpu_ms`.
+    ///
+    /// Each pass after the sweep runs the jobs that hold a record (the first ones of
+    /// its list) before the others, in a dispatch of their own: those that stop again
+    /// then take the first places of the next list, and so keep a record. So every
+    /// pass takes each saved trace at least a step further, and the samples without a
+    /// record get the records their owners free.
     pub fn settle(&mut self, pixel_buf: &Buffer, header: GpuDispatch, gpu_ms: &mut Option<f64>) -> Result<()> {
         if self.resume_words == 0 {
             return Ok(());
@@ -177,36 +201,35 @@ impl<'a> Resumer<'a> {
             return Ok(());
         }
         self.totals.samples += u64::from(stopped);
-        let (mut pass, mut jobs) = (PASS_SWEEP, stopped);
-        let mut passes = 0u32;
+        let mut h = header;
+        h.chunk[2] = PASS_SWEEP;
+        h.chunk[3] = 0;
+        let mut jobs = self.dispatch(pixel_buf, &h, stopped, gpu_ms)?;
+        let mut pass = PASS_LIST0;
+        let mut passes = 1u32;
         while jobs > 0 {
             if passes == MAX_PASSES {
                 return Err(Error::scene(
                     self.scene.to_string(),
                     format!(
-                        "{jobs} pixel samples still had a trace to resume after {passes} resume dispatches: a trace makes no progress within its budget of {} steps",
+                        "{jobs} pixel samples still had a trace to resume after {passes} resume passes: a trace makes no progress within its budget of {} steps",
                         self.steps
                     ),
                 ));
             }
-            let mut h = header;
+            let held = jobs.min(self.shape.records);
             h.chunk[2] = pass;
             h.chunk[3] = 0;
-            // The sweep covers the dispatch's pixels, a list pass its jobs.
-            if pass != PASS_SWEEP {
-                h.range[1] = jobs;
+            h.range[0] = 0;
+            h.range[1] = held;
+            let mut next = self.dispatch(pixel_buf, &h, held, gpu_ms)?;
+            if jobs > held {
+                h.chunk[3] = next;
+                h.range[0] = held;
+                h.range[1] = jobs - held;
+                next = self.dispatch(pixel_buf, &h, jobs - held, gpu_ms)?;
             }
-            let groups = h.range[1].div_ceil(WORKGROUP_SIZE);
-            let label =
-                format!("resume pass {passes}: {} {}", if pass == PASS_SWEEP { "pixels" } else { "jobs" }, h.range[1]);
-            let ctx = self.ctx;
-            let kernel = self.kernel()?;
-            let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(&h), [groups, 1, 1], &label)?;
-            *gpu_ms = add(*gpu_ms, ms);
-            self.totals.gpu_ms = add(self.totals.gpu_ms, ms);
-            self.totals.dispatches += 1;
-            self.totals.jobs += u64::from(jobs);
-            jobs = self.count(pixel_buf)?;
+            jobs = next;
             pass = if pass == PASS_LIST0 { PASS_LIST1 } else { PASS_LIST0 };
             passes += 1;
         }
