@@ -7,8 +7,10 @@ use arbor::accel::AccelKind;
 use arbor::gpu::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
 use arbor::gpu::{BindingDesc, BindingKind, Context, Kernel};
 use arbor::render::{cpu, gpu, Frame, Integrator, KernelChoice, RenderSettings, Traversal};
-use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, Scene, SceneBuilder, Sphere};
+use arbor::scene::{Camera, Light, Scene, SceneBuilder, Sphere};
 use glam::Vec3;
+
+use common::scenes::mixed_scene;
 
 fn render(ctx: &Context, scene: &Scene, w: u32, h: u32, f: impl FnOnce(&mut RenderSettings)) -> Frame {
     let mut s = RenderSettings::for_size(w, h);
@@ -16,32 +18,6 @@ fn render(ctx: &Context, scene: &Scene, w: u32, h: u32, f: impl FnOnce(&mut Rend
     let (frame, _) = gpu::render(ctx, scene, &s, |_, _| {}).expect("render");
     ctx.check_validation().expect("no validation errors");
     frame
-}
-
-/// A blob and a few spheres of every material, with two lights.
-fn mixed_scene(eye: Vec3) -> Scene {
-    let mut b = SceneBuilder::new("mixed");
-    let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("m", Vec3::splat(0.9)) });
-    let glass = b.material(Material { kind: MaterialKind::Glass, ..Material::lambert("g", Vec3::ONE) });
-    b.mesh(&procedural::blob(3000, 0.15, 5), 0.8, Vec3::new(0.0, 0.2, 0.0), None);
-    b.mesh(
-        &procedural::quad([
-            Vec3::new(-3.0, -0.8, 3.0),
-            Vec3::new(3.0, -0.8, 3.0),
-            Vec3::new(3.0, -0.8, -3.0),
-            Vec3::new(-3.0, -0.8, -3.0),
-        ]),
-        1.0,
-        Vec3::ZERO,
-        None,
-    );
-    b.scene.spheres.push(Sphere { center: Vec3::new(-1.3, -0.4, 0.3), radius: 0.4, material: mirror });
-    b.scene.spheres.push(Sphere { center: Vec3::new(1.2, -0.4, 0.5), radius: 0.4, material: glass });
-    b.scene.spheres.push(Sphere { center: Vec3::new(0.2, 1.2, -0.8), radius: 0.25, material: 0 });
-    b.scene.lights.push(Light::Directional { direction: Vec3::new(-1.0, -1.0, -0.5), radiance: Vec3::splat(2.0) });
-    b.scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 2.0), intensity: Vec3::splat(3.0) });
-    b.scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
-    b.finish().expect("valid scene")
 }
 
 fn assert_aovs_match(name: &str, gpu: &Frame, cpu: &Frame) {

@@ -10,8 +10,10 @@ mod common;
 use arbor::accel::{Accel, AccelKind, AccelParams};
 use arbor::gpu::Context;
 use arbor::render::{cpu, gpu, Frame, Integrator, RenderSettings, RenderStats};
-use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, Scene, SceneBuilder, Sphere};
+use arbor::scene::{procedural, Light, Scene, SceneBuilder, Sphere};
 use glam::{Affine3A, Quat, Vec3};
+
+use common::scenes::mixed_scene;
 
 /// A validated device with ray queries, or None (skipped) where it has none, unless
 /// ARBOR_REQUIRE_RAY_QUERY=1, where that is a failure.
@@ -45,32 +47,6 @@ fn render_stats(
 
 fn render(ctx: &Context, scene: &Scene, w: u32, h: u32, f: impl FnOnce(&mut RenderSettings)) -> Frame {
     render_stats(ctx, scene, w, h, f).0
-}
-
-/// A blob, a ground quad and spheres of every material under two lights.
-fn mixed_scene(eye: Vec3) -> Scene {
-    let mut b = SceneBuilder::new("mixed");
-    let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("m", Vec3::splat(0.9)) });
-    let glass = b.material(Material { kind: MaterialKind::Glass, ..Material::lambert("g", Vec3::ONE) });
-    b.mesh(&procedural::blob(3000, 0.15, 5), 0.8, Vec3::new(0.0, 0.2, 0.0), None);
-    b.mesh(
-        &procedural::quad([
-            Vec3::new(-3.0, -0.8, 3.0),
-            Vec3::new(3.0, -0.8, 3.0),
-            Vec3::new(3.0, -0.8, -3.0),
-            Vec3::new(-3.0, -0.8, -3.0),
-        ]),
-        1.0,
-        Vec3::ZERO,
-        None,
-    );
-    b.scene.spheres.push(Sphere { center: Vec3::new(-1.3, -0.4, 0.3), radius: 0.4, material: mirror });
-    b.scene.spheres.push(Sphere { center: Vec3::new(1.2, -0.4, 0.5), radius: 0.4, material: glass });
-    b.scene.spheres.push(Sphere { center: Vec3::new(0.2, 1.2, -0.8), radius: 0.25, material: 0 });
-    b.scene.lights.push(Light::Directional { direction: Vec3::new(-1.0, -1.0, -0.5), radiance: Vec3::splat(2.0) });
-    b.scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 2.0), intensity: Vec3::splat(3.0) });
-    b.scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
-    b.finish().expect("valid scene")
 }
 
 /// Mean absolute difference over every channel.

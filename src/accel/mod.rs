@@ -75,19 +75,7 @@ pub enum AccelKind {
 impl AccelKind {
     /// arbor's own structures, in CLI order: every kind but [`AccelKind::RayQuery`],
     /// which exists only on devices with ray queries (see [`AccelKind::EVERY`]).
-    pub const ALL: &'static [AccelKind] = &[
-        AccelKind::None,
-        AccelKind::Kdtree,
-        AccelKind::BspCourse,
-        AccelKind::BvhSah,
-        AccelKind::Lbvh,
-        AccelKind::Trbvh,
-        AccelKind::Bvh4,
-        AccelKind::Bvh8,
-        AccelKind::Cwbvh,
-        AccelKind::Grid,
-        AccelKind::Octree,
-    ];
+    pub const ALL: &'static [AccelKind] = Self::EVERY.split_at(Self::EVERY.len() - 1).0;
 
     /// Every kind `--accel` takes: arbor's own, then the driver's.
     pub const EVERY: &'static [AccelKind] = &[

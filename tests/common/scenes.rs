@@ -6,7 +6,7 @@ use arbor::accel::Traverse;
 use arbor::gpu::Context;
 use arbor::math::{Aabb, Ray};
 use arbor::render::{gpu, Frame, RenderSettings, RenderStats};
-use arbor::scene::{procedural, Camera, Light, MeshData, Scene, SceneBuilder, Sphere};
+use arbor::scene::{procedural, Camera, Light, Material, MaterialKind, MeshData, Scene, SceneBuilder, Sphere};
 use glam::Vec3;
 
 /// A tiny deterministic generator (xorshift) so tests need no extra crates.
@@ -242,4 +242,30 @@ pub fn gpu_matches_reference(
         assert!(a == b || (a - b).abs() <= 1e-5 * b.abs(), "{what}: pixel {i} depth {a} vs {b}");
     }
     (g, st)
+}
+
+/// A blob, a ground quad and a few spheres of every material, with two lights, seen from `eye`.
+pub fn mixed_scene(eye: Vec3) -> Scene {
+    let mut b = SceneBuilder::new("mixed");
+    let mirror = b.material(Material { kind: MaterialKind::Mirror, ..Material::lambert("m", Vec3::splat(0.9)) });
+    let glass = b.material(Material { kind: MaterialKind::Glass, ..Material::lambert("g", Vec3::ONE) });
+    b.mesh(&procedural::blob(3000, 0.15, 5), 0.8, Vec3::new(0.0, 0.2, 0.0), None);
+    b.mesh(
+        &procedural::quad([
+            Vec3::new(-3.0, -0.8, 3.0),
+            Vec3::new(3.0, -0.8, 3.0),
+            Vec3::new(3.0, -0.8, -3.0),
+            Vec3::new(-3.0, -0.8, -3.0),
+        ]),
+        1.0,
+        Vec3::ZERO,
+        None,
+    );
+    b.scene.spheres.push(Sphere { center: Vec3::new(-1.3, -0.4, 0.3), radius: 0.4, material: mirror });
+    b.scene.spheres.push(Sphere { center: Vec3::new(1.2, -0.4, 0.5), radius: 0.4, material: glass });
+    b.scene.spheres.push(Sphere { center: Vec3::new(0.2, 1.2, -0.8), radius: 0.25, material: 0 });
+    b.scene.lights.push(Light::Directional { direction: Vec3::new(-1.0, -1.0, -0.5), radiance: Vec3::splat(2.0) });
+    b.scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 2.0), intensity: Vec3::splat(3.0) });
+    b.scene.camera = Camera { eye, look_at: Vec3::ZERO, up: Vec3::Y, vfov: 50.0 };
+    b.finish().expect("valid scene")
 }
