@@ -28,5 +28,6 @@ pub mod info;
 pub mod math;
 pub mod render;
 pub mod scene;
+pub mod timeline;
 
 pub use error::{Error, Result};

@@ -109,14 +109,10 @@ impl TwoLevel {
             use rayon::prelude::*;
             inst.prototypes.par_iter().map(|p| Accel::build_own(kind, &p.geometry, params)).collect()
         };
-        phases.push(Phase {
-            name: "prototypes".into(),
-            ms: t.elapsed().as_secs_f64() * 1e3,
-            detail: Some(format!("{} structures", prototypes.len())),
-        });
+        phases.push(Phase::since("prototypes", t).with_detail(format!("{} structures", prototypes.len())));
         t = Instant::now();
         let own = (scene.prim_count() > 0).then(|| Box::new(Accel::build_own(kind, scene, params)));
-        phases.push(Phase { name: "own primitives".into(), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
+        phases.push(Phase::since("own primitives", t));
         t = Instant::now();
         let mut boxes: Vec<Aabb> = inst
             .instances
@@ -137,11 +133,7 @@ impl TwoLevel {
         let bounds = refs.bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
         let bin = bvh::binned::build(&refs, &super::sah::SahCosts::default());
         let top = Bvh::flatten(&bin, &refs, bounds, BvhBuilder::Sah);
-        phases.push(Phase {
-            name: "top level".into(),
-            ms: t.elapsed().as_secs_f64() * 1e3,
-            detail: Some(format!("{} entries", refs.bounds.len())),
-        });
+        phases.push(Phase::since("top level", t).with_detail(format!("{} entries", refs.bounds.len())));
         TwoLevel {
             kind,
             own,

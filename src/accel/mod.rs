@@ -276,6 +276,28 @@ pub struct Phase {
     pub detail: Option<String>,
 }
 
+impl Phase {
+    /// Phase `name` from `since` until now, also a span on this thread's timeline
+    /// ([`crate::timeline`]), where it nests inside the build's span.
+    pub fn since(name: impl Into<String>, since: std::time::Instant) -> Phase {
+        let name = name.into();
+        crate::timeline::phase("build", &name, since, Default::default());
+        Phase { name, ms: since.elapsed().as_secs_f64() * 1e3, detail: None }
+    }
+
+    /// The same phase with `detail`.
+    pub fn with_detail(mut self, detail: String) -> Phase {
+        self.detail = Some(detail);
+        self
+    }
+}
+
+/// Records the time since `t` as phase `name` ([`Phase::since`]) and restarts `t`.
+pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut std::time::Instant) {
+    phases.push(Phase::since(name, *t));
+    *t = std::time::Instant::now();
+}
+
 /// CPU traversal, the test oracle of every structure: each implements `traverse` (in
 /// the same order and with the same rules as its kernel) and gets the nearest-hit and
 /// any-hit queries.
@@ -490,6 +512,8 @@ impl Accel {
     /// `rayquery` made this way has no device part: CPU traversal only (use
     /// [`Accel::build_on`] to trace it).
     pub fn build_with(kind: AccelKind, scene: &crate::scene::Scene, params: &AccelParams) -> Accel {
+        let span = crate::timeline::span("build", || format!("build {kind}"));
+        span.arg("primitives", scene.prim_count());
         if kind == AccelKind::RayQuery {
             return Accel::RayQuery(Box::new(rayquery::RayQuery::cpu_only(scene, params)));
         }
@@ -537,6 +561,11 @@ impl Accel {
         params: &AccelParams,
         pipelines: &mut Option<bvh::gpu_build::GpuBuilder>,
     ) -> crate::error::Result<Accel> {
+        if params.build == BuildOn::Cpu && kind != AccelKind::RayQuery {
+            return Ok(Self::build_with(kind, scene, params));
+        }
+        let span = crate::timeline::span("build", || format!("build {kind} on the device"));
+        span.arg("primitives", scene.prim_count());
         if kind == AccelKind::RayQuery {
             if params.build == BuildOn::Gpu {
                 return Err(crate::error::Error::Usage(

@@ -56,6 +56,9 @@ pub struct Options {
     pub out: Option<PathBuf>,
     /// Extra copy of bench.json.
     pub json: Option<PathBuf>,
+    /// Where to write this thread's timeline ([`crate::timeline`], recorded by the
+    /// caller) with bench.json and bench.csv: all of them or none.
+    pub trace_events: Option<PathBuf>,
     /// The structures were not named (`--accel` left at its default): the driver's
     /// structure (`rayquery`) joins them on a device that has ray queries.
     pub with_driver: bool,

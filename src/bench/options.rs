@@ -41,6 +41,8 @@ pub struct Request {
     pub quick: bool,
     pub out: Option<PathBuf>,
     pub json: Option<PathBuf>,
+    /// See [`Options::trace_events`].
+    pub trace_events: Option<PathBuf>,
 }
 
 impl Request {
@@ -74,6 +76,7 @@ impl Request {
             repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
             json: self.json.clone(),
+            trace_events: self.trace_events.clone(),
             with_driver: self.accel == AccelKind::ALL,
         })
     }
@@ -140,6 +143,7 @@ mod tests {
             quick: true,
             out: None,
             json: None,
+            trace_events: None,
         }
     }
 

@@ -100,6 +100,23 @@ impl StructureArgs {
     }
 }
 
+/// `--trace-events`, shared by render, bench and info.
+#[derive(clap::Args, Clone)]
+pub(crate) struct TraceArgs {
+    /// Write a timeline of the run as Chrome trace-event JSON, for Perfetto
+    /// (ui.perfetto.dev) or chrome://tracing: scene loading, each build phase, kernel
+    /// creation, uploads, readback and output encoding on the CPU track; every GPU
+    /// submission (kernel, pixel range, sample wave; GPU build steps) from its
+    /// timestamp queries on the GPU track (docs/profiling.md). Written with the other
+    /// outputs, or not at all.
+    #[arg(long, value_name = "FILE.json")]
+    pub(crate) trace_events: Option<PathBuf>,
+    /// For tests: place GPU spans at their submission even where the device has
+    /// calibrated timestamps.
+    #[arg(long, hide = true)]
+    pub(crate) trace_align_submit: bool,
+}
+
 #[derive(clap::Args)]
 pub(crate) struct BenchArgs {
     /// Triangle counts of the procedural meshes (builtin:blob:N); default 1000,10000,100000
@@ -189,6 +206,8 @@ pub(crate) struct BenchArgs {
     /// Samples per pixel of the --shards renders (default 64).
     #[arg(long)]
     pub(crate) spp: Option<u32>,
+    #[command(flatten)]
+    pub(crate) trace: TraceArgs,
 }
 
 #[derive(clap::Args)]
@@ -267,6 +286,8 @@ pub(crate) struct RenderArgs {
     /// Write statistics JSON here.
     #[arg(long, value_name = "PATH")]
     pub(crate) stats: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) trace: TraceArgs,
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
     /// Random seed for sample jitter and glass.
@@ -355,6 +376,8 @@ pub(crate) struct InfoArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub(crate) json: bool,
+    #[command(flatten)]
+    pub(crate) trace: TraceArgs,
     /// Device for --build gpu (unused otherwise).
     #[command(flatten)]
     pub(crate) device: DeviceArgs,

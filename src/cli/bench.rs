@@ -8,13 +8,16 @@ use arbor::render::{self, output};
 use arbor::scene::Scene;
 
 use crate::args::BenchArgs;
-use crate::common::{context, parse_size, print_out, DEFAULT_PATH_SPP};
+use crate::common::{context, parse_size, print_out, start_trace, trace_device, DEFAULT_PATH_SPP};
 use crate::farm_bench;
 use crate::progress::{BenchProgress, Reporter};
 
 /// `arbor bench`: every input (sizes, values, scenes, memory, output paths) is checked
 /// before a device is opened and anything is printed.
 pub(crate) fn run(args: &BenchArgs) -> Result<()> {
+    if args.trace.trace_events.is_some() && (args.reference.is_some() || !args.shards.is_empty()) {
+        bail!("--trace-events traces the structure table; it is not taken with --reference or --shards");
+    }
     if let Some(reference) = &args.reference {
         return convergence(args, reference);
     }
@@ -38,11 +41,13 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         quick: args.quick,
         out: args.out.clone(),
         json: args.json.clone(),
+        trace_events: args.trace.trace_events.clone(),
     }
     .options()?;
-    if let Some(p) = &args.json {
+    for p in args.json.iter().chain(&args.trace.trace_events) {
         output::check_writable(p)?;
     }
+    let _recording = start_trace(&args.trace, "bench")?;
     if let Some(d) = &args.out {
         if d.exists() && !d.is_dir() {
             bail!("{}: --out is not a directory", d.display());
@@ -52,9 +57,11 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     if let Some(d) = &args.out {
         std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
         let files = [d.join("bench.json"), d.join("bench.csv")];
-        output::check_outputs(files.iter().map(|p| p.as_path()).chain(args.json.as_deref()))?;
+        let extra = args.json.iter().chain(&args.trace.trace_events);
+        output::check_outputs(files.iter().map(|p| p.as_path()).chain(extra.map(|p| p.as_path())))?;
     }
     let ctx = context(&args.device)?;
+    trace_device(&ctx);
     eprintln!(
         "device: {} ({}, {}); {}x{} camera rays, kinds {}; brute force on a smaller image of the same view; median of {} rounds (structures in turn) after 1 warm-up",
         ctx.info().name,

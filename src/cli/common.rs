@@ -10,7 +10,7 @@ use arbor::accel::AccelKind;
 use arbor::gpu::{Context, ContextOptions};
 use arbor::scene::Scene;
 
-use crate::args::DeviceArgs;
+use crate::args::{DeviceArgs, TraceArgs};
 
 /// An error in the files a command was given (`arbor compare`): exit status 2, like a
 /// command-line error.
@@ -77,4 +77,29 @@ pub(crate) fn flatten_if(scene: Scene, asked: bool, accel: AccelKind, quiet: boo
         eprintln!("accel none: brute force has no instance level; drawing the instances as copies");
     }
     Ok(scene.flattened()?)
+}
+
+/// Starts recording the timeline `--trace-events` asks for (checking its path first):
+/// the process is named `arbor COMMAND`.
+pub(crate) fn start_trace(t: &TraceArgs, command: &str) -> Result<Option<arbor::timeline::Recording>> {
+    let Some(path) = &t.trace_events else { return Ok(None) };
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    if ext != "json" {
+        bail!("{}: --trace-events writes Chrome trace-event JSON; name it FILE.json", path.display());
+    }
+    let opts = arbor::timeline::Options { align_at_submit: t.trace_align_submit, process: format!("arbor {command}") };
+    let rec = arbor::timeline::start(opts)?;
+    arbor::timeline::meta("arbor_version", env!("CARGO_PKG_VERSION"));
+    let args: Vec<String> = std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect();
+    arbor::timeline::meta("command_line", args);
+    Ok(Some(rec))
+}
+
+/// Adds the device's facts to the timeline being recorded (if any).
+pub(crate) fn trace_device(ctx: &Context) {
+    let i = ctx.info();
+    arbor::timeline::meta("device", i.name.as_str());
+    arbor::timeline::meta("driver", i.driver.as_str());
+    arbor::timeline::meta("timestamp_period_ns", f64::from(i.timestamp_period_ns));
+    arbor::timeline::meta("gpu_timestamps", ctx.has_timestamps());
 }

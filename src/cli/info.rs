@@ -5,21 +5,36 @@ use arbor::accel::{Accel, BuildOn};
 use arbor::scene::Scene;
 
 use crate::args::InfoArgs;
-use crate::common::{context, flatten_if, print_out, resolve_accel};
+use crate::common::{context, flatten_if, print_out, resolve_accel, start_trace, trace_device};
 
 /// `arbor info`: the scene, its structure's statistics and validation, as text or JSON;
 /// a structure that fails validation fails the command after the report.
 pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     let params = a.structure.single()?;
+    if let Some(p) = &a.trace.trace_events {
+        arbor::render::output::check_outputs(std::iter::once(p.as_path()))?;
+    }
+    let _recording = start_trace(&a.trace, "info")?;
     let scene = Scene::load(&a.scene)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
     let scene = flatten_if(scene, a.flatten, accel, true)?;
     // The driver's structure exists only on a device: it is built there, as on the GPU.
     let built = match params.build {
         BuildOn::Cpu if !accel.driver_built() => Accel::build_with(accel, &scene, &params),
-        _ => Accel::build_on(&context(&a.device)?, accel, &scene, &params)?,
+        _ => {
+            let ctx = context(&a.device)?;
+            trace_device(&ctx);
+            Accel::build_on(&ctx, accel, &scene, &params)?
+        }
     };
-    let report = arbor::info::Report::new(&scene, accel, params.build, why, &built);
+    let report = {
+        let _span = arbor::timeline::span("validate", || "statistics and validation");
+        arbor::info::Report::new(&scene, accel, params.build, why, &built)
+    };
+    if let Some(p) = &a.trace.trace_events {
+        let trace = arbor::timeline::take().unwrap_or_default();
+        arbor::render::output::write_atomic(p, &trace.to_chrome_json())?;
+    }
     print_out(&if a.json { format!("{}\n", report.to_json()) } else { report.to_string() })?;
     report.validation.map_err(|e| anyhow::anyhow!("{}: structure failed validation: {e}", scene.name))
 }

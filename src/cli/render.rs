@@ -10,7 +10,7 @@ use arbor::render::{self, memory, output, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
 
 use crate::args::RenderArgs;
-use crate::common::{context, flatten_if, ms, parse_size, resolve_accel, DEFAULT_PATH_SPP};
+use crate::common::{context, flatten_if, ms, parse_size, resolve_accel, start_trace, trace_device, DEFAULT_PATH_SPP};
 use crate::interrupt;
 use crate::progress::Reporter;
 
@@ -22,7 +22,8 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let params = a.structure.single()?;
     let format = output::format_of(&a.output, "image")?;
     let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats);
-    output::check_outputs(paths.map(|p| p.as_path()))?;
+    output::check_outputs(paths.chain(&a.trace.trace_events).map(|p| p.as_path()))?;
+    let _recording = start_trace(&a.trace, "render")?;
     let integrator = render::Integrator::parse(&a.integrator).unwrap_or_default();
     let spp = a.spp.unwrap_or(if integrator == render::Integrator::Path { DEFAULT_PATH_SPP } else { 1 });
     if spp == 0 || spp > 1 << 20 {
@@ -56,7 +57,11 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     }
     let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
     let opened = Instant::now();
-    let ctx = context(&a.device)?;
+    let ctx = {
+        let _span = arbor::timeline::span("device", || "open device");
+        context(&a.device)?
+    };
+    trace_device(&ctx);
     let device_ms = ms(opened);
     let mut settings = RenderSettings::for_size(w, h);
     settings.spp = spp;
@@ -164,6 +169,12 @@ fn write_outputs(
             command_line: std::env::args_os().map(|s| s.to_string_lossy().into_owned()).collect(),
         };
         output::write_stats(&mut set, p, st, provenance)?;
+    }
+    // The timeline ends here, after every output was encoded: only the renames follow.
+    if let (Some(p), Some(_)) = (&a.trace.trace_events, st) {
+        if let Some(trace) = arbor::timeline::take() {
+            set.add(p, &trace.to_chrome_json())?;
+        }
     }
     Ok(set.commit()?)
 }

@@ -127,6 +127,8 @@ pub struct Context {
     pub(crate) max_workgroups: [u32; 3],
     /// `minAccelerationStructureScratchOffsetAlignment` (ray queries only; else 1).
     pub(crate) scratch_align: u64,
+    /// VK_EXT_calibrated_timestamps where the device has it (timeline placement).
+    pub(crate) calibration: Option<ash::ext::calibrated_timestamps::Device>,
     info: DeviceInfo,
 }
 
@@ -350,19 +352,21 @@ impl Context {
         // Ray queries (`--accel rayquery`) are enabled wherever the device has them;
         // nothing else changes for the other structures.
         let ray_query = info.ray_query();
-        let ext_ptrs: Vec<*const std::ffi::c_char> =
+        let calibrated = super::timing::calibration_supported(&entry, &instance, physical);
+        let mut ext_ptrs: Vec<*const std::ffi::c_char> =
             if ray_query { RAY_QUERY_EXTENSIONS.iter().map(|e| e.as_ptr()).collect() } else { Vec::new() };
+        if calibrated {
+            ext_ptrs.push(ash::ext::calibrated_timestamps::NAME.as_ptr());
+        }
         let mut accel_features =
             vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut query_features = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
         let mut v12_features = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true);
-        let mut dev_info = vk::DeviceCreateInfo::default().queue_create_infos(&qinfo);
+        let mut dev_info =
+            vk::DeviceCreateInfo::default().queue_create_infos(&qinfo).enabled_extension_names(&ext_ptrs);
         if ray_query {
-            dev_info = dev_info
-                .enabled_extension_names(&ext_ptrs)
-                .push_next(&mut accel_features)
-                .push_next(&mut query_features)
-                .push_next(&mut v12_features);
+            dev_info =
+                dev_info.push_next(&mut accel_features).push_next(&mut query_features).push_next(&mut v12_features);
         }
         // SAFETY: `physical` is from `instance`; pointers in dev_info live for the call.
         let device = match unsafe { instance.create_device(physical, &dev_info, None) } {
@@ -409,6 +413,7 @@ impl Context {
         })
         .map_err(alloc_err("create allocator"))?;
         let accel_ext = ray_query.then(|| ash::khr::acceleration_structure::Device::new(&instance, &device));
+        let calibration = calibrated.then(|| ash::ext::calibrated_timestamps::Device::new(&instance, &device));
         let shared = Arc::new(Shared {
             entry,
             instance,
@@ -473,6 +478,7 @@ impl Context {
             max_texel_elements: u64::from(props.limits.max_texel_buffer_elements),
             max_workgroups: props.limits.max_compute_work_group_count,
             scratch_align,
+            calibration,
             info,
         })
     }
@@ -509,11 +515,39 @@ impl Context {
 
     /// Records `record` into a one-time command buffer, submits it, waits, and returns
     /// the GPU time between the two timestamps written around it (ms), if supported.
+    /// On a timeline it is a `transfer` span; [`Context::submit_as`] names another kind.
     pub(crate) fn submit(
         &self,
         label: &str,
         record: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<Option<f64>> {
+        self.submit_as(Work::new("transfer"), label, record)
+    }
+
+    /// [`Context::submit`] of `work` (its timeline category and span arguments).
+    pub(crate) fn submit_as(
+        &self,
+        work: Work,
+        label: &str,
+        record: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<Option<f64>> {
+        let (ticks, submitted) = self.submit_ticks(label, record)?;
+        let Some([begin, end]) = ticks else { return Ok(None) };
+        if let Some(place) = self.placement(begin, submitted) {
+            super::timing::record(&place, (label, work.cat, work.args), begin, end);
+        }
+        timestamp_ms(begin, end, self.info.timestamp_period_ns).map(Some)
+    }
+
+    /// [`Context::submit`] returning the raw timestamps written around the work (None
+    /// without timestamps) and the CPU instant it was submitted.
+    pub(crate) fn submit_ticks(
+        &self,
+        label: &str,
+        record: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<(Option<[u64; 2]>, std::time::Instant)> {
+        let _span = crate::timeline::span("submit", || label);
+        let mut submitted = std::time::Instant::now();
         let dev = &self.shared.device;
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(self.command_pool)
@@ -527,7 +561,7 @@ impl Context {
         let fence =
             unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }.map_err(vk_err("vkCreateFence"))?;
         self.shared.set_name(fence, label);
-        let result = (|| -> Result<Option<f64>> {
+        let result = (|| -> Result<Option<[u64; 2]>> {
             // SAFETY: `cb` is a fresh primary command buffer of this device.
             unsafe {
                 dev.begin_command_buffer(
@@ -556,6 +590,7 @@ impl Context {
                 dev.end_command_buffer(cb).map_err(vk_err("vkEndCommandBuffer"))?;
                 let cbs = [cb];
                 let submit = [vk::SubmitInfo::default().command_buffers(&cbs)];
+                submitted = std::time::Instant::now();
                 dev.queue_submit(self.queue, &submit, fence).map_err(vk_err("vkQueueSubmit"))?;
                 dev.wait_for_fences(&[fence], true, u64::MAX).map_err(vk_err("vkWaitForFences"))?;
             }
@@ -573,7 +608,10 @@ impl Context {
                 )
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
-            timestamp_ms(ts[0], ts[1], self.info.timestamp_period_ns).map(Some)
+            if ts[1] < ts[0] {
+                return Err(Error::Usage(format!("GPU timestamps out of order: {} then {}", ts[0], ts[1])));
+            }
+            Ok(Some(ts))
         })();
         // SAFETY: the fence was waited on (or the submission failed); nothing uses them now.
         unsafe {
@@ -584,7 +622,27 @@ impl Context {
         // A skipped invalid call fails with VK_ERROR_VALIDATION_FAILED_EXT; the layer's
         // message says more than that code.
         self.check_validation()?;
-        result
+        Ok((result?, submitted))
+    }
+}
+
+/// What a submission does, for its span on the timeline: a category (`dispatch`,
+/// `build`, `transfer`; see [`crate::timeline::Event::cat`]) and arguments.
+#[derive(Debug, Default)]
+pub(crate) struct Work {
+    pub cat: &'static str,
+    pub args: serde_json::Map<String, serde_json::Value>,
+}
+
+impl Work {
+    pub fn new(cat: &'static str) -> Work {
+        Work { cat, args: serde_json::Map::new() }
+    }
+
+    /// With argument `key: value`.
+    pub fn arg(mut self, key: &str, value: impl Into<serde_json::Value>) -> Work {
+        self.args.insert(key.to_string(), value.into());
+        self
     }
 }
 

@@ -7,7 +7,7 @@ use ash::vk;
 
 use super::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
 use super::buffer::{Buffer, BufferKind};
-use super::context::{vk_err, Context, Shared};
+use super::context::{vk_err, Context, Shared, Work};
 use crate::error::{Error, Result};
 
 /// The kind of one descriptor binding.
@@ -144,6 +144,7 @@ impl Context {
         spec: &[(u32, u32)],
         push_size: u32,
     ) -> Result<Kernel> {
+        let _span = crate::timeline::span("kernel", || format!("create kernel {name}"));
         Kernel::check_storage_limit(name, bindings)?;
         let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
             .map_err(|e| Error::Vulkan { what: format!("read SPIR-V of '{name}'"), result: e.to_string() })?;
@@ -349,7 +350,7 @@ impl Context {
     /// bracketed by timestamps; returns the GPU milliseconds (None without timestamps).
     pub fn dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3], label: &str) -> Result<Option<f64>> {
         self.check_dispatch(kernel, push, groups)?;
-        self.submit(label, |dev, cb| {
+        self.submit_as(Work::new("dispatch").arg("kernel", kernel.name.as_str()), label, |dev, cb| {
             barrier_all(dev, cb);
             record_dispatch(dev, cb, kernel, push, groups);
         })
@@ -383,7 +384,8 @@ impl Context {
                 ),
             });
         }
-        self.submit(label, |dev, cb| {
+        let work = Work::new("dispatch").arg("kernel", kernel.name.as_str()).arg("groups", groups[0]);
+        self.submit_as(work, label, |dev, cb| {
             barrier_all(dev, cb);
             // SAFETY: recording scope; `buffer` is live, created with TRANSFER_DST
             // (every storage buffer is), and the range was checked above.
@@ -446,7 +448,7 @@ impl Context {
         } else {
             None
         };
-        let result = self.submit(label, |dev, cb| {
+        let result = self.submit_ticks(label, |dev, cb| {
             let mut q = 0;
             // SAFETY: recording scope; the pool is live and has `queries` entries.
             unsafe {
@@ -474,7 +476,7 @@ impl Context {
             barrier_all(dev, cb);
         });
         let out = (|| -> Result<Vec<(String, f64)>> {
-            result?;
+            let (ticks, submitted) = result?;
             let Some(p) = pool else { return Ok(Vec::new()) };
             let mut ts = vec![0u64; queries as usize];
             // SAFETY: every query was written by the completed submission.
@@ -483,6 +485,16 @@ impl Context {
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
             let period = f64::from(self.info().timestamp_period_ns) * 1e-6;
+            // On a timeline: the submission, and each marked phase inside it, placed alike.
+            if let Some([begin, end]) = ticks {
+                if let Some(place) = self.placement(begin, submitted) {
+                    super::timing::record(&place, (label, "build", Default::default()), begin, end);
+                    for (i, m) in marks.iter().enumerate() {
+                        let (b, e) = (ts[i].clamp(begin, end), ts[i + 1].clamp(begin, end));
+                        super::timing::record(&place, (m, "build", Default::default()), b, e);
+                    }
+                }
+            }
             Ok(marks
                 .iter()
                 .enumerate()

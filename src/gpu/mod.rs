@@ -7,13 +7,15 @@
 //! - [`Kernel`]: a compute pipeline with an explicit descriptor-set layout, at most
 //!   [`bindings::MAX_STORAGE_BUFFERS_PER_STAGE`] storage buffers, every bound range
 //!   checked against `maxStorageBufferRange`.
-//! - Every dispatch is bracketed by timestamp queries and reports its GPU time.
+//! - Every dispatch is bracketed by timestamp queries and reports its GPU time; while
+//!   a timeline records, each submission is a GPU span on the CPU clock (timing.rs).
 
 pub mod bindings;
 mod buffer;
 mod context;
 mod kernel;
 mod raytrace;
+mod timing;
 
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};

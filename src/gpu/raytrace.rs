@@ -13,7 +13,7 @@ use std::sync::Arc;
 use ash::vk;
 
 use super::buffer::{Buffer, BufferKind};
-use super::context::{vk_err, Context, Shared};
+use super::context::{vk_err, Context, Shared, Work};
 use crate::error::{Error, Result};
 
 /// Which of the driver's build trade-offs to ask for.
@@ -319,7 +319,7 @@ impl Context {
         let range_refs: Vec<&[vk::AccelerationStructureBuildRangeInfoKHR]> = ranges.iter().map(Vec::as_slice).collect();
         let timed = |t: Option<f64>, since: std::time::Instant| t.unwrap_or(since.elapsed().as_secs_f64() * 1e3);
         let t = std::time::Instant::now();
-        let ms = self.submit(&format!("{label}: build {} BLAS", blases.len()), |_, cb| {
+        let ms = self.submit_as(Work::new("build"), &format!("{label}: build {} BLAS", blases.len()), |_, cb| {
             if !infos.is_empty() {
                 // SAFETY: every structure, scratch slice and input buffer is live and
                 // sized by the driver's own size query; each BLAS has its own scratch slice.
@@ -389,7 +389,7 @@ impl Context {
             transform_offset: 0,
         }];
         let t = std::time::Instant::now();
-        let ms = self.submit(&format!("{label}: build TLAS"), |dev, cb| {
+        let ms = self.submit_as(Work::new("build"), &format!("{label}: build TLAS"), |dev, cb| {
             structure_barrier(dev, cb);
             // SAFETY: live TLAS, scratch and instance buffer; every referenced BLAS was
             // built (and compacted) by an earlier, completed submission.
@@ -426,7 +426,7 @@ impl Context {
         .map_err(vk_err("vkCreateQueryPool"))?;
         let raws: Vec<vk::AccelerationStructureKHR> = blases.iter().map(|h| h.raw).collect();
         let result = (|| -> Result<Vec<Handle>> {
-            let ms = self.submit(&format!("{label}: compacted sizes"), |dev, cb| {
+            let ms = self.submit_as(Work::new("build"), &format!("{label}: compacted sizes"), |dev, cb| {
                 // SAFETY: the pool has `n` queries; every structure was built with
                 // ALLOW_COMPACTION by a completed submission.
                 unsafe {
@@ -457,7 +457,7 @@ impl Context {
             for (k, &size) in sizes.iter().enumerate() {
                 out.push(self.structure(ext, &format!("{label}.blas{k}.compact"), size.max(16), false)?);
             }
-            let ms = self.submit(&format!("{label}: compact {n} BLAS"), |dev, cb| {
+            let ms = self.submit_as(Work::new("build"), &format!("{label}: compact {n} BLAS"), |dev, cb| {
                 for (src, dst) in blases.iter().zip(&out) {
                     let info = vk::CopyAccelerationStructureInfoKHR::default()
                         .src(src.raw)

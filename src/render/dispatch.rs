@@ -123,6 +123,16 @@ fn dispatch_one(
     Ok(())
 }
 
+/// The timeline span of a dispatch loop over `waves`.
+fn trace_span(waves: &Waves) -> crate::timeline::Span {
+    let span = crate::timeline::span("trace", || "trace");
+    span.arg("pixels", waves.total_pixels);
+    span.arg("samples", waves.spp);
+    span.arg("pixels_per_dispatch", waves.pixels_per_dispatch);
+    span.arg("samples_per_dispatch", waves.samples_per_dispatch);
+    span
+}
+
 /// Runs `kernel` (and its resume passes) over every pixel and sample of `waves`. After
 /// each dispatch, `progress(done, total)` counts pixel-samples; after each chunk,
 /// `chunk_done(first_pixel, pixels)` reads it back.
@@ -135,6 +145,7 @@ pub fn run(
     mut progress: impl FnMut(u64, u64),
     mut chunk_done: impl FnMut(u64, u64) -> Result<()>,
 ) -> Result<DispatchTotals> {
+    let _span = trace_span(waves);
     let total_work = waves.total_pixels * u64::from(waves.spp);
     let end = waves.first_sample + waves.spp;
     let mut done = 0u64;
@@ -194,6 +205,7 @@ pub fn run_progressive(
     mut progress: impl FnMut(u64, u64),
     mut wave_done: impl FnMut(u64, u64, u32, bool) -> Result<Next>,
 ) -> Result<(DispatchTotals, bool)> {
+    let _span = trace_span(waves);
     let total_work = waves.total_pixels * u64::from(waves.spp);
     let end = waves.first_sample + waves.spp;
     let mut done = 0u64;

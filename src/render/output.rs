@@ -115,6 +115,8 @@ impl OutputSet {
 
     /// Writes `bytes` (whole, synced) to a temporary file beside `path`.
     pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let span = crate::timeline::span("output", || format!("write {}", path.display()));
+        span.arg("bytes", bytes.len());
         let tmp = temp_path(path);
         let written = (|| -> std::io::Result<()> {
             let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
@@ -201,6 +203,11 @@ pub fn encode_pfm(width: u32, height: u32, channels: usize, data: &[f32]) -> Vec
     out
 }
 
+/// The timeline span of encoding the output `path` (its writing nests inside).
+fn encode_span(path: &Path) -> crate::timeline::Span {
+    crate::timeline::span("output", || format!("encode {}", path.display()))
+}
+
 /// Adds the image `rgb` as `path` (PNG or EXR by extension) to `set`.
 pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rgb: &[[f32; 3]]) -> Result<()> {
     let f = format_of(path, "image")?;
@@ -211,6 +218,7 @@ pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rg
 /// ([`super::part`]: the window in the full image, every sum and AOV, the header
 /// `info`) that `arbor merge` and `--resume` read.
 pub fn write_frame(set: &mut OutputSet, path: &Path, info: &super::part::PartInfo, frame: &Frame) -> Result<()> {
+    let _span = encode_span(path);
     match format_of(path, "image")? {
         Format::Exr => set.add(path, &super::part::encode(info, frame)?),
         f => set.add(path, &encode_image(f, frame.width, frame.height, &frame.radiance)?),
@@ -299,6 +307,7 @@ pub fn write_aovs(
     height: u32,
 ) -> Result<()> {
     for (name, path) in aovs {
+        let _span = encode_span(path);
         let (channels, data) = aov_channels(frame, name)?;
         write_aov(set, path, width, height, channels, &data)?;
     }
@@ -329,6 +338,7 @@ pub struct Provenance {
 
 /// Adds the statistics JSON (`stats` and `provenance`) as `path` to `set`.
 pub fn write_stats(set: &mut OutputSet, path: &Path, stats: &RenderStats, provenance: Provenance) -> Result<()> {
+    let _span = encode_span(path);
     let json = serde_json::to_vec_pretty(&StatsFile { stats, provenance })
         .map_err(|e| Error::Usage(format!("stats JSON: {e}")))?;
     set.add(path, &json)

@@ -76,6 +76,7 @@ fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
 /// dividing radiance sums by the pixel's sample count. Returns how many pixels ran
 /// out of traversal steps.
 pub fn read_chunk(ctx: &Context, pixel_buf: &Buffer, frame: &mut Frame, first: u64, len: u64) -> Result<u64> {
+    let _span = crate::timeline::span("readback", || format!("read back pixels {first}+{len}"));
     let size = std::mem::size_of::<GpuPixel>();
     let bytes = ctx.read_storage(pixel_buf, PIXEL_HEADER_BYTES, len * size as u64)?;
     let mut overflow = 0u64;

@@ -123,6 +123,7 @@ pub fn bind_all(
     image: &GpuImage,
     chunk_pixels: u64,
 ) -> Result<Bound> {
+    let _span = crate::timeline::span("upload", || "upload scene and structure");
     let uniform = ctx.upload_uniform("params", bytemuck::bytes_of(params))?;
     let mut storage: Vec<Buffer> = Vec::new();
     let mut names = Vec::new();

@@ -23,6 +23,7 @@ use crate::scene::mesh::{Environment, Texture};
 
 /// Loads a PNG or JPEG texture as sRGB-encoded RGBA8, row 0 at the top.
 pub fn load_texture(path: &Path) -> Result<Texture> {
+    let _span = crate::timeline::span("load", || format!("load texture {}", path.display()));
     let image = decode(path, FileKind::Texture, &[ImageFormat::Png, ImageFormat::Jpeg], "PNG or JPEG")?;
     let rgba = image.into_rgba8();
     let (width, height) = rgba.dimensions();
@@ -34,6 +35,7 @@ pub fn load_texture(path: &Path) -> Result<Texture> {
 /// linear RGB. `rotation` (degrees about +y) and `intensity` (a multiplier) are stored
 /// as given; both must be finite and `intensity` >= 0.
 pub fn load_environment(path: &Path, rotation: f32, intensity: f32) -> Result<Environment> {
+    let _span = crate::timeline::span("load", || format!("load environment {}", path.display()));
     if !(rotation.is_finite() && intensity.is_finite() && intensity >= 0.0) {
         return Err(Error::invalid(
             path,

@@ -340,6 +340,7 @@ impl SceneBuilder {
 impl Scene {
     /// Loads a scene from `builtin:NAME`, a `.toml` scene file, or a mesh file.
     pub fn load(source: &str) -> Result<Scene> {
+        let _span = crate::timeline::span("load", || format!("load scene {source}"));
         if let Some(name) = source.strip_prefix("builtin:") {
             return builtin::load(name);
         }
@@ -499,6 +500,7 @@ pub fn framed_camera(bounds: &Aabb, vfov: f32) -> Camera {
 
 /// Loads a mesh file by extension.
 pub fn load_mesh(path: &Path) -> Result<MeshData> {
+    let _span = crate::timeline::span("load", || format!("load mesh {}", path.display()));
     let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
     match ext.as_str() {
         "obj" => obj::load(path),

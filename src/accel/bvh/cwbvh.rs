@@ -130,11 +130,7 @@ impl Cwbvh {
         let mut phases = bin.phases.clone();
         let t = Instant::now();
         let mut wide = Self::collapse(&bin);
-        phases.push(Phase {
-            name: "collapse to 8-wide, quantise".into(),
-            ms: t.elapsed().as_secs_f64() * 1e3,
-            detail: None,
-        });
+        phases.push(Phase::since("collapse to 8-wide, quantise", t));
         wide.phases = phases;
         wide.build_ms = start.elapsed().as_secs_f64() * 1e3;
         wide

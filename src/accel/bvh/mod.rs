@@ -642,11 +642,7 @@ fn validate_tree<const W: usize>(
     Ok(())
 }
 
-/// Records the time since `t` as phase `name` and restarts `t`.
-pub(crate) fn lap(phases: &mut Vec<Phase>, name: &str, t: &mut Instant) {
-    phases.push(Phase { name: name.to_string(), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
-    *t = Instant::now();
-}
+pub(crate) use super::lap;
 
 impl super::Traverse for Bvh {
     fn traverse(&self, prims: &Prims, ray: &Ray, best: &mut Hit, any: bool) -> bool {

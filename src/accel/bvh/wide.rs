@@ -115,7 +115,7 @@ impl<const W: usize> WideBvh<W> {
         let mut phases = bin.phases.clone();
         let t = Instant::now();
         let mut wide = Self::collapse(&bin);
-        phases.push(Phase { name: format!("collapse to {W}-wide"), ms: t.elapsed().as_secs_f64() * 1e3, detail: None });
+        phases.push(Phase::since(format!("collapse to {W}-wide"), t));
         wide.phases = phases;
         wide.build_ms = start.elapsed().as_secs_f64() * 1e3;
         wide

@@ -189,6 +189,9 @@ pub struct KdTree {
     pub depth: u32,
     pub prims: usize,
     build_ms: f64,
+    /// Build phases: events, event sort, SAH splits, flatten (the course builder: its
+    /// build, then flatten).
+    phases: Vec<super::Phase>,
     builder: KdBuilder,
 }
 
@@ -199,8 +202,9 @@ impl KdTree {
     pub fn build(scene: &Scene, params: &KdParams) -> KdTree {
         let start = Instant::now();
         let bounds = scene.bounds();
-        let root = sah_build::build(scene, params, &bounds);
-        Self::flatten(root, bounds, scene.prim_count(), start, KdBuilder::Sah)
+        let mut phases = Vec::new();
+        let root = sah_build::build(scene, params, &bounds, &mut phases);
+        Self::flatten(root, bounds, scene.prim_count(), (start, phases), KdBuilder::Sah)
     }
 
     /// Builds the lecture's tree (`bsp-course`).
@@ -208,11 +212,20 @@ impl KdTree {
         let start = Instant::now();
         let bounds = scene.bounds();
         let root = course::build(scene, &bounds);
-        Self::flatten(root, bounds, scene.prim_count(), start, KdBuilder::Course)
+        let phases = vec![super::Phase::since("build", start)];
+        Self::flatten(root, bounds, scene.prim_count(), (start, phases), KdBuilder::Course)
     }
 
-    fn flatten(root: BuildNode, bounds: Aabb, prims: usize, start: Instant, builder: KdBuilder) -> KdTree {
-        let mut t = KdTree { bounds, nodes: Vec::new(), indices: Vec::new(), depth: 0, prims, build_ms: 0.0, builder };
+    fn flatten(
+        root: BuildNode,
+        bounds: Aabb,
+        prims: usize,
+        (start, phases): (Instant, Vec<super::Phase>),
+        builder: KdBuilder,
+    ) -> KdTree {
+        let flat = Instant::now();
+        let mut t =
+            KdTree { bounds, nodes: Vec::new(), indices: Vec::new(), depth: 0, prims, build_ms: 0.0, phases, builder };
         // Iterative pre-order: below child right after its parent.
         let mut stack: Vec<(BuildNode, Option<usize>, u32)> = vec![(root, None, 0)];
         while let Some((node, parent_slot, depth)) = stack.pop() {
@@ -234,6 +247,7 @@ impl KdTree {
                 }
             }
         }
+        t.phases.push(super::Phase::since("flatten", flat));
         t.build_ms = start.elapsed().as_secs_f64() * 1e3;
         t
     }
@@ -263,7 +277,7 @@ impl KdTree {
 
     /// Build time and phases (what [`Self::stats`] reports of them, without the rest).
     pub fn timing(&self) -> (f64, Vec<super::Phase>) {
-        (self.build_ms, Vec::new())
+        (self.build_ms, self.phases.clone())
     }
 
     /// Statistics for `arbor info` and the stats JSON.
@@ -302,7 +316,7 @@ impl KdTree {
             refs_per_prim: refs as f64 / self.prims.max(1) as f64,
             prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
             sah_cost: cost,
-            phases: Vec::new(),
+            phases: self.phases.clone(),
             resolution: None,
             levels: None,
             opaque: None,

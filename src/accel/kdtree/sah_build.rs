@@ -28,6 +28,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use super::{BuildNode, KdParams};
 use crate::accel::prim::{self, PrimGeom};
 use crate::accel::sah::area;
+use crate::accel::{lap, Phase};
 use crate::math::Aabb;
 use crate::scene::Scene;
 
@@ -121,7 +122,8 @@ fn push_events(events: &mut [Vec<Event>; 3], b: &Aabb, prim: u32) {
 }
 
 /// Builds the tree for every primitive of `scene` inside `bounds`.
-pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb) -> BuildNode {
+pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb, phases: &mut Vec<Phase>) -> BuildNode {
+    let mut t = std::time::Instant::now();
     let n = scene.prim_count();
     let geoms: Vec<PrimGeom> = (0..n as u32).map(|i| prim::geom(scene, i)).collect();
     let budget = REF_BUDGET_PER_PRIM * n + REF_BUDGET_EXTRA;
@@ -135,17 +137,29 @@ pub(super) fn build(scene: &Scene, params: &KdParams, bounds: &Aabb) -> BuildNod
         prims.push(i as u32);
         push_events(&mut events, &b, local);
     }
+    let count = events.iter().map(Vec::len).sum::<usize>();
+    lap(phases, "events", &mut t);
     {
         use rayon::prelude::*;
         events.par_iter_mut().for_each(|l| l.par_sort_unstable_by_key(key));
     }
+    lap(phases, "event sort", &mut t);
+    if let Some(p) = phases.last_mut() {
+        p.detail = Some(format!("{count} events on 3 axes"));
+    }
     let root = NodeData { bbox: *bounds, prims, events };
     let tree = build_node(&ctx, root.clone(), 0, None);
+    lap(phases, "SAH splits", &mut t);
     if ctx.refs.load(Ordering::Relaxed) <= budget {
         return tree;
     }
     drop(tree);
-    build_node(&ctx, root, 0, Some(budget))
+    let tree = build_node(&ctx, root, 0, Some(budget));
+    lap(phases, "SAH splits within the reference budget", &mut t);
+    if let Some(p) = phases.last_mut() {
+        p.detail = Some(format!("the first pass made over {budget} references"));
+    }
+    tree
 }
 
 struct Plane {
