@@ -135,11 +135,9 @@ pub fn read(bytes: &[u8], what: &std::path::Path) -> Result<Trace> {
     Ok(trace)
 }
 
-/// The categories arbor writes, as static strings; any other becomes `other`.
+/// The category `cat` as one of [`super::CATEGORIES`]; any other becomes `other`.
 fn intern(cat: &str) -> &'static str {
-    const KNOWN: [&str; 10] =
-        ["load", "build", "upload", "trace", "readback", "output", "submit", "dispatch", "transfer", "run"];
-    KNOWN.iter().find(|k| **k == cat).copied().unwrap_or("other")
+    super::CATEGORIES.iter().find(|k| **k == cat).copied().unwrap_or("other")
 }
 
 /// Checks the nesting rules of [`super`] on `trace`: on each track, two spans either

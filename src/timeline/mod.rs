@@ -40,14 +40,23 @@ pub enum Track {
     Gpu,
 }
 
+/// Every category arbor writes ([`Event::cat`]).
+pub const CATEGORIES: [&str; 13] = [
+    "load", "device", "build", "kernel", "upload", "trace", "readback", "output", "validate", "submit", "dispatch",
+    "transfer", "other",
+];
+
 /// One span of the timeline.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Event {
     pub track: Track,
     pub name: String,
-    /// What kind of work: `load`, `build`, `upload`, `trace`, `readback`, `output`,
-    /// `submit` (the CPU side of a submission) on the CPU track; `dispatch` (trace and
-    /// resume kernels), `build` (GPU builders, BLAS/TLAS), `transfer` on the GPU track.
+    /// What kind of work, one of [`CATEGORIES`]: `load`, `device` (opening it),
+    /// `build`, `kernel` (creating a pipeline: on lavapipe, compiling it), `upload`,
+    /// `trace` (the dispatch loop), `readback`, `output` (encoding and writing files),
+    /// `validate`, `submit` (the CPU side of a submission) on the CPU track;
+    /// `dispatch` (trace and resume kernels), `build` (GPU builders, BLAS/TLAS) and
+    /// `transfer` on the GPU track.
     pub cat: &'static str,
     /// Start, nanoseconds after the recording started.
     pub start_ns: u64,
