@@ -210,8 +210,8 @@ mod tests {
         t.events.push(ev(Track::Gpu, "g", 50, 100));
         assert!(check_nesting(&t, 0).is_ok());
         t.events.push(ev(Track::Cpu, "d", 90, 20));
-        let err = check_nesting(&t, 0).expect_err("d crosses a's end");
-        assert!(err.contains("'a'") && err.contains("'d'"), "{err}");
+        let err = check_nesting(&t, 0).expect_err("d crosses the end of c (and a)");
+        assert!(err.contains("'c'") && err.contains("'d'"), "{err}");
         assert!(check_nesting(&t, 10).is_ok());
     }
 
