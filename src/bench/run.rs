@@ -127,6 +127,7 @@ fn run_scene(
     // The watertight reference for the camera rays (CPU, a sample of the pixels).
     let stride = ((u64::from(w) * u64::from(h)) / REFERENCE_PIXELS).max(1) as usize;
     let reference = {
+        let _span = crate::timeline::span("run", || format!("{name}: CPU reference"));
         let accel = Accel::build(AccelKind::CPU_REFERENCE, base);
         crate::render::cpu::reference_prims(base, &accel, w, h, stride)
     };
@@ -196,6 +197,7 @@ fn rounds(
         let what = if round == 0 { "warm-up".to_string() } else { format!("round {round} of {repeat}") };
         for run in runs.iter_mut().filter(|r| r.error.is_none()) {
             progress.message(format!("{}, {}, {what}", sc.short, run.label));
+            let _span = crate::timeline::span("run", || format!("{} {} {what}", sc.short, run.label));
             let timed = round > 0;
             let done = bench_round(
                 ctx,

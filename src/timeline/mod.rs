@@ -41,9 +41,9 @@ pub enum Track {
 }
 
 /// Every category arbor writes ([`Event::cat`]).
-pub const CATEGORIES: [&str; 13] = [
-    "load", "device", "build", "kernel", "upload", "trace", "readback", "output", "validate", "submit", "dispatch",
-    "transfer", "other",
+pub const CATEGORIES: [&str; 14] = [
+    "run", "load", "device", "build", "kernel", "upload", "trace", "readback", "output", "validate", "submit",
+    "dispatch", "transfer", "other",
 ];
 
 /// One span of the timeline.
@@ -51,7 +51,8 @@ pub const CATEGORIES: [&str; 13] = [
 pub struct Event {
     pub track: Track,
     pub name: String,
-    /// What kind of work, one of [`CATEGORIES`]: `load`, `device` (opening it),
+    /// What kind of work, one of [`CATEGORIES`]: `run` (a part of a command, e.g. one
+    /// bench round of one structure), `load`, `device` (opening it),
     /// `build`, `kernel` (creating a pipeline: on lavapipe, compiling it), `upload`,
     /// `trace` (the dispatch loop), `readback`, `output` (encoding and writing files),
     /// `validate`, `submit` (the CPU side of a submission) on the CPU track;
