@@ -141,13 +141,17 @@ pub(super) fn write(
         set.add(&d.join("bench.json"), &json)?;
         set.add(&d.join("bench.csv"), to_csv(rows)?.as_bytes())?;
     }
+    let mut spans = None;
     if let Some(p) = &opts.trace_events {
         let trace = crate::timeline::take()
             .ok_or_else(|| Error::Usage(format!("{}: no timeline was recorded on this thread", p.display())))?;
         set.add(p, &trace.to_chrome_json())?;
-        progress.note(&format!("wrote {} ({} spans)", p.display(), trace.events.len()));
+        spans = Some((p, trace.events.len()));
     }
     set.commit()?;
+    if let Some((p, n)) = spans {
+        progress.note(&format!("wrote {} ({n} spans)", p.display()));
+    }
     if let Some(d) = &opts.out {
         progress.note(&format!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display()));
         let dir: &Path = &d.join("plots");
