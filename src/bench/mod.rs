@@ -56,6 +56,8 @@ pub struct Options {
     pub out: Option<PathBuf>,
     /// Extra copy of bench.json.
     pub json: Option<PathBuf>,
+    /// Colour scale of the cost figures (plots/cost_<scene>.png).
+    pub heatmap_scale: crate::render::heatmap::Scale,
     /// The structures were not named (`--accel` left at its default): the driver's
     /// structure (`rayquery`) joins them on a device that has ray queries.
     pub with_driver: bool,

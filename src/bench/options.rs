@@ -41,6 +41,8 @@ pub struct Request {
     pub quick: bool,
     pub out: Option<PathBuf>,
     pub json: Option<PathBuf>,
+    /// Colour scale of the cost figures.
+    pub heatmap_scale: crate::render::heatmap::Scale,
 }
 
 impl Request {
@@ -74,6 +76,7 @@ impl Request {
             repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
             json: self.json.clone(),
+            heatmap_scale: self.heatmap_scale,
             with_driver: self.accel == AccelKind::ALL,
         })
     }
@@ -140,6 +143,7 @@ mod tests {
             quick: true,
             out: None,
             json: None,
+            heatmap_scale: crate::render::heatmap::Scale::Linear,
         }
     }
 

@@ -38,6 +38,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         quick: args.quick,
         out: args.out.clone(),
         json: args.json.clone(),
+        heatmap_scale: args.heatmap_scale.parse().map_err(anyhow::Error::msg)?,
     }
     .options()?;
     if let Some(p) = &args.json {
