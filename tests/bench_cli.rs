@@ -60,7 +60,7 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
     }
     assert!(!json["time_to_image"].as_array().expect("time to image").is_empty());
 
-    // Plots: charts in both formats at the chart size, a heatmap per structure.
+    // Plots: charts in both formats at the chart size, one cost figure for the scene.
     let mut pngs = 0;
     for e in std::fs::read_dir(dir.join("plots")).expect("plots dir") {
         let p = e.expect("entry").path();
@@ -68,7 +68,10 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
         match p.extension().and_then(|x| x.to_str()) {
             Some("png") => {
                 let img = image::open(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
-                if !name.starts_with("cost_") {
+                if name.starts_with("cost_") {
+                    assert_eq!(name, "cost_blob_1000.png");
+                    check_cost_figure(&img.to_rgb8());
+                } else {
                     assert_eq!((img.width(), img.height()), plots::CHART_SIZE, "{name}");
                 }
                 // Not blank: more than one colour.
@@ -84,9 +87,47 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
             _ => panic!("unexpected file {name}"),
         }
     }
-    // Mrays/s and time to image for 2 ray kinds, and 2 cost heatmaps (kdtree, grid).
-    assert_eq!(pngs, 2 + 2 + 2, "PNG plots");
+    // Mrays/s and time to image for 2 ray kinds, and one cost figure (kdtree and grid
+    // side by side; brute force visits no nodes).
+    assert_eq!(pngs, 2 + 2 + 1, "PNG plots");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The cost figure of `--size 128x128` (--quick) with two panels: two maps zoomed to
+/// 256x256 side by side (each a block of viridis colours, not one colour), then the
+/// colour bar from viridis(1) at the top to viridis(0) at the bottom, beside both.
+fn check_cost_figure(img: &image::RgbImage) {
+    use arbor::render::heatmap::viridis;
+    let px = |x: u32, y: u32| img.get_pixel(x, y).0;
+    // Viridis colours: blue never far below red and green, unlike white, black or grey text.
+    let palette: Vec<[u8; 3]> = (0..=1000).map(|k| viridis(f64::from(k) / 1000.0)).collect();
+    let is_map = |c: [u8; 3]| palette.iter().any(|p| p.iter().zip(c).all(|(a, b)| a.abs_diff(b) <= 1));
+    // Runs of map colour along the middle row of the maps: two of 256 pixels, then the bar.
+    let y = (0..img.height()).find(|&y| is_map(px(12, y))).expect("a map at the left margin") + 128;
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    let mut x = 0;
+    while x < img.width() {
+        if is_map(px(x, y)) {
+            let start = x;
+            while x < img.width() && is_map(px(x, y)) {
+                x += 1;
+            }
+            runs.push((start, x - start));
+        }
+        x += 1;
+    }
+    assert_eq!(runs.len(), 3, "two maps and the bar along row {y}: {runs:?}");
+    assert_eq!((runs[0].1, runs[1].1), (256, 256), "{runs:?}");
+    for &(x0, _) in &runs[..2] {
+        let mut colours: Vec<[u8; 3]> = (0..256).map(|dx| px(x0 + dx, y)).collect();
+        colours.sort_unstable();
+        colours.dedup();
+        assert!(colours.len() > 3, "a uniform map at x = {x0}");
+    }
+    let bar_x = runs[2].0 + runs[2].1 / 2;
+    let column: Vec<[u8; 3]> = (0..img.height()).map(|y| px(bar_x, y)).filter(|&c| is_map(c)).collect();
+    assert_eq!((column.first(), column.last()), (Some(&viridis(1.0)), Some(&viridis(0.0))), "colour bar");
+    assert!(column.len() >= 256, "the bar spans the maps: {}", column.len());
 }
 
 /// docs/bench.md lists the columns of `bench::CSV_COLUMNS`, in order, under its

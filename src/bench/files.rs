@@ -155,7 +155,7 @@ pub(super) fn write(
     if let Some(d) = &opts.out {
         progress.note(&format!("wrote {} and {}", d.join("bench.csv").display(), d.join("bench.json").display()));
         let dir: &Path = &d.join("plots");
-        let plots = super::plots::bench_plots(dir, rows, heatmaps, opts.intersect[0].name())?;
+        let plots = super::plots::bench_plots(dir, rows, heatmaps, opts.intersect[0].name(), opts.heatmap_scale)?;
         progress.note(&format!("wrote {} plots in {}", plots.len(), dir.display()));
     }
     Ok(())

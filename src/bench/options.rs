@@ -43,6 +43,8 @@ pub struct Request {
     pub json: Option<PathBuf>,
     /// See [`Options::trace_events`].
     pub trace_events: Option<PathBuf>,
+    /// Colour scale of the cost figures.
+    pub heatmap_scale: crate::render::heatmap::Scale,
 }
 
 impl Request {
@@ -77,6 +79,7 @@ impl Request {
             out: self.out.clone(),
             json: self.json.clone(),
             trace_events: self.trace_events.clone(),
+            heatmap_scale: self.heatmap_scale,
             with_driver: self.accel == AccelKind::ALL,
         })
     }
@@ -144,6 +147,7 @@ mod tests {
             out: None,
             json: None,
             trace_events: None,
+            heatmap_scale: crate::render::heatmap::Scale::Linear,
         }
     }
 

@@ -1,13 +1,13 @@
 //! Benchmark plots (PNG and SVG, drawn with plotters): Mrays/s per structure, build
 //! time against triangle count (log-log), time to image against samples per pixel,
-//! and per-pixel cost heatmaps with a colour legend.
+//! and one cost figure per scene: the nodes each structure visits per pixel, side by side
+//! on one colour scale ([`crate::render::heatmap`]).
 //!
 //! Text needs a TrueType font: `ARBOR_FONT=path.ttf`, else DejaVu Sans from Debian's
 //! `fonts-dejavu-core` (installed by scripts/setup.sh). [`bench_plots`] draws every chart
 //! of a run.
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -17,30 +17,7 @@ use crate::error::{Error, Result};
 /// Pixel size of the chart images.
 pub const CHART_SIZE: (u32, u32) = (900, 560);
 
-const FONT_CANDIDATES: &[&str] =
-    &["/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", "/usr/share/fonts/TTF/DejaVuSans.ttf"];
-
-/// Registers the font once; an error names what to install.
-fn font() -> Result<()> {
-    static DONE: OnceLock<std::result::Result<(), String>> = OnceLock::new();
-    DONE.get_or_init(|| {
-        let env = std::env::var("ARBOR_FONT").ok();
-        let paths: Vec<String> = env.iter().cloned().chain(FONT_CANDIDATES.iter().map(|s| s.to_string())).collect();
-        for p in &paths {
-            if let Ok(bytes) = std::fs::read(p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                return plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
-                    .map_err(|_| format!("{p}: not a TrueType/OpenType font"));
-            }
-        }
-        Err(format!(
-            "plots need a TrueType font: none of {} exists (install fonts-dejavu-core or set ARBOR_FONT)",
-            paths.join(", ")
-        ))
-    })
-    .clone()
-    .map_err(Error::Usage)
-}
+use crate::render::heatmap::{font, Figure, Panel, Scale};
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Usage(format!("{}: drawing the plot failed: {e}", path.display()))
@@ -187,60 +164,20 @@ pub fn loglog(
     both(stem, |a| draw(a, title, x_desc, y_desc, series), |a| draw(a, title, x_desc, y_desc, series))
 }
 
-/// A colour-mapped image of per-pixel values with a legend bar: `values` row-major,
-/// `width` x `height`, row 0 at the top. PNG only.
-pub fn heatmap(path: &Path, title: &str, width: u32, height: u32, values: &[u32]) -> Result<PathBuf> {
-    font()?;
-    let max = values.iter().copied().max().unwrap_or(0).max(1);
-    let scale = (512 / width.max(height)).max(1);
-    let (iw, ih) = (width * scale, height * scale);
-    let size = (iw + 130, ih + 60);
-    {
-        let root = BitMapBackend::new(path, size).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-        root.draw(&Text::new(title.to_string(), (10, 8), ("sans-serif", 18))).map_err(|e| plot_err(path, e))?;
-        for y in 0..height {
-            for x in 0..width {
-                let v = values[(y * width + x) as usize];
-                let c = ramp(f64::from(v) / f64::from(max));
-                for dy in 0..scale {
-                    for dx in 0..scale {
-                        root.draw_pixel(((x * scale + dx) as i32, (y * scale + dy + 40) as i32), &c)
-                            .map_err(|e| plot_err(path, e))?;
-                    }
-                }
-            }
-        }
-        // Legend: the ramp from 0 (bottom) to max (top), with its end labels.
-        let lx = (iw + 20) as i32;
-        for y in 0..ih {
-            let c = ramp(1.0 - f64::from(y) / f64::from(ih.max(1)));
-            root.draw(&Rectangle::new([(lx, (y + 40) as i32), (lx + 20, (y + 41) as i32)], c.filled()))
-                .map_err(|e| plot_err(path, e))?;
-        }
-        root.draw(&Text::new(format!("{max}"), (lx + 26, 40), ("sans-serif", 14))).map_err(|e| plot_err(path, e))?;
-        root.draw(&Text::new("0".to_string(), (lx + 26, (ih + 28) as i32), ("sans-serif", 14)))
-            .map_err(|e| plot_err(path, e))?;
-        root.present().map_err(|e| plot_err(path, e))?;
+/// The cost figure of one scene: a panel per structure (`maps`: label and nodes per
+/// pixel, all `width` x `height`, the same camera rays), on one colour scale from the
+/// least to the most nodes any structure visited, so that the panels compare. PNG bytes.
+pub fn cost_figure(scene: &str, width: u32, height: u32, maps: &[(String, Vec<f32>)], scale: Scale) -> Result<Vec<u8>> {
+    let panels = maps.iter().map(|(label, v)| Panel { title: label.clone(), width, height, values: v }).collect();
+    Figure {
+        title: format!("nodes visited per camera ray: {scene}, {width}x{height}"),
+        counted: "nodes visited by the camera ray through each pixel's centre (tree nodes, boxes or cells, \
+                  as the structure's row in bench.csv counts them); one colour scale for every panel"
+            .into(),
+        scale,
+        panels,
     }
-    Ok(path.to_path_buf())
-}
-
-/// A perceptually ordered ramp (dark blue, magenta, orange, pale yellow) for t in [0, 1].
-fn ramp(t: f64) -> RGBColor {
-    const STOPS: [(f64, [f64; 3]); 5] = [
-        (0.0, [0.05, 0.03, 0.2]),
-        (0.3, [0.45, 0.1, 0.5]),
-        (0.6, [0.85, 0.3, 0.3]),
-        (0.85, [0.98, 0.65, 0.2]),
-        (1.0, [0.99, 0.98, 0.75]),
-    ];
-    let t = t.clamp(0.0, 1.0);
-    let k = STOPS.iter().position(|s| s.0 >= t).unwrap_or(STOPS.len() - 1).max(1);
-    let (a, b) = (STOPS[k - 1], STOPS[k]);
-    let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
-    let mix = |i: usize| ((a.1[i] + (b.1[i] - a.1[i]) * f) * 255.0).round() as u8;
-    RGBColor(mix(0), mix(1), mix(2))
+    .png()
 }
 
 /// Draws the benchmark plots into `dir`; returns the files written. Charts use the rows
@@ -250,6 +187,7 @@ pub(super) fn bench_plots(
     rows: &[super::rows::Row],
     heatmaps: &[super::rows::Heatmap],
     first_mode: &str,
+    scale: Scale,
 ) -> Result<Vec<PathBuf>> {
     use super::file_part;
     std::fs::create_dir_all(dir).map_err(|cause| Error::Io { path: dir.to_path_buf(), cause })?;
@@ -294,8 +232,17 @@ pub(super) fn bench_plots(
         let stem = dir.join("build_vs_triangles");
         files.extend(loglog(&stem, "build time", "triangles", "build ms", &series)?);
     }
-    for m in heatmaps {
-        files.push(heatmap(&dir.join(format!("{}.png", m.stem)), &m.title, m.width, m.height, &m.nodes)?);
+    // One cost figure per scene: a panel per structure, side by side.
+    let mut scenes: Vec<&str> = heatmaps.iter().map(|m| m.scene.as_str()).collect();
+    scenes.dedup();
+    for scene in scenes {
+        let group: Vec<&super::rows::Heatmap> = heatmaps.iter().filter(|m| m.scene == scene).collect();
+        let (w, h) = (group[0].width, group[0].height);
+        let maps: Vec<(String, Vec<f32>)> =
+            group.iter().map(|m| (m.label.clone(), m.nodes.iter().map(|&n| n as f32).collect())).collect();
+        let path = dir.join(format!("cost_{}.png", file_part(scene)));
+        crate::render::output::write_atomic(&path, &cost_figure(scene, w, h, &maps, scale)?)?;
+        files.push(path);
     }
     Ok(files)
 }

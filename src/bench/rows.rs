@@ -75,10 +75,12 @@ pub(super) fn quantile(v: &[u32], q: f64) -> u32 {
     s[rank - 1]
 }
 
-/// A cost heatmap to draw: file stem, title, width, height, nodes per pixel.
+/// One structure's panel of a scene's cost figure: nodes per pixel of the camera rays.
 pub(super) struct Heatmap {
-    pub stem: String,
-    pub title: String,
+    /// The scene's short name (no `builtin:`).
+    pub scene: String,
+    /// The structure's row label.
+    pub label: String,
     pub width: u32,
     pub height: u32,
     pub nodes: Vec<u32>,

@@ -332,8 +332,8 @@ fn finish(
     // No heatmap for the driver's structure: its node counts are not visible (not zero).
     if opts.out.is_some() && kind.texels_per_node().is_some() && rays == RayKind::Primary && mi == 0 {
         heatmaps.push(Heatmap {
-            stem: format!("cost_{}_{}", super::file_part(&sc.short), super::file_part(&row.label)),
-            title: format!("nodes per camera ray: {}, {}", sc.short, row.label),
+            scene: sc.short.clone(),
+            label: row.label.clone(),
             width: c.size.0,
             height: c.size.1,
             nodes: c.nodes,

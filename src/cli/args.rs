@@ -170,9 +170,16 @@ pub(crate) struct BenchArgs {
     #[arg(long, hide = true)]
     pub(crate) shadow: bool,
     /// Write bench.csv, bench.json (every figure; columns in docs/bench.md) and plots/
-    /// (PNG and SVG charts, cost heatmaps) here; the directory is created if missing.
+    /// (PNG and SVG charts; per scene, cost_SCENE.png: the nodes each structure visits
+    /// per pixel of the camera rays, side by side) here; the directory is created if
+    /// missing.
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
+    /// Colour scale of the cost figures: linear, or log (colour follows log(1 + nodes):
+    /// detail among cheap pixels next to a few expensive ones). Every panel of a figure
+    /// shares one scale, from the fewest to the most nodes of any structure.
+    #[arg(long, default_value = "linear", value_parser = ["linear", "log"], value_name = "SCALE")]
+    pub(crate) heatmap_scale: String,
     /// A small run for CI and a first look: blobs of 1000 and 10000 triangles (unless
     /// --tris or --scene), 128x128, one repeat, primary and diffuse rays (unless --rays
     /// is given explicitly).
@@ -278,11 +285,19 @@ pub(crate) struct RenderArgs {
     #[arg(long, default_value = "single", value_parser = ["single", "packet"])]
     pub(crate) traversal: String,
     /// AOVs as NAME=PATH pairs, comma-separated or repeated: depth, normal, prim,
-    /// cost (RGB: nodes visited, primitives tested, 0) of sample 0's camera ray;
-    /// albedo (first hit, for denoisers); variance (of the pixel's mean luminance);
-    /// samples (per pixel). PFM or EXR by extension.
+    /// cost (RGB: nodes visited, primitives tested, 0), nodes, tests (one channel each)
+    /// of sample 0's camera ray; albedo (first hit, for denoisers); variance (of the
+    /// pixel's mean luminance); samples (per pixel). PFM or EXR by extension; cost,
+    /// nodes and tests also as .png: a false-colour heatmap (viridis) with a colour
+    /// bar, its minimum and maximum and what is counted written in the image (for
+    /// cost, nodes visited + primitives tested per pixel). Not with --accel rayquery.
     #[arg(long, value_name = "NAME=PATH,...")]
     pub(crate) aov: Vec<String>,
+    /// Colour scale of the heatmap AOVs written as .png: linear, or log (colour
+    /// follows log(1 + count): detail among the cheap pixels next to a few expensive
+    /// ones). The picture spans the least to the greatest count of the image.
+    #[arg(long, value_parser = ["linear", "log"], value_name = "SCALE")]
+    pub(crate) aov_scale: Option<String>,
     /// Write statistics JSON here.
     #[arg(long, value_name = "PATH")]
     pub(crate) stats: Option<PathBuf>,
@@ -351,6 +366,9 @@ pub(crate) struct MergeArgs {
     /// AOVs of the merged image as NAME=PATH pairs, as `render --aov`.
     #[arg(long, value_name = "NAME=PATH,...")]
     pub(crate) aov: Vec<String>,
+    /// Colour scale of the heatmap AOVs written as .png, as `render --aov-scale`.
+    #[arg(long, value_parser = ["linear", "log"], value_name = "SCALE")]
+    pub(crate) aov_scale: Option<String>,
     /// Merge what is there: missing tiles stay black with no samples; gaps in the
     /// samples and unfinished parts are accepted.
     #[arg(long)]

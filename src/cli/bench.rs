@@ -42,6 +42,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         out: args.out.clone(),
         json: args.json.clone(),
         trace_events: args.trace.trace_events.clone(),
+        heatmap_scale: args.heatmap_scale.parse().map_err(anyhow::Error::msg)?,
     }
     .options()?;
     for p in args.json.iter().chain(&args.trace.trace_events) {

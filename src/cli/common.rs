@@ -1,5 +1,5 @@
 //! What several commands share (included by main.rs only): opening the device, the
-//! `--accel` and `--size` values, flattening instances, writing to stdout, and the
+//! `--accel`, `--size` and `--aov-scale` values, flattening instances, writing to stdout, and the
 //! error type of bad input files (exit status 2).
 
 use std::io::Write;
@@ -102,4 +102,21 @@ pub(crate) fn trace_device(ctx: &Context) {
     arbor::timeline::meta("driver", i.driver.as_str());
     arbor::timeline::meta("timestamp_period_ns", f64::from(i.timestamp_period_ns));
     arbor::timeline::meta("gpu_timestamps", ctx.has_timestamps());
+}
+
+/// `--aov-scale`: the scale of the heatmap PNGs; refused when no AOV is a PNG. With
+/// one, the font is checked now rather than after the render.
+pub(crate) fn aov_scale(
+    arg: Option<&str>,
+    aovs: &[(String, std::path::PathBuf)],
+) -> Result<arbor::render::heatmap::Scale> {
+    if arbor::render::output::has_heatmap(aovs) {
+        arbor::render::heatmap::font()?;
+    } else if let Some(s) = arg {
+        bail!(
+            "--aov-scale {s}: it sets the colour scale of the heatmap AOVs written as .png ({}), and no --aov is one",
+            arbor::render::output::HEATMAP_AOVS.join(", ")
+        );
+    }
+    Ok(arg.map(str::parse).transpose().map_err(anyhow::Error::msg)?.unwrap_or_default())
 }

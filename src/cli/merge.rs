@@ -12,6 +12,7 @@ use crate::common::{ms, BadInput};
 pub(crate) fn run(a: &MergeArgs) -> Result<()> {
     let start = Instant::now();
     let aovs = output::parse_aovs(&a.aov)?;
+    let scale = crate::common::aov_scale(a.aov_scale.as_deref(), &aovs)?;
     output::format_of(&a.output, "image")?;
     let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p));
     output::check_outputs(paths.map(|p| p.as_path()))?;
@@ -28,7 +29,8 @@ pub(crate) fn run(a: &MergeArgs) -> Result<()> {
     let (info, frame) = render::merge::merge(parts, a.allow_partial).map_err(BadInput)?;
     let mut set = output::OutputSet::new();
     output::write_frame(&mut set, &a.output, &info, &frame)?;
-    output::write_aovs(&mut set, &aovs, &frame, frame.width, frame.height)?;
+    let heat = output::HeatmapInfo { subject: format!("{}, merged from {n} parts", info.scene), scale };
+    output::write_aovs(&mut set, &aovs, &frame, frame.width, frame.height, &heat)?;
     set.commit()?;
     if !a.quiet {
         let fewest = frame.samples.iter().copied().min().unwrap_or(0);

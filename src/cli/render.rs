@@ -10,7 +10,9 @@ use arbor::render::{self, memory, output, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
 
 use crate::args::RenderArgs;
-use crate::common::{context, flatten_if, ms, parse_size, resolve_accel, start_trace, trace_device, DEFAULT_PATH_SPP};
+use crate::common::{
+    aov_scale, context, flatten_if, ms, parse_size, resolve_accel, start_trace, trace_device, DEFAULT_PATH_SPP,
+};
 use crate::interrupt;
 use crate::progress::Reporter;
 
@@ -19,6 +21,7 @@ use crate::progress::Reporter;
 pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let start = Instant::now();
     let aovs = output::parse_aovs(&a.aov)?;
+    let scale = aov_scale(a.aov_scale.as_deref(), &aovs)?;
     let params = a.structure.single()?;
     let format = output::format_of(&a.output, "image")?;
     let paths = std::iter::once(&a.output).chain(aovs.iter().map(|(_, p)| p)).chain(&a.stats);
@@ -52,9 +55,12 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     if let (Some(why), false) = (&why, a.quiet) {
         eprintln!("accel auto: {why}");
     }
-    if accel.driver_built() && aovs.iter().any(|(n, _)| n == "cost") {
-        bail!("--aov cost: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested");
+    if let Some((n, _)) = aovs.iter().find(|(n, _)| output::HEATMAP_AOVS.contains(&n.as_str())) {
+        if accel.driver_built() {
+            bail!("--aov {n}: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested");
+        }
     }
+    let heat = output::HeatmapInfo { subject: format!("{}, {accel}", scene.name), scale };
     let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
     let opened = Instant::now();
     let ctx = {
@@ -95,10 +101,10 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     if settings.first_sample > 0 {
         part_note += &format!(", samples {}..{}", settings.first_sample, settings.first_sample + spp);
     }
-    let (frame, mut st) = trace(&ctx, &scene, &settings, a, &aovs, &part)?;
+    let (frame, mut st) = trace(&ctx, &scene, &settings, a, (&aovs, &heat), &part)?;
     st.load_ms = load_ms;
     st.device_ms = device_ms;
-    write_outputs(a, &aovs, &frame, Some(&st), &part)?;
+    write_outputs(a, (&aovs, &heat), &frame, Some(&st), &part)?;
     if st.interrupted && interrupt::requested() {
         let resume = if format == output::Format::Exr {
             format!("; continue it with --resume {}", a.output.display())
@@ -145,11 +151,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// The AOVs of a render and what their heatmaps say.
+type Aovs<'a> = (&'a [(String, std::path::PathBuf)], &'a output::HeatmapInfo);
+
 /// Writes the image, the AOVs and the statistics of a render: all of them or none.
 /// A checkpoint (`st` None) writes the image and the AOVs.
 fn write_outputs(
     a: &RenderArgs,
-    aovs: &[(String, std::path::PathBuf)],
+    (aovs, heat): Aovs,
     frame: &render::Frame,
     st: Option<&render::RenderStats>,
     part: &render::part::PartInfo,
@@ -157,7 +166,7 @@ fn write_outputs(
     let (w, h) = (frame.width, frame.height);
     let mut set = output::OutputSet::new();
     output::write_frame(&mut set, &a.output, part, frame)?;
-    output::write_aovs(&mut set, aovs, frame, w, h)?;
+    output::write_aovs(&mut set, aovs, frame, w, h, heat)?;
     if let (Some(p), Some(st)) = (&a.stats, st) {
         let provenance = output::Provenance {
             version: env!("CARGO_PKG_VERSION").into(),
@@ -266,7 +275,7 @@ fn trace(
     scene: &Scene,
     settings: &RenderSettings,
     a: &RenderArgs,
-    aovs: &[(String, std::path::PathBuf)],
+    aovs: Aovs,
     part: &render::part::PartInfo,
 ) -> Result<(render::Frame, render::RenderStats)> {
     interrupt::install();

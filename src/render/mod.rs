@@ -9,6 +9,7 @@ pub mod cracks;
 pub mod dispatch;
 pub mod envdist;
 pub mod gpu;
+pub mod heatmap;
 pub mod kernel;
 pub mod memory;
 pub mod merge;

@@ -1,5 +1,6 @@
 //! Writers for images (PNG 8-bit sRGB, EXR linear float), AOVs (PFM, EXR; [`aov_channels`]
-//! turns a frame into them) and the statistics JSON (with its [`Provenance`]). Every
+//! turns a frame into them; the counting AOVs [`HEATMAP_AOVS`] also as false-colour PNG
+//! pictures, [`aov_heatmap`]) and the statistics JSON (with its [`Provenance`]). Every
 //! file is written whole to a temporary file beside the target, then renamed, so a
 //! failed run never leaves a truncated file or clobbers an existing one. The outputs of
 //! one run form an [`OutputSet`]: every path is checked before the work starts
@@ -25,11 +26,14 @@ pub enum Format {
 pub fn format_of(path: &Path, what: &str) -> Result<Format> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
     match (ext.as_str(), what) {
-        ("png", "image") => Ok(Format::Png),
+        ("png", _) => Ok(Format::Png),
         ("exr", _) => Ok(Format::Exr),
         ("pfm", "aov") => Ok(Format::Pfm),
         (_, "image") => Err(Error::invalid(path, "the image output must end in .png or .exr")),
-        _ => Err(Error::invalid(path, "an AOV output must end in .pfm or .exr")),
+        _ => Err(Error::invalid(
+            path,
+            format!("an AOV output must end in .pfm or .exr (or .png, a heatmap, for {})", HEATMAP_AOVS.join(", ")),
+        )),
     }
 }
 
@@ -226,7 +230,8 @@ pub fn write_frame(set: &mut OutputSet, path: &Path, info: &super::part::PartInf
 }
 
 /// Adds a 1- or 3-channel AOV as `path` (PFM or EXR by extension; an EXR of a
-/// 1-channel AOV repeats the value in R, G and B) to `set`.
+/// 1-channel AOV repeats the value in R, G and B) to `set`. PNG is refused here: a
+/// heatmap is drawn from the frame ([`aov_heatmap`]).
 pub fn write_aov(
     set: &mut OutputSet,
     path: &Path,
@@ -237,7 +242,8 @@ pub fn write_aov(
 ) -> Result<()> {
     let bytes = match format_of(path, "aov")? {
         Format::Pfm => encode_pfm(width, height, channels, data),
-        _ => {
+        Format::Png => return Err(Error::invalid(path, "an AOV's values cannot be written as PNG")),
+        Format::Exr => {
             let rgb: Vec<[f32; 3]> = if channels == 3 {
                 data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
             } else {
@@ -250,10 +256,14 @@ pub fn write_aov(
 }
 
 /// The AOVs `render --aov` writes, by name.
-pub const AOV_NAMES: [&str; 7] = ["depth", "normal", "prim", "cost", "albedo", "variance", "samples"];
+pub const AOV_NAMES: [&str; 9] = ["depth", "normal", "prim", "cost", "nodes", "tests", "albedo", "variance", "samples"];
+
+/// The AOVs that may also be written as a false-colour PNG heatmap ([`aov_heatmap`]).
+pub const HEATMAP_AOVS: [&str; 3] = ["cost", "nodes", "tests"];
 
 /// Parses `--aov` values (NAME=PATH pairs, comma-separated or repeated): each name one
-/// of [`AOV_NAMES`] and given once, each path a .pfm or .exr.
+/// of [`AOV_NAMES`] and given once, each path a .pfm or .exr, or a .png for one of
+/// [`HEATMAP_AOVS`].
 pub fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
     let mut out: Vec<(String, PathBuf)> = Vec::new();
     for item in args.iter().flat_map(|a| a.split(',')).filter(|s| !s.is_empty()) {
@@ -269,28 +279,44 @@ pub fn parse_aovs(args: &[String]) -> Result<Vec<(String, PathBuf)>> {
             return Err(Error::Usage(format!("--aov: '{name}' given twice")));
         }
         let path = PathBuf::from(path);
-        format_of(&path, "aov")?;
+        if format_of(&path, "aov")? == Format::Png && !HEATMAP_AOVS.contains(&name) {
+            return Err(Error::invalid(
+                &path,
+                format!(
+                    "--aov {name}: only {} can be written as .png (a false-colour heatmap); write {name} as .pfm or .exr",
+                    HEATMAP_AOVS.join(", ")
+                ),
+            ));
+        }
         out.push((name.to_string(), path));
     }
     Ok(out)
 }
 
+/// Whether `aovs` ([`parse_aovs`]) asks for a heatmap PNG.
+pub fn has_heatmap(aovs: &[(String, PathBuf)]) -> bool {
+    aovs.iter().any(|(_, p)| format_of(p, "aov").is_ok_and(|f| f == Format::Png))
+}
+
 /// Channels of the AOV `name` (see [`aov_channels`]); 3 for a name not known.
 pub fn aov_channel_count(name: &str) -> u64 {
     match name {
-        "depth" | "prim" | "variance" | "samples" => 1,
+        "depth" | "prim" | "nodes" | "tests" | "variance" | "samples" => 1,
         _ => 3,
     }
 }
 
 /// The AOV `name` of `frame` as (channels, row-major values): depth (1), normal (3),
-/// prim (1; -1 where the ray missed), cost (3: nodes visited, primitives tested, 0).
+/// prim (1; -1 where the ray missed), cost (3: nodes visited, primitives tested, 0),
+/// nodes (1), tests (1).
 pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
     Ok(match name {
         "depth" => (1, frame.depth.clone()),
         "normal" => (3, frame.normal.iter().flatten().copied().collect()),
         "prim" => (1, frame.prim.iter().map(|&p| if p == u32::MAX { -1.0 } else { p as f32 }).collect()),
         "cost" => (3, frame.nodes.iter().zip(&frame.tests).flat_map(|(&n, &t)| [n as f32, t as f32, 0.0]).collect()),
+        "nodes" => (1, frame.nodes.iter().map(|&n| n as f32).collect()),
+        "tests" => (1, frame.tests.iter().map(|&t| t as f32).collect()),
         "albedo" => (3, frame.albedo.iter().flatten().copied().collect()),
         "variance" => (1, frame.variance.clone()),
         "samples" => (1, frame.samples.iter().map(|&n| n as f32).collect()),
@@ -298,16 +324,61 @@ pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
     })
 }
 
-/// Adds each (name, path) of `aovs` from `frame` (`width` x `height`) to `set`.
+/// What a heatmap PNG says besides its counts.
+#[derive(Debug, Clone, Default)]
+pub struct HeatmapInfo {
+    /// Written in the title after the AOV's name: the scene and the structure.
+    pub subject: String,
+    pub scale: super::heatmap::Scale,
+}
+
+/// What each pixel's count is, as the picture says (the frame holds the counts of the
+/// pixel's first camera ray only, sample 0: not a sum over samples).
+const ONE_RAY: &str = "by the pixel's first camera ray (sample 0: one ray per pixel, not a sum over samples)";
+
+/// The heatmap AOV `name` (one of [`HEATMAP_AOVS`]) of `frame` as PNG bytes: cost =
+/// nodes visited + primitives tested, nodes, or tests, per pixel.
+pub fn aov_heatmap(frame: &Frame, name: &str, info: &HeatmapInfo) -> Result<Vec<u8>> {
+    let (values, counted): (Vec<f32>, String) = match name {
+        "cost" => (
+            frame.nodes.iter().zip(&frame.tests).map(|(&n, &t)| (f64::from(n) + f64::from(t)) as f32).collect(),
+            format!("cost = nodes visited + primitives tested, {ONE_RAY}"),
+        ),
+        "nodes" => (
+            frame.nodes.iter().map(|&n| n as f32).collect(),
+            format!("nodes visited (tree nodes, boxes or cells, as the structure counts them), {ONE_RAY}"),
+        ),
+        "tests" => (frame.tests.iter().map(|&t| t as f32).collect(), format!("primitives tested, {ONE_RAY}")),
+        _ => {
+            return Err(Error::Usage(format!("the AOV '{name}' has no heatmap (only {} do)", HEATMAP_AOVS.join(", "))))
+        }
+    };
+    let (w, h) = (frame.width, frame.height);
+    let title = if info.subject.is_empty() {
+        format!("{name} per pixel, {w}x{h}")
+    } else {
+        format!("{name} per pixel: {}, {w}x{h}", info.subject)
+    };
+    let panel = super::heatmap::Panel { title: String::new(), width: w, height: h, values: &values };
+    super::heatmap::Figure { title, counted, scale: info.scale, panels: vec![panel] }.png()
+}
+
+/// Adds each (name, path) of `aovs` from `frame` (`width` x `height`) to `set`; a .png
+/// is a heatmap ([`aov_heatmap`]) that says what `info` holds.
 pub fn write_aovs(
     set: &mut OutputSet,
     aovs: &[(String, PathBuf)],
     frame: &Frame,
     width: u32,
     height: u32,
+    info: &HeatmapInfo,
 ) -> Result<()> {
     for (name, path) in aovs {
         let _span = encode_span(path);
+        if format_of(path, "aov")? == Format::Png {
+            set.add(path, &aov_heatmap(frame, name, info)?)?;
+            continue;
+        }
         let (channels, data) = aov_channels(frame, name)?;
         write_aov(set, path, width, height, channels, &data)?;
     }
