@@ -155,6 +155,36 @@ fn spans_aligned_at_submit_say_so() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--trace-events FILE.png` draws the timeline: both tracks in their colours.
+#[test]
+fn a_png_timeline_is_a_picture_of_both_tracks() {
+    let Some(_ctx) = common::gpu() else { return };
+    let dir = temp_dir("png");
+    let (img, pic) = (dir.join("i.png"), dir.join("timeline.png"));
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    run_ok(&[
+        "render",
+        "builtin:cornell",
+        "--size",
+        "48x48",
+        "--spp",
+        "2",
+        "--validation",
+        "-q",
+        "-o",
+        &s(&img),
+        "--trace-events",
+        &s(&pic),
+    ]);
+    let png = image::open(&pic).expect("a PNG").to_rgb8();
+    assert_eq!(png.width(), 1600);
+    // The build (orange) on the CPU track and the dispatches (red) on the GPU track.
+    for rgb in [[242, 142, 43], [225, 87, 89]] {
+        assert!(png.pixels().any(|p| p.0 == rgb), "colour {rgb:?} drawn");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// bench writes the timeline with bench.json and bench.csv: both structures' builds,
 /// and their trace dispatches on the GPU track.
 #[test]
@@ -241,6 +271,7 @@ fn the_trace_file_is_all_or_nothing_with_the_other_outputs() {
     let out = arbor(&["render", "builtin:cornell", "-o", &s(&img), "--trace-events", &s(&dir.join("t.txt"))]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("FILE.json"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("t.txt"));
     assert!(!img.exists());
     let out =
         arbor(&["bench", "--shards", "2", "--scene", "builtin:cornell", "--trace-events", &s(&dir.join("b.json"))]);

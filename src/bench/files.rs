@@ -145,7 +145,7 @@ pub(super) fn write(
     if let Some(p) = &opts.trace_events {
         let trace = crate::timeline::take()
             .ok_or_else(|| Error::Usage(format!("{}: no timeline was recorded on this thread", p.display())))?;
-        set.add(p, &trace.to_chrome_json())?;
+        set.add(p, &crate::render::output::encode_trace(p, &trace)?)?;
         spans = Some((p, trace.events.len()));
     }
     set.commit()?;

@@ -107,9 +107,9 @@ pub(crate) struct TraceArgs {
     /// (ui.perfetto.dev) or chrome://tracing: scene loading, each build phase, kernel
     /// creation, uploads, readback and output encoding on the CPU track; every GPU
     /// submission (kernel, pixel range, sample wave; GPU build steps) from its
-    /// timestamp queries on the GPU track (docs/profiling.md). Written with the other
-    /// outputs, or not at all.
-    #[arg(long, value_name = "FILE.json")]
+    /// timestamp queries on the GPU track (docs/profiling.md). FILE.png draws the
+    /// timeline as a picture instead. Written with the other outputs, or not at all.
+    #[arg(long, value_name = "FILE.json|FILE.png")]
     pub(crate) trace_events: Option<PathBuf>,
     /// For tests: place GPU spans at their submission even where the device has
     /// calibrated timestamps.

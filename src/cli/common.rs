@@ -79,13 +79,12 @@ pub(crate) fn flatten_if(scene: Scene, asked: bool, accel: AccelKind, quiet: boo
     Ok(scene.flattened()?)
 }
 
-/// Starts recording the timeline `--trace-events` asks for (checking its path first):
-/// the process is named `arbor COMMAND`.
+/// Starts recording the timeline `--trace-events` asks for (checking its name, and for
+/// a picture the font, first): the process is named `arbor COMMAND`.
 pub(crate) fn start_trace(t: &TraceArgs, command: &str) -> Result<Option<arbor::timeline::Recording>> {
     let Some(path) = &t.trace_events else { return Ok(None) };
-    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
-    if ext != "json" {
-        bail!("{}: --trace-events writes Chrome trace-event JSON; name it FILE.json", path.display());
+    if arbor::render::output::trace_is_png(path)? {
+        arbor::render::heatmap::font()?;
     }
     let opts = arbor::timeline::Options { align_at_submit: t.trace_align_submit, process: format!("arbor {command}") };
     let rec = arbor::timeline::start(opts)?;

@@ -33,7 +33,7 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     };
     if let Some(p) = &a.trace.trace_events {
         let trace = arbor::timeline::take().unwrap_or_default();
-        arbor::render::output::write_atomic(p, &trace.to_chrome_json())?;
+        arbor::render::output::write_atomic(p, &arbor::render::output::encode_trace(p, &trace)?)?;
     }
     print_out(&if a.json { format!("{}\n", report.to_json()) } else { report.to_string() })?;
     report.validation.map_err(|e| anyhow::anyhow!("{}: structure failed validation: {e}", scene.name))

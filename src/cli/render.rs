@@ -182,7 +182,7 @@ fn write_outputs(
     // The timeline ends here, after every output was encoded: only the renames follow.
     if let (Some(p), Some(_)) = (&a.trace.trace_events, st) {
         if let Some(trace) = arbor::timeline::take() {
-            set.add(p, &trace.to_chrome_json())?;
+            set.add(p, &output::encode_trace(p, &trace)?)?;
         }
     }
     Ok(set.commit()?)

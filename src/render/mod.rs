@@ -19,6 +19,7 @@ pub mod path;
 pub mod readback;
 pub mod resume;
 pub mod shard;
+pub mod timeline_png;
 pub mod upload;
 pub mod whitted;
 

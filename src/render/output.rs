@@ -207,6 +207,31 @@ pub fn encode_pfm(width: u32, height: u32, channels: usize, data: &[f32]) -> Vec
     out
 }
 
+/// A timeline ([`crate::timeline`]) as the file `path` names: Chrome trace-event JSON
+/// (`.json`) or a picture of it (`.png`, [`super::timeline_png`]).
+pub fn encode_trace(path: &Path, trace: &crate::timeline::Trace) -> Result<Vec<u8>> {
+    let _span = encode_span(path);
+    if trace_is_png(path)? {
+        super::timeline_png::png(trace)
+    } else {
+        Ok(trace.to_chrome_json())
+    }
+}
+
+/// Whether the timeline file `path` is a picture (`.png`) rather than JSON (`.json`);
+/// an error for any other name.
+pub fn trace_is_png(path: &Path) -> Result<bool> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "json" => Ok(false),
+        "png" => Ok(true),
+        _ => Err(Error::invalid(
+            path,
+            "--trace-events writes Chrome trace-event JSON (FILE.json) or a picture of the timeline (FILE.png)",
+        )),
+    }
+}
+
 /// The timeline span of encoding the output `path` (its writing nests inside).
 fn encode_span(path: &Path) -> crate::timeline::Span {
     crate::timeline::span("output", || format!("encode {}", path.display()))
