@@ -45,6 +45,13 @@ pub enum Error {
     /// A pipeline would bind more storage buffers per stage than the project allows.
     #[error("pipeline '{name}' binds {count} storage buffers; at most {limit} per stage are allowed")]
     TooManyStorageBuffers { name: String, count: usize, limit: usize },
+    /// A ray of a batch cannot be traced: its index in the batch, and why.
+    #[error("ray {index}: {reason}")]
+    BadRay { index: usize, reason: &'static str },
+    /// The request is valid but arbor does not do it (for example a ray batch over an
+    /// instanced scene); the message says what to do instead.
+    #[error("{}", clean(.0))]
+    Unsupported(String),
     /// The Khronos validation layer reported errors.
     #[error("Vulkan validation reported {count} error(s); first: {first}")]
     Validation { count: usize, first: String },

@@ -605,6 +605,26 @@ impl Accel {
         self.surface().bounds()
     }
 
+    /// The CPU reference for a batch of rays: each ray's closest hit in order, `None`
+    /// where it meets nothing in `(tmin, tmax]`, with the watertight ray/triangle test,
+    /// on every core. The same answer as [`crate::render::rays::RayTracer::trace`]
+    /// (same primitive; t and barycentrics to rounding).
+    pub fn trace_cpu(&self, scene: &crate::scene::Scene, rays: &[crate::math::Ray]) -> Vec<Option<crate::math::Hit>> {
+        self.trace_cpu_with(scene, rays, crate::math::intersect::IntersectMode::Watertight)
+    }
+
+    /// [`Accel::trace_cpu`] with the ray/triangle test `mode`.
+    pub fn trace_cpu_with(
+        &self,
+        scene: &crate::scene::Scene,
+        rays: &[crate::math::Ray],
+        mode: crate::math::intersect::IntersectMode,
+    ) -> Vec<Option<crate::math::Hit>> {
+        use rayon::prelude::*;
+        let prims = Prims::with_mode(scene, mode);
+        rays.par_iter().map(|r| self.intersect_with(&prims, r)).collect()
+    }
+
     /// What the trace kernel reads, checked against its limits.
     pub fn gpu_image(&self, scene: &crate::scene::Scene) -> Result<GpuImage<'_>, ValidateError> {
         self.surface().gpu_image(scene)

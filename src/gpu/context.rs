@@ -498,6 +498,11 @@ impl Context {
         self.max_storage_range
     }
 
+    /// `maxTexelBufferElements`: the most 16-byte texels one texel-buffer view spans.
+    pub fn max_texel_elements(&self) -> u64 {
+        self.max_texel_elements
+    }
+
     /// Fails with [`Error::Validation`] if the validation layer reported any error so far.
     pub fn check_validation(&self) -> Result<()> {
         let list = self.shared.messages.lock().map_err(|_| Error::Validation { count: 1, first: "poisoned".into() })?;

@@ -15,6 +15,7 @@ pub mod merge;
 pub mod output;
 pub mod part;
 pub mod path;
+pub mod rays;
 pub mod readback;
 pub mod resume;
 pub mod shard;
