@@ -50,14 +50,24 @@
 
 #![deny(unsafe_code)]
 #![warn(missing_debug_implementations)]
+#![warn(missing_docs)]
 
 pub mod accel;
+// The `arbor bench` and `arbor info` commands' library half: for the binary only.
+#[doc(hidden)]
+#[allow(missing_docs)]
 pub mod bench;
 pub mod error;
 #[allow(unsafe_code)]
 pub mod gpu;
+#[doc(hidden)]
+#[allow(missing_docs)]
 pub mod info;
 pub mod math;
+// The renderer's parts, public for the binary, the tests and the benchmarks (their
+// settings are documented in the CLI help and docs/); `render::rays`, the ray-batch
+// API, is documented in full and re-exported at the crate root.
+#[allow(missing_docs)]
 pub mod render;
 pub mod scene;
 

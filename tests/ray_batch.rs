@@ -1,6 +1,6 @@
 //! Ray batches on the device (src/render/rays.rs) against the CPU reference
 //! (`Accel::trace_cpu`): every structure on the mixed scene (triangles and spheres),
-//! with misses, tmin/tmax limits and unnormalised directions; resumed traces; batches
+//! with misses, tmin/tmax limits and axis-parallel directions; resumed traces; batches
 //! over several dispatches and chunks; the empty batch; bad rays as typed errors.
 
 mod common;
@@ -24,7 +24,7 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<Ray> {
             // From outside toward a point in the box (mostly hits).
             0 | 1 => {
                 let o = c + rng.dir() * radius;
-                Ray { origin: o, dir: inside - o, tmin: 0.0, tmax: f32::INFINITY }
+                Ray { origin: o, dir: (inside - o).normalize(), tmin: 0.0, tmax: f32::INFINITY }
             }
             // From inside, any direction.
             2 | 3 => Ray { origin: inside, dir: rng.dir(), tmin: 0.0, tmax: f32::INFINITY },
@@ -45,10 +45,10 @@ fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<Ray> {
                 let d = (inside - o).normalize();
                 Ray { origin: o, dir: d, tmin: radius * rng.next(), tmax: f32::INFINITY }
             }
-            // Axis-parallel and scaled directions.
+            // Axis-parallel directions.
             _ => {
                 let axis = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z][k % 6];
-                Ray { origin: inside, dir: axis * (0.01 + 10.0 * rng.next()), tmin: 0.0, tmax: f32::INFINITY }
+                Ray { origin: inside, dir: axis, tmin: 0.0, tmax: f32::INFINITY }
             }
         };
         out.push(ray);
@@ -168,6 +168,7 @@ fn bad_rays_are_typed_errors_naming_the_ray() {
     let cases = [
         (Ray { dir: Vec3::ZERO, ..good }, "direction is zero"),
         (Ray { dir: Vec3::new(f32::NAN, 0.0, 1.0), ..good }, "direction is not finite"),
+        (Ray { dir: Vec3::X * 2.0, ..good }, "not unit length"),
         (Ray { origin: Vec3::new(0.0, f32::INFINITY, 0.0), ..good }, "origin is not finite"),
         (Ray { tmin: -1.0, ..good }, "tmin"),
         (Ray { tmin: f32::NAN, ..good }, "tmin"),

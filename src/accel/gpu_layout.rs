@@ -96,7 +96,7 @@ pub struct GpuPixel {
 pub struct GpuRay {
     /// bytes 0..12 origin, 12..16 tmin
     pub origin_tmin: [f32; 4],
-    /// bytes 16..28 direction (not necessarily unit), 28..32 tmax (may be +inf)
+    /// bytes 16..28 direction (unit), 28..32 tmax (may be +inf)
     pub dir_tmax: [f32; 4],
 }
 

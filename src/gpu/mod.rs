@@ -9,10 +9,13 @@
 //!   checked against `maxStorageBufferRange`.
 //! - Every dispatch is bracketed by timestamp queries and reports its GPU time.
 
+#[allow(missing_docs)] // constants documented where their values matter (comments); shared with the shaders
 pub mod bindings;
 mod buffer;
 mod context;
+#[allow(missing_docs)] // internal to the renderer; not the stable API
 mod kernel;
+#[allow(missing_docs)] // internal to the renderer; not the stable API
 mod raytrace;
 
 pub use buffer::{Buffer, BufferKind};

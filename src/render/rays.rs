@@ -90,8 +90,12 @@ impl BatchStats {
     }
 }
 
+/// How far from 1 a direction's length may be.
+pub const UNIT_TOLERANCE: f32 = 1e-3;
+
 /// Rejects a ray no structure traces the same on the device and the CPU: a
-/// non-finite origin or direction, a zero direction, `tmin` negative or not finite,
+/// non-finite origin or direction, a zero direction or one whose length is not 1
+/// (within [`UNIT_TOLERANCE`]), `tmin` negative or not finite,
 /// `tmax` NaN or below `tmin` (`tmax` may be +inf). The error names the first bad ray.
 pub fn check_rays(rays: &[Ray]) -> Result<()> {
     for (index, r) in rays.iter().enumerate() {
@@ -101,6 +105,8 @@ pub fn check_rays(rays: &[Ray]) -> Result<()> {
             "the direction is not finite"
         } else if r.dir == glam::Vec3::ZERO {
             "the direction is zero"
+        } else if (r.dir.length() - 1.0).abs() > UNIT_TOLERANCE {
+            "the direction is not unit length (normalize it; ray/sphere tests assume it)"
         } else if !(r.tmin.is_finite() && r.tmin >= 0.0) {
             "tmin must be finite and at least 0"
         } else if r.tmax.is_nan() || r.tmax < r.tmin {
