@@ -2,7 +2,7 @@
 //! (and line where known) and what was expected.
 //!
 //! Messages are always one clean line: `Display` passes every file name and message
-//! through [`clean`], which escapes control characters (`\n`, `\x1b`, ...), shortens any
+//! through `clean`, which escapes control characters (`\n`, `\x1b`, ...), shortens any
 //! run of more than [`MAX_TOKEN_CHARS`] non-blank characters (a 10 MB token from a file)
 //! and caps the whole text at [`MAX_MESSAGE_CHARS`]. Loaders can therefore quote file
 //! content as it is (docs/limits.md).
