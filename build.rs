@@ -1,7 +1,8 @@
 //! Compiles every `shaders/*.comp` to SPIR-V with shaderc and embeds it, and generates
 //! the straight-line treelet programme (`src/accel/bvh/dp_gen.rs`) for Rust and GLSL.
 //!
-//! `trace.comp` is compiled once per (structure, geometry) variant: a scene without
+//! `trace.comp` is compiled once per (structure, geometry) variant, and once more per
+//! variant as the ray-batch kernel (`rays_*`, `RAY_BATCH`): a scene without
 //! spheres gets a kernel that declares no sphere buffer at all, one without triangles
 //! declares no mesh buffers; `build_bounds.comp` gets the same geometry variants. Every
 //! other `.comp` is compiled once. Binding numbers and
@@ -86,6 +87,19 @@ fn main() {
                             (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
                             ("HAS_TRIANGLES".into(), tris.to_string()),
                             ("HAS_SPHERES".into(), spheres.to_string()),
+                        ],
+                    ));
+                }
+                // Ray batches (src/render/rays.rs): the same traversal, rays read from
+                // a buffer; flat scenes only.
+                for (geo, tris, spheres) in GEOMETRY {
+                    variants.push((
+                        format!("rays_{accel}_{geo}"),
+                        vec![
+                            (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                            ("HAS_TRIANGLES".into(), tris.to_string()),
+                            ("HAS_SPHERES".into(), spheres.to_string()),
+                            ("RAY_BATCH".into(), "1".into()),
                         ],
                     ));
                 }

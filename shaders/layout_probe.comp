@@ -5,6 +5,7 @@
 layout(local_size_x = 1) in;
 #define HAS_TRIANGLES 1
 #define HAS_SPHERES 1
+#define RAY_BATCH 1
 #include "common/layout.glsl"
 
 
@@ -31,4 +32,6 @@ void main() {
     for (uint k = 0u; k < 6u; k++) { f4(o, shading_row(k)); }
     // GpuPixel[0..2] (read)
     for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); f4(o, pixels[k].albedo_m2); }
+    // GpuRay[0..2]
+    for (uint k = 0u; k < 2u; k++) { vec4 a, b; ray_at(k, a, b); f4(o, a); f4(o, b); }
 }

@@ -4,7 +4,8 @@
 // tracing (common/path.glsl). Each thread runs samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
 // buffer's header).
 // Compiled once per (structure, geometry) variant by build.rs: exactly one
-// ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist.
+// ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist; with
+// RAY_BATCH (the rays_* kernels) it traces rays from a buffer instead (batch_main).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
@@ -415,8 +416,40 @@ void probe_main() {
     pixels[slot] = q;
 }
 
+#ifdef RAY_BATCH
+// The ray-batch kernel (RAY_BATCH, kernels rays_<family>_<geometry>; src/render/rays.rs):
+// ray `slot` of the chunk from the ray buffer, its closest hit into its Pixel (layout
+// in common/layout.glsl). One trace a job, resumed like the probe kernel's (specialised
+// with INTEGRATOR 2, so the resume sweep finds a stopped ray by its zero count).
+void batch_main() {
+    uint local;
+    if (!job_begin(local)) return;
+    uint slot = local - dispatch_chunk.x;
+    sample_start();
+    vec4 origin_tmin, dir_tmax;
+    ray_at(slot, origin_tmin, dir_tmax);
+    Ray r;
+    r.origin = origin_tmin.xyz;
+    r.dir = dir_tmax.xyz;
+    r.tmin = origin_tmin.w;
+    r.tmax = dir_tmax.w;
+    Hit h = no_hit(r);
+    g_nodes = 0u; g_tests = 0u;
+    bool hit = trace_closest(r, h);
+    Pixel q;
+    q.radiance = vec4(h.u, h.v, 0.0, g_suspended ? 0.0 : 1.0);
+    q.normal_depth = vec4(0.0, 0.0, 0.0, h.t);
+    q.prim_cost = uvec4(hit ? h.prim : NO_PRIM, g_nodes, g_tests, 1u | (g_overflow ? OVERFLOW_FLAG : 0u));
+    q.albedo_m2 = vec4(0.0);
+    job_end();
+    pixels[slot] = q;
+}
+
+void main() { batch_main(); }
+#else
 void main() {
     if (INTEGRATOR == 1u) path_main();
     else if (INTEGRATOR == 2u) probe_main();
     else whitted_main();
 }
+#endif

@@ -2,7 +2,7 @@
 //! (and line where known) and what was expected.
 //!
 //! Messages are always one clean line: `Display` passes every file name and message
-//! through [`clean`], which escapes control characters (`\n`, `\x1b`, ...), shortens any
+//! through `clean`, which escapes control characters (`\n`, `\x1b`, ...), shortens any
 //! run of more than [`MAX_TOKEN_CHARS`] non-blank characters (a 10 MB token from a file)
 //! and caps the whole text at [`MAX_MESSAGE_CHARS`]. Loaders can therefore quote file
 //! content as it is (docs/limits.md).
@@ -18,16 +18,38 @@ pub enum Error {
     /// (`cause` is deliberately not a `#[source]`: the message already carries it,
     /// and error chains would print it twice.)
     #[error("{}: {}", clean_path(path), clean(cause))]
-    Io { path: PathBuf, cause: std::io::Error },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        cause: std::io::Error,
+    },
     /// A file's content is malformed at a known line (1-based).
     #[error("{}:{line}: {}", clean_path(path), clean(msg))]
-    Parse { path: PathBuf, line: usize, msg: String },
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The line (1-based).
+        line: usize,
+        /// What is wrong and what was expected.
+        msg: String,
+    },
     /// A file's content is wrong, with no single line to blame.
     #[error("{}: {}", clean_path(path), clean(msg))]
-    Invalid { path: PathBuf, msg: String },
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        msg: String,
+    },
     /// The scene as a whole is unusable (empty, bad camera, unknown material, ...).
     #[error("scene {}: {}", clean(scene), clean(msg))]
-    Scene { scene: String, msg: String },
+    Scene {
+        /// The scene's name (its source).
+        scene: String,
+        /// What is wrong.
+        msg: String,
+    },
     /// A command-line value is out of range or malformed.
     #[error("{}", clean(.0))]
     Usage(String),
@@ -36,18 +58,54 @@ pub enum Error {
     NoDevice(String),
     /// A Vulkan call failed. `result` is the driver's VkResult name.
     #[error("Vulkan: {what} failed: {result}")]
-    Vulkan { what: String, result: String },
+    Vulkan {
+        /// The call and its object.
+        what: String,
+        /// The driver's answer.
+        result: String,
+    },
     /// A storage buffer exceeds the device's maxStorageBufferRange.
     #[error(
         "buffer '{name}' needs {size} bytes but the device allows at most {limit} bytes per storage buffer (maxStorageBufferRange); the scene is too large for this device"
     )]
-    BufferTooLarge { name: String, size: u64, limit: u64 },
+    BufferTooLarge {
+        /// The buffer's label.
+        name: String,
+        /// Bytes it needs.
+        size: u64,
+        /// Bytes the device allows.
+        limit: u64,
+    },
     /// A pipeline would bind more storage buffers per stage than the project allows.
     #[error("pipeline '{name}' binds {count} storage buffers; at most {limit} per stage are allowed")]
-    TooManyStorageBuffers { name: String, count: usize, limit: usize },
+    TooManyStorageBuffers {
+        /// The pipeline's label.
+        name: String,
+        /// Storage buffers it binds.
+        count: usize,
+        /// The most allowed.
+        limit: usize,
+    },
+    /// A ray of a batch cannot be traced: its index in the batch, and why.
+    #[error("ray {index}: {reason}")]
+    BadRay {
+        /// The ray's index in the batch.
+        index: usize,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// The request is valid but arbor does not do it (for example a ray batch over an
+    /// instanced scene); the message says what to do instead.
+    #[error("{}", clean(.0))]
+    Unsupported(String),
     /// The Khronos validation layer reported errors.
     #[error("Vulkan validation reported {count} error(s); first: {first}")]
-    Validation { count: usize, first: String },
+    Validation {
+        /// Error messages reported.
+        count: usize,
+        /// The first of them.
+        first: String,
+    },
 }
 
 /// Shorthand used across the crate.

@@ -36,6 +36,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     let material: GpuMaterial = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)));
     let light: GpuLight = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)));
     let pixels: Vec<GpuPixel> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)))).collect();
+    let rays: Vec<GpuRay> = (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();
 
     let mut expected = words(&params);
     expected.extend(words(&dispatch));
@@ -53,6 +54,9 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     for p in &pixels {
         expected.extend(words(p));
     }
+    for r in &rays {
+        expected.extend(words(r));
+    }
 
     let bindings = [
         BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
@@ -62,6 +66,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
         BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" },
         BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" },
         BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_out" },
+        BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" },
     ];
     let spv = spirv::get("layout_probe").expect("probe kernel compiled");
     let mut k = ctx.create_kernel("layout_probe", spv, &bindings, &[], 0).expect("kernel");
@@ -76,6 +81,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     let mut pixel_bytes = bytemuck::bytes_of(&dispatch).to_vec();
     pixel_bytes.extend_from_slice(bytemuck::cast_slice(&pixels));
     let pb = ctx.upload_storage("pixels", &pixel_bytes).expect("p");
+    let rb = ctx.upload_storage("rays", bytemuck::cast_slice(&rays)).expect("r");
     let out = ctx.create_buffer("probe_out", (expected.len() * 4) as u64, BufferKind::Storage).expect("out");
     ctx.fill_zero(&out).expect("clear");
     ctx.bind(&mut k, BINDING_PARAMS, &u).expect("bind");
@@ -85,6 +91,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
     ctx.bind(&mut k, BINDING_SHADING, &shb).expect("bind");
     ctx.bind(&mut k, BINDING_PIXELS, &pb).expect("bind");
     ctx.bind(&mut k, BINDING_ACCEL_NODES, &out).expect("bind");
+    ctx.bind(&mut k, BINDING_RAYS, &rb).expect("bind");
     ctx.dispatch(&k, &[], [1, 1, 1], "layout probe").expect("dispatch");
     let back = ctx.read_storage(&out, 0, (expected.len() * 4) as u64).expect("read");
     let got: &[u32] = bytemuck::cast_slice(&back);

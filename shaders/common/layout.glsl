@@ -78,6 +78,18 @@ Sphere sphere_at(uint i) {
     return s;
 }
 #endif
+#ifdef RAY_BATCH
+// The rays of a ray batch (GpuRay), a texel buffer, two texels each:
+//   texel 2i:     0..12 origin, 12..16 tmin
+//   texel 2i + 1: 16..28 direction, 28..32 tmax
+// The kernel writes each ray's hit into its Pixel: radiance (u, v, 0, 1 when complete),
+// normal_depth.w t, prim_cost (prim, nodes, tests, 1 | OVERFLOW_FLAG).
+layout(set = 0, binding = BINDING_RAYS) uniform usamplerBuffer ray_texels;
+void ray_at(uint i, out vec4 origin_tmin, out vec4 dir_tmax) {
+    origin_tmin = uintBitsToFloat(texelFetch(ray_texels, int(2u * i)));
+    dir_tmax = uintBitsToFloat(texelFetch(ray_texels, int(2u * i + 1u)));
+}
+#endif
 // The shading rows (materials, lights, the path integrator's tables), a texel buffer.
 layout(set = 0, binding = BINDING_SHADING) uniform usamplerBuffer shading_texels;
 vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int(k))); }

@@ -181,7 +181,7 @@ bool trace_any_coherent(Ray r) {
 
 // The pixel this invocation renders, false when it has none: pixel range.x + gid of
 // the trace pass; of the sweep, only a pixel behind (fewer samples than range.w, the
-// probe kernel's: none); job range.x + gid of a list pass, with its record when it
+// probe kernel's and the ray batch's, which run as INTEGRATOR 2: none); job range.x + gid of a list pass, with its record when it
 // has one (the host runs the jobs with a record in a dispatch of their own, first).
 bool job_begin(out uint local) {
     uint gid = gl_GlobalInvocationID.x;

@@ -67,6 +67,11 @@ pub struct GpuLight {
 }
 
 /// Per-pixel output of the trace kernel.
+///
+/// The ray-batch kernel (`rays_*`, src/render/rays.rs) writes one per ray with other
+/// meanings: `radiance` = (u, v, 0, 1 once the ray is complete), `normal_depth.w` = t
+/// of the hit (the ray's tmax on a miss), `prim_cost` = (primitive or u32::MAX,
+/// nodes, tests, 1 | bit 31 where the trace ran out of steps), `albedo_m2` = 0.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuPixel {
@@ -82,6 +87,17 @@ pub struct GpuPixel {
     /// bytes 48..60 albedo at sample 0's first hit, 60..64 summed squared luminance
     /// of the samples (for the variance estimate)
     pub albedo_m2: [f32; 4],
+}
+
+/// One ray of a ray batch (src/render/rays.rs): a uniform texel buffer of RGBA32UI
+/// texels, two per ray, at `BINDING_RAYS` (`ray_at` in shaders/common/layout.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuRay {
+    /// bytes 0..12 origin, 12..16 tmin
+    pub origin_tmin: [f32; 4],
+    /// bytes 16..28 direction (unit), 28..32 tmax (may be +inf)
+    pub dir_tmax: [f32; 4],
 }
 
 /// The uniform block (std140; every member a 16-byte vec4/uvec4).
@@ -163,6 +179,7 @@ const _: () = assert!(std::mem::size_of::<GpuTriangle>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuPixel>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuRay>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 176);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 32);
 /// Push constants of every GPU BVH build kernel (`BuildPush` in

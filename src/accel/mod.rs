@@ -20,17 +20,27 @@
 #![forbid(unsafe_code)]
 
 pub mod auto;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod bvh;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod gpu_layout;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod grid;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod instance;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod kdtree;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod none;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod octree;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod params;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod prim;
 pub mod rayquery;
 pub mod sah;
+#[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod validate;
 
 pub use prim::Prims;
@@ -231,6 +241,7 @@ impl FromStr for AccelKind {
 /// empty leaf, and brute force as one leaf holding everything.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct BuildStats {
+    /// The structure's name ([`AccelKind::name`]).
     pub kind: String,
     /// CPU wall-clock build time.
     pub build_ms: f64,
@@ -269,7 +280,9 @@ pub struct BuildStats {
 /// One timed phase of a build.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct Phase {
+    /// What the phase does (e.g. `sort`, `flatten`).
     pub name: String,
+    /// CPU wall-clock time.
     pub ms: f64,
     /// What the phase did, where it says more than its time (e.g. treelets optimised).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -353,7 +366,10 @@ pub trait Structure: Traverse + Send + Sync {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TraceLoop {
     /// Loops over primitive lists of these lengths, unrolled by `SPEC_BRUTE_UNROLL`.
-    Unrolled { lengths: [u64; 2] },
+    Unrolled {
+        /// The lengths of the (at most two) primitive lists.
+        lengths: [u64; 2],
+    },
     /// A traversal loop the kernel stops after `SPEC_TREE_STEPS` steps: the trace is
     /// resumed in a following dispatch where the family can ([`GpuImage::resume_words`]),
     /// else the pixel is flagged.
@@ -383,6 +399,7 @@ pub struct GpuImage<'a> {
     pub stack_size: u32,
     /// Estimated work (primitive tests or traversal steps) of one ray, to size dispatches.
     pub cost_per_ray: u64,
+    /// How the kernel bounds its loops.
     pub trace_loop: TraceLoop,
     /// The driver's structure the kernel traces with ray queries (`rayquery`), bound
     /// at `BINDING_TLAS`; `None` for every structure of arbor's own.
@@ -407,12 +424,15 @@ pub fn resume_words(levels: u32, stack_size: u32) -> u32 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BuildOn {
+    /// On the CPU (every structure).
     #[default]
     Cpu,
+    /// On the GPU (lbvh and trbvh).
     Gpu,
 }
 
 impl BuildOn {
+    /// The `--build` value.
     pub fn name(self) -> &'static str {
         match self {
             BuildOn::Cpu => "cpu",
@@ -437,8 +457,11 @@ impl FromStr for BuildOn {
 pub struct AccelParams {
     /// Where to build (the GPU builds lbvh and trbvh only).
     pub build: BuildOn,
+    /// The kd-tree builder's (`--kd`).
     pub kd: kdtree::KdParams,
+    /// The grid's resolution (`--grid`).
     pub grid: grid::GridParams,
+    /// The octree builder's (`--octree`).
     pub octree: octree::OctreeParams,
     /// trbvh's treelet restructuring.
     pub treelet: bvh::treelet::TreeletParams,
@@ -487,13 +510,21 @@ impl AccelParams {
 /// A built structure of any kind, with the common surface.
 #[derive(Debug, Clone)]
 pub enum Accel {
+    /// Brute force (`none`).
     None(none::BruteForce),
+    /// A kd-tree (`kdtree`, `bsp-course`).
     Kd(kdtree::KdTree),
+    /// A binary BVH (`bvh-sah`, `lbvh`, `trbvh`).
     Bvh(bvh::Bvh),
+    /// A 4-wide BVH.
     Bvh4(bvh::wide::Bvh4),
+    /// An 8-wide BVH.
     Bvh8(bvh::wide::Bvh8),
+    /// A compressed 8-wide BVH.
     Cwbvh(bvh::cwbvh::Cwbvh),
+    /// A uniform grid.
     Grid(grid::Grid),
+    /// An octree.
     Octree(octree::Octree),
     /// Any of the above per prototype of an instanced scene, under a top-level BVH.
     TwoLevel(Box<instance::TwoLevel>),
@@ -620,6 +651,7 @@ impl Accel {
         self.surface().validate(scene)
     }
 
+    /// The structure's statistics ([`BuildStats`]).
     pub fn stats(&self, scene: &crate::scene::Scene) -> BuildStats {
         self.surface().stats(scene)
     }
@@ -632,6 +664,26 @@ impl Accel {
     /// The box rays are first clipped to.
     pub fn bounds(&self) -> crate::math::Aabb {
         self.surface().bounds()
+    }
+
+    /// The CPU reference for a batch of rays: each ray's closest hit in order, `None`
+    /// where it meets nothing in `(tmin, tmax]`, with the watertight ray/triangle test,
+    /// on every core. The same answer as [`crate::render::rays::RayTracer::trace`]
+    /// (same primitive; t and barycentrics to rounding).
+    pub fn trace_cpu(&self, scene: &crate::scene::Scene, rays: &[crate::math::Ray]) -> Vec<Option<crate::math::Hit>> {
+        self.trace_cpu_with(scene, rays, crate::math::intersect::IntersectMode::Watertight)
+    }
+
+    /// [`Accel::trace_cpu`] with the ray/triangle test `mode`.
+    pub fn trace_cpu_with(
+        &self,
+        scene: &crate::scene::Scene,
+        rays: &[crate::math::Ray],
+        mode: crate::math::intersect::IntersectMode,
+    ) -> Vec<Option<crate::math::Hit>> {
+        use rayon::prelude::*;
+        let prims = Prims::with_mode(scene, mode);
+        rays.par_iter().map(|r| self.intersect_with(&prims, r)).collect()
     }
 
     /// What the trace kernel reads, checked against its limits.

@@ -4,7 +4,7 @@
 //! on one colour scale ([`crate::render::heatmap`]).
 //!
 //! Text needs a TrueType font: `ARBOR_FONT=path.ttf`, else DejaVu Sans from Debian's
-//! `fonts-dejavu-core` (installed by scripts/setup.sh). [`bench_plots`] draws every chart
+//! `fonts-dejavu-core` (installed by scripts/setup.sh). `bench_plots` draws every chart
 //! of a run.
 
 use std::path::{Path, PathBuf};

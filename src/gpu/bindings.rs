@@ -26,6 +26,9 @@ pub const BINDING_TLAS: u32 = 8;
 /// two job lists, then two halves of trace records. A 16-byte stand-in for the trace
 /// kernel, the pool itself for the resume kernel (src/render/resume.rs).
 pub const BINDING_RESUME: u32 = 9;
+/// Texel (RGBA32UI): the rays of a ray batch (`GpuRay`, two texels each), read by the
+/// `rays_<family>_<geometry>` kernels only (src/render/rays.rs).
+pub const BINDING_RAYS: u32 = 10;
 
 /// GPU BVH build (src/accel/bvh/gpu_build.rs, shaders/build_*.comp): a header of
 /// counters and the centroid box (`BUILD_HDR_*` words).
@@ -227,6 +230,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_ACCEL_INDICES", BINDING_ACCEL_INDICES),
     ("BINDING_TLAS", BINDING_TLAS),
     ("BINDING_RESUME", BINDING_RESUME),
+    ("BINDING_RAYS", BINDING_RAYS),
     ("WORKGROUP_SIZE", WORKGROUP_SIZE),
     ("MAX_PATH_DEPTH", MAX_PATH_DEPTH),
     ("SPEC_LIGHTS", SPEC_LIGHTS),

@@ -34,12 +34,19 @@ pub struct ContextOptions {
 /// What the user sees of a physical device.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct DeviceInfo {
+    /// Index in the loader's enumeration (`--device INDEX`).
     pub index: usize,
+    /// The device's name.
     pub name: String,
+    /// Discrete, integrated, virtual or CPU.
     pub kind: String,
+    /// Vulkan version the device supports.
     pub api_version: String,
+    /// Driver name and version.
     pub driver: String,
+    /// `maxStorageBufferRange` (or the lower override).
     pub max_storage_buffer_range: u64,
+    /// Nanoseconds per timestamp tick.
     pub timestamp_period_ns: f32,
     /// Mesa's llvmpipe (lavapipe), which caps loop iterations per invocation.
     pub is_llvmpipe: bool,
@@ -502,6 +509,11 @@ impl Context {
     /// Most bytes one storage-buffer binding may cover.
     pub fn max_storage_range(&self) -> u64 {
         self.max_storage_range
+    }
+
+    /// `maxTexelBufferElements`: the most 16-byte texels one texel-buffer view spans.
+    pub fn max_texel_elements(&self) -> u64 {
+        self.max_texel_elements
     }
 
     /// Fails with [`Error::Validation`] if the validation layer reported any error so far.

@@ -10,10 +10,13 @@
 //! - Every dispatch is bracketed by timestamp queries and reports its GPU time; while
 //!   a timeline records, each submission is a GPU span on the CPU clock (timing.rs).
 
+#[allow(missing_docs)] // constants documented where their values matter (comments); shared with the shaders
 pub mod bindings;
 mod buffer;
 mod context;
+#[allow(missing_docs)] // internal to the renderer; not the stable API
 mod kernel;
+#[allow(missing_docs)] // internal to the renderer; not the stable API
 mod raytrace;
 mod timing;
 

@@ -12,11 +12,14 @@ pub const FLAT_RCP: f32 = 1e30;
 /// An axis-aligned box; `Aabb::EMPTY` has min > max.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// The least corner.
     pub min: Vec3,
+    /// The greatest corner.
     pub max: Vec3,
 }
 
 impl Aabb {
+    /// The box holding nothing (min +inf, max -inf): growing it by a point gives that point.
     pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
     /// Grows the box to contain `p`.
@@ -32,9 +35,11 @@ impl Aabb {
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
+    /// The centre.
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5
     }
+    /// max - min per axis.
     pub fn extent(&self) -> Vec3 {
         self.max - self.min
     }

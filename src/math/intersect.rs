@@ -7,9 +7,13 @@ use glam::Vec3;
 /// A ray with a unit (or at least non-zero) direction and a [tmin, tmax] interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {
+    /// Where the ray starts.
     pub origin: Vec3,
+    /// Its direction: unit length (ray/sphere tests assume it; ray batches check it).
     pub dir: Vec3,
+    /// Hits at t <= tmin do not count.
     pub tmin: f32,
+    /// Hits at t > tmax do not count (may be +inf).
     pub tmax: f32,
 }
 
@@ -18,11 +22,13 @@ pub struct Ray {
 /// Order: smaller t wins; at equal t the lower primitive index wins ([`Hit::closer`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
+    /// Distance along the ray from its origin.
     pub t: f32,
     /// Triangles first in scene order, then spheres.
     pub prim: u32,
     /// Barycentric coordinates of v1 and v2 (triangles only).
     pub u: f32,
+    /// (see `u`)
     pub v: f32,
 }
 
@@ -70,6 +76,7 @@ impl IntersectMode {
         }
     }
 
+    /// The `--intersect` value.
     pub fn name(self) -> &'static str {
         match self {
             IntersectMode::Watertight => "watertight",

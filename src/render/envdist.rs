@@ -331,7 +331,7 @@ pub fn uv_to_dir(uv: [f32; 2], rotation_deg: f32) -> Vec3 {
 }
 
 /// The map position of unit direction `dir` for a map turned by `rotation_deg` about +y:
-/// u in [0,1), v in [0,1] (module docs).
+/// u in \[0,1), v in \[0,1\] (module docs).
 pub fn dir_to_uv(dir: Vec3, rotation_deg: f32) -> [f32; 2] {
     let tau = 2.0 * std::f32::consts::PI;
     let phi = (-dir.x).atan2(dir.z) + rotation_deg.to_radians();

@@ -16,6 +16,8 @@ pub mod merge;
 pub mod output;
 pub mod part;
 pub mod path;
+#[warn(missing_docs)]
+pub mod rays;
 pub mod readback;
 pub mod resume;
 pub mod shard;

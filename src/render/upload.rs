@@ -97,6 +97,8 @@ pub struct Bound {
     pub names: Vec<String>,
     /// Index in `storage` of the pixel buffer.
     pixels: usize,
+    /// Index in `storage` of the ray buffer (ray-batch kernels only).
+    rays: Option<usize>,
 }
 
 impl std::fmt::Debug for Bound {
@@ -110,10 +112,16 @@ impl Bound {
     pub fn pixels(&self) -> &Buffer {
         &self.storage[self.pixels]
     }
+
+    /// The ray buffer (one `GpuRay` per pixel of a chunk), where the kernel reads rays.
+    pub fn rays(&self) -> Option<&Buffer> {
+        self.rays.map(|k| &self.storage[k])
+    }
 }
 
 /// Creates and binds every buffer `bindings` declares: the uniform `params`, the
-/// scene, the structure's `image` and a pixel buffer for `chunk_pixels` pixels.
+/// scene, the structure's `image`, a pixel buffer for `chunk_pixels` pixels and, for
+/// the ray-batch kernels, an uninitialised ray buffer of as many rays.
 pub fn bind_all(
     ctx: &Context,
     kernel: &mut Kernel,
@@ -128,6 +136,7 @@ pub fn bind_all(
     let mut storage: Vec<Buffer> = Vec::new();
     let mut names = Vec::new();
     let mut pixels = None;
+    let mut rays = None;
     for b in bindings {
         if b.kind == BindingKind::Uniform && b.binding == BINDING_PARAMS {
             ctx.bind(kernel, b.binding, &uniform)?;
@@ -167,6 +176,12 @@ pub fn bind_all(
                 ctx.fill_zero(&buf)?;
                 buf
             }
+            BINDING_RAYS => {
+                let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
+                check_range(ctx, "rays", size)?;
+                rays = Some(storage.len());
+                ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
+            }
             other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
         };
         ctx.bind(kernel, b.binding, &buf)?;
@@ -174,7 +189,7 @@ pub fn bind_all(
         storage.push(buf);
     }
     let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
-    Ok(Bound { uniform, storage, names, pixels })
+    Ok(Bound { uniform, storage, names, pixels, rays })
 }
 
 /// Binds the buffers of `bound` (bound by [`bind_all`] for the same `bindings`) to

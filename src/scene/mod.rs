@@ -4,12 +4,16 @@
 
 #![forbid(unsafe_code)]
 
+#[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod builtin;
+#[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod camera;
 pub mod gltf;
 pub mod images;
+#[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod instance;
 pub mod limits;
+#[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod mesh;
 pub mod obj;
 pub mod off;
@@ -32,8 +36,11 @@ use crate::math::Aabb;
 /// An analytic sphere.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
+    /// The centre.
     pub center: Vec3,
+    /// The radius (positive).
     pub radius: f32,
+    /// Index into [`Scene::materials`].
     pub material: u32,
 }
 
@@ -41,9 +48,19 @@ pub struct Sphere {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Light {
     /// Light travelling along `direction` (unit) with the given radiance.
-    Directional { direction: Vec3, radiance: Vec3 },
+    Directional {
+        /// The direction light travels (unit).
+        direction: Vec3,
+        /// Radiance (RGB).
+        radiance: Vec3,
+    },
     /// A point light; irradiance falls off as intensity / distance².
-    Point { position: Vec3, intensity: Vec3 },
+    Point {
+        /// Where it is.
+        position: Vec3,
+        /// Intensity (RGB).
+        intensity: Vec3,
+    },
 }
 
 /// Primitives (triangles + spheres) a scene may hold, exclusive.
@@ -57,21 +74,28 @@ pub const MAX_FILM_SIDE: u32 = 16384;
 pub struct Scene {
     /// Where it came from (file path or `builtin:NAME`), for messages.
     pub name: String,
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
     /// Per-vertex shading normals; `Vec3::ZERO` where a vertex has none.
     pub normals: Vec<Vec3>,
+    /// Triangles as three indices into `positions`; primitive `k` is triangle `k`.
     pub triangles: Vec<[u32; 3]>,
     /// Per-vertex texture coordinates: empty, or one per position (`Vec2::ZERO` where
     /// a vertex has none).
     pub uvs: Vec<glam::Vec2>,
     /// Per-triangle material index.
     pub tri_material: Vec<u32>,
+    /// Spheres; sphere `k` is primitive `triangles.len() + k`.
     pub spheres: Vec<Sphere>,
     /// Index 0 is always the default grey Lambert material.
     pub materials: Vec<Material>,
+    /// Point and directional lights.
     pub lights: Vec<Light>,
+    /// The camera renders look through.
     pub camera: Camera,
+    /// Image width renders default to.
     pub width: u32,
+    /// Image height renders default to.
     pub height: u32,
     /// Texture images; `Material::texture` indexes this.
     pub textures: Vec<Texture>,
@@ -94,6 +118,7 @@ pub struct Scene {
 /// Builds a scene piece by piece; `finish` validates.
 #[derive(Debug, Clone)]
 pub struct SceneBuilder {
+    /// The scene so far.
     pub scene: Scene,
 }
 

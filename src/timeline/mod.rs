@@ -49,7 +49,9 @@ pub const CATEGORIES: [&str; 14] = [
 /// One span of the timeline.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Event {
+    /// The track it is on.
     pub track: Track,
+    /// What it was: a phase, a file, a kernel's pixel range and samples.
     pub name: String,
     /// What kind of work, one of [`CATEGORIES`]: `run` (a part of a command, e.g. one
     /// bench round of one structure), `load`, `device` (opening it),
@@ -61,6 +63,7 @@ pub struct Event {
     pub cat: &'static str,
     /// Start, nanoseconds after the recording started.
     pub start_ns: u64,
+    /// Duration, nanoseconds.
     pub dur_ns: u64,
     /// Extra fields shown with the span (kernel name, pixel range, bytes, ...).
     pub args: Map<String, Value>,

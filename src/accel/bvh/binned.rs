@@ -6,7 +6,7 @@
 //!
 //! Deterministic for any thread count: bins are merged with min, max and addition
 //! (exact and order-free), partitioning is in place and sequential within a node, and
-//! the two children are built independently (in parallel above [`PAR_MIN`]).
+//! the two children are built independently (in parallel above `PAR_MIN`).
 
 use rayon::prelude::*;
 

@@ -376,7 +376,7 @@ impl Bvh {
 
     /// Turns a canonical tree into the GPU layout. An inner node `bin` says is
     /// collapsed ([`Nodes::collapsed`]) becomes a leaf of its subtree's primitives.
-    /// Depth-first order, left child first (see [`flatten`] for how the work is split
+    /// Depth-first order, left child first (see `flatten` for how the work is split
     /// between threads, and when parts are written in place).
     pub fn flatten(bin: &impl Nodes, refs: &PrimRefs, bounds: Aabb, builder: BvhBuilder) -> Bvh {
         let (nodes, indices, depth) = flatten::flatten(bin, refs);
@@ -431,7 +431,7 @@ impl Bvh {
         })
     }
 
-    /// The traversal of [`Bvh::traverse_impl`] with what a leaf does left to `leaf`:
+    /// The traversal of `Bvh::traverse_impl` with what a leaf does left to `leaf`:
     /// it gets the leaf's indices and the best hit so far (whose t bounds the boxes
     /// entered after it) and says (whether it hit, whether to stop). Returns whether
     /// any leaf hit. The top level of instanced scenes walks its entries with it.

@@ -5,7 +5,7 @@
 //!
 //! Collapse: a wide node starts with the two children of a binary node and, while it
 //! has fewer than W, replaces its inner child of largest surface area by that child's
-//! two children ([`open_wide`], shared with `cwbvh`). Leaves and their index ranges are
+//! two children (`open_wide`, shared with `cwbvh`). Leaves and their index ranges are
 //! the binary tree's, and the child boxes are the binary tree's boxes, exactly (full
 //! precision, so every robustness guarantee of the binary BVH holds unchanged).
 //!

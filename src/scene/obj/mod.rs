@@ -48,7 +48,7 @@
 //! # Texture coordinates and textures
 //!
 //! `uvs` is returned only when every vertex of every model has a `vt` (v = 0 at the bottom
-//! of the image). `map_Kd` gives a material a texture ([`images::load_texture`]); only
+//! of the image). `map_Kd` gives a material a texture ([`crate::scene::load_texture`]); only
 //! materials some face uses are looked at. The file is found relative to the MTL file's
 //! folder, else the OBJ file's, also trying `\` as a folder separator; each file is read
 //! once. Options before the file name: `-s u [v [w]]` and `-o u [v [w]]` transform the

@@ -1,0 +1,330 @@
+//! Ray batches on the device: arbitrary rays in, closest hits out, through any
+//! structure arbor builds (and the driver's, `rayquery`, where the device has ray
+//! queries). The rays go through the render loop's parts: the `rays_<family>_<geometry>`
+//! variant of `trace.comp` ([`super::kernel`]), [`super::upload`] (the scene, the
+//! structure, a pixel buffer that holds one hit per ray and a ray buffer),
+//! [`super::dispatch`] (dispatches sized to the work budget, each followed by the resume
+//! passes of the traces that ran out of steps) and a readback of the hits.
+//!
+//! Results are exact: a trace that runs out of its step budget is resumed
+//! ([`super::resume`]) and ends where it would have without one; a family that
+//! cannot resume (the driver's structure) makes the batch fail rather than report a
+//! miss. Rays are checked first ([`check_rays`]); a bad one is an [`Error::BadRay`].
+
+use std::time::Instant;
+
+use super::dispatch::{self, Waves};
+use super::kernel::{LoopBounds, Variant};
+use super::resume::Resumer;
+use super::upload::{self, Bound, GpuScene};
+use super::RenderSettings;
+use crate::accel::gpu_layout::{GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
+use crate::accel::{Accel, GpuImage};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{BindingDesc, BindingKind, Context, Kernel};
+use crate::math::intersect::IntersectMode;
+use crate::math::{Hit, Ray};
+use crate::scene::Scene;
+
+/// Most rays held on the device at once by default (96 bytes each: the ray and its hit).
+pub const DEFAULT_CHUNK_RAYS: u64 = 1 << 20;
+
+/// How a [`RayTracer`] traces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceOptions {
+    /// The ray/triangle test: watertight (default) or fast. The CPU reference takes
+    /// the same choice ([`Accel::trace_cpu_with`]).
+    pub intersect: IntersectMode,
+    /// Work (primitive tests and traversal steps, estimated) per dispatch; smaller
+    /// means more, shorter dispatches. Default [`super::DEFAULT_DISPATCH_BUDGET`].
+    pub dispatch_budget: u64,
+    /// Most rays held on the device at once; a larger batch is traced in chunks of
+    /// this many (also kept within the device's buffer limits). Default
+    /// [`DEFAULT_CHUNK_RAYS`].
+    pub chunk_rays: u64,
+    /// For tests: lower the per-trace step budget to this (at least
+    /// `MIN_FORCED_TRACE_STEPS`), so that traces run out of steps and are resumed.
+    /// The hits are the same.
+    pub trace_steps: Option<u32>,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        TraceOptions {
+            intersect: IntersectMode::Watertight,
+            dispatch_budget: super::DEFAULT_DISPATCH_BUDGET,
+            chunk_rays: DEFAULT_CHUNK_RAYS,
+            trace_steps: None,
+        }
+    }
+}
+
+/// What tracing one batch cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BatchStats {
+    /// Rays traced.
+    pub rays: u64,
+    /// Trace dispatches (resume passes not counted).
+    pub dispatches: u32,
+    /// GPU time of every dispatch, resume passes included; `None` where the device
+    /// has no timestamps.
+    pub gpu_ms: Option<f64>,
+    /// Host wall time: checking the rays, uploads, dispatches and readback.
+    pub wall_ms: f64,
+    /// Rays whose trace ran out of its step budget and was resumed.
+    pub resumed: u64,
+    /// Dispatches of the resume kernel.
+    pub resume_dispatches: u32,
+}
+
+impl BatchStats {
+    /// Million rays per second of GPU time (of wall time without timestamps).
+    pub fn mrays_per_s(&self) -> f64 {
+        let ms = self.gpu_ms.filter(|&ms| ms > 0.0).unwrap_or(self.wall_ms);
+        if ms > 0.0 {
+            self.rays as f64 / (ms * 1e3)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// How far from 1 a direction's length may be.
+pub const UNIT_TOLERANCE: f32 = 1e-3;
+
+/// Rejects a ray no structure traces the same on the device and the CPU: a
+/// non-finite origin or direction, a zero direction or one whose length is not 1
+/// (within [`UNIT_TOLERANCE`]), `tmin` negative or not finite,
+/// `tmax` NaN or below `tmin` (`tmax` may be +inf). The error names the first bad ray.
+pub fn check_rays(rays: &[Ray]) -> Result<()> {
+    for (index, r) in rays.iter().enumerate() {
+        let reason = if !r.origin.is_finite() {
+            "the origin is not finite"
+        } else if !r.dir.is_finite() {
+            "the direction is not finite"
+        } else if r.dir == glam::Vec3::ZERO {
+            "the direction is zero"
+        } else if (r.dir.length() - 1.0).abs() > UNIT_TOLERANCE {
+            "the direction is not unit length (normalize it; ray/sphere tests assume it)"
+        } else if !(r.tmin.is_finite() && r.tmin >= 0.0) {
+            "tmin must be finite and at least 0"
+        } else if r.tmax.is_nan() || r.tmax < r.tmin {
+            "tmax must be at least tmin (and not NaN)"
+        } else {
+            continue;
+        };
+        return Err(Error::BadRay { index, reason });
+    }
+    Ok(())
+}
+
+/// A scene and a structure on the device, ready to trace batches of rays: the kernel
+/// is compiled and the scene and structure uploaded once, in [`RayTracer::new`].
+pub struct RayTracer<'a> {
+    ctx: &'a Context,
+    scene: &'a Scene,
+    image: GpuImage<'a>,
+    settings: RenderSettings,
+    variant: Variant,
+    spec: Vec<(u32, u32)>,
+    bounds: LoopBounds,
+    kernel: Kernel,
+    bound: Bound,
+    chunk_rays: u64,
+    rays_per_dispatch: u64,
+}
+
+impl std::fmt::Debug for RayTracer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RayTracer")
+            .field("kernel", &self.variant.name)
+            .field("chunk_rays", &self.chunk_rays)
+            .field("rays_per_dispatch", &self.rays_per_dispatch)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> RayTracer<'a> {
+    /// Compiles the ray-batch kernel for `accel`'s family and the scene's geometry and
+    /// uploads `scene` and `accel` (built for this scene; `rayquery` built on `ctx`
+    /// with [`Accel::build_on`]). Instanced scenes are refused
+    /// ([`Error::Unsupported`]): trace [`Scene::flattened`] instead.
+    pub fn new(ctx: &'a Context, scene: &'a Scene, accel: &'a Accel, options: &TraceOptions) -> Result<RayTracer<'a>> {
+        if scene.has_instances() || matches!(accel, Accel::TwoLevel(_)) {
+            return Err(Error::Unsupported(format!(
+                "scene {}: ray batches trace flat scenes; flatten the instances first (Scene::flattened)",
+                scene.name
+            )));
+        }
+        super::kernel::check_subgroups(ctx)?;
+        let mut settings = RenderSettings::for_size(1, 1);
+        settings.intersect = options.intersect;
+        settings.trace_steps = options.trace_steps;
+        settings.dispatch_budget = options.dispatch_budget;
+        settings.check()?;
+        let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
+        if image.family == "rayquery" && image.ray_structure.is_none() {
+            return Err(Error::Unsupported(
+                "this rayquery structure was built without a device (CPU traversal only); build it with Accel::build_on"
+                    .into(),
+            ));
+        }
+        let mut variant = Variant::new("rays", scene, &settings, &image)?;
+        variant.bindings.push(BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" });
+        let bounds = LoopBounds::new(ctx, scene, &image, 1, settings.trace_steps)?;
+        bounds.samples_within_limit(ctx, scene, 1)?;
+        let spec = vec![
+            (SPEC_LIGHTS, 0),
+            (SPEC_MAX_DEPTH, 1),
+            (SPEC_STACK_SIZE, image.stack_size),
+            (SPEC_TREE_STEPS, bounds.steps as u32),
+            (SPEC_BRUTE_UNROLL, bounds.unroll),
+            (SPEC_INTERSECT, settings.intersect.spec()),
+            (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
+            (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
+            // The probe kernel's value: the resume sweep finds a stopped ray by its
+            // zero count (shaders/common/resume_trace.glsl).
+            (SPEC_INTEGRATOR, 2),
+            (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, &settings)),
+        ];
+        let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+        // Two texels a ray, within the device's texel-buffer view.
+        let by_texels = (ctx.max_texel_elements() / 2).max(1);
+        let chunk_rays = super::kernel::chunk_pixels(ctx, options.chunk_rays.max(1), by_texels);
+        let (per_dispatch, _) = dispatch::dispatch_shape(chunk_rays, 1, image.cost_per_ray, options.dispatch_budget);
+        let params = super::kernel::base_params(scene, &settings, accel);
+        let bound =
+            upload::bind_all(ctx, &mut kernel, &variant.bindings, &params, &GpuScene::new(scene), &image, chunk_rays)?;
+        Ok(RayTracer {
+            ctx,
+            scene,
+            image,
+            settings,
+            variant,
+            spec,
+            bounds,
+            kernel,
+            bound,
+            chunk_rays,
+            rays_per_dispatch: per_dispatch.max(1),
+        })
+    }
+
+    /// The name of the compiled kernel (`rays_<family>_<geometry>`).
+    pub fn kernel_name(&self) -> &str {
+        &self.variant.name
+    }
+
+    /// Most rays one chunk holds on the device (see [`TraceOptions::chunk_rays`]).
+    pub fn chunk_rays(&self) -> u64 {
+        self.chunk_rays
+    }
+
+    /// The closest hit of each ray, in order: `None` where the ray meets nothing in
+    /// `(tmin, tmax]`. An empty batch gives an empty vector.
+    pub fn trace(&self, rays: &[Ray]) -> Result<Vec<Option<Hit>>> {
+        self.trace_stats(rays).map(|(hits, _)| hits)
+    }
+
+    /// [`RayTracer::trace`], with what the batch cost.
+    pub fn trace_stats(&self, rays: &[Ray]) -> Result<(Vec<Option<Hit>>, BatchStats)> {
+        let start = Instant::now();
+        check_rays(rays)?;
+        let mut stats = BatchStats { rays: rays.len() as u64, gpu_ms: Some(0.0), ..Default::default() };
+        let mut hits = Vec::with_capacity(rays.len());
+        if rays.is_empty() {
+            return Ok((hits, stats));
+        }
+        let ray_buf = self.bound.rays().ok_or_else(|| Error::Usage("the ray-batch kernel has no ray buffer".into()))?;
+        let mut resumer = Resumer::new(
+            self.ctx,
+            &self.settings,
+            &self.scene.name,
+            (&self.variant, &self.spec),
+            &self.bound,
+            &self.image,
+            (1, self.bounds.steps),
+            self.rays_per_dispatch,
+        )?;
+        let mut overflow = 0u64;
+        for chunk in rays.chunks(self.chunk_rays as usize) {
+            let gpu_rays: Vec<GpuRay> = chunk
+                .iter()
+                .map(|r| GpuRay {
+                    origin_tmin: [r.origin.x, r.origin.y, r.origin.z, r.tmin],
+                    dir_tmax: [r.dir.x, r.dir.y, r.dir.z, r.tmax],
+                })
+                .collect();
+            self.ctx.write_storage(ray_buf, 0, bytemuck::cast_slice(&gpu_rays))?;
+            let len = chunk.len() as u64;
+            let waves = Waves {
+                total_pixels: len,
+                chunk_pixels: len,
+                pixels_per_dispatch: self.rays_per_dispatch.min(len),
+                spp: 1,
+                samples_per_dispatch: 1,
+                first_sample: 0,
+                window: [0, 0, len as u32],
+                resumed: false,
+            };
+            let pixel_buf = self.bound.pixels();
+            let totals = dispatch::run(
+                self.ctx,
+                (&self.kernel, &mut resumer),
+                pixel_buf,
+                &waves,
+                None,
+                |_, _| {},
+                |first, n| {
+                    let px = self.ctx.read_storage_pod::<GpuPixel>(pixel_buf, PIXEL_HEADER_BYTES, n as usize)?;
+                    for (k, p) in px.iter().enumerate() {
+                        if p.prim_cost[3] & OVERFLOW_FLAG != 0 {
+                            overflow += 1;
+                        } else if p.radiance[3] != 1.0 {
+                            return Err(Error::scene(
+                                self.scene.name.clone(),
+                                format!("ray {} of the chunk was not traced to its end", first + k as u64),
+                            ));
+                        }
+                        hits.push(hit_of(p));
+                    }
+                    Ok(())
+                },
+            )?;
+            stats.dispatches += totals.dispatches;
+            stats.gpu_ms = match (stats.gpu_ms, totals.gpu_ms) {
+                (Some(a), Some(b)) => Some(a + b),
+                _ => None,
+            };
+        }
+        stats.resumed = resumer.totals.samples;
+        stats.resume_dispatches = resumer.totals.dispatches;
+        drop(resumer);
+        self.ctx.check_validation()?;
+        if overflow > 0 {
+            return Err(Error::scene(
+                self.scene.name.clone(),
+                format!(
+                    "{overflow} rays needed more than {} traversal steps (the per-trace budget on {}) in a structure that cannot resume a trace; their hits would be wrong, so none are returned",
+                    self.bounds.steps,
+                    self.ctx.info().name
+                ),
+            ));
+        }
+        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok((hits, stats))
+    }
+}
+
+/// The hit the ray-batch kernel wrote into a pixel record (layout: [`GpuPixel`]).
+fn hit_of(p: &GpuPixel) -> Option<Hit> {
+    let prim = p.prim_cost[0];
+    (prim != u32::MAX).then_some(Hit { t: p.normal_depth[3], prim, u: p.radiance[0], v: p.radiance[1] })
+}
+
+/// Traces `rays` through `accel` over `scene` on `ctx` with default options: a
+/// [`RayTracer`] for one batch.
+pub fn trace_rays(ctx: &Context, scene: &Scene, accel: &Accel, rays: &[Ray]) -> Result<Vec<Option<Hit>>> {
+    RayTracer::new(ctx, scene, accel, &TraceOptions::default())?.trace(rays)
+}
