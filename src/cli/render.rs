@@ -88,6 +88,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     settings.trace_steps = a.trace_steps;
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
     let (spp_total, shard_name) = shard_settings(a, &mut settings)?;
+    if let Some((n, _)) = aovs.iter().find(|(n, _)| output::HEATMAP_AOVS.contains(&n.as_str())) {
+        if settings.first_sample > 0 {
+            eprintln!(
+                "arbor: warning: --aov {n}: the counts belong to each pixel's sample 0, which this render (samples from {}) does not trace: they are all 0",
+                settings.first_sample
+            );
+        }
+    }
     settings.check()?;
     let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
     if let Some(path) = &a.resume {
