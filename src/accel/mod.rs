@@ -592,11 +592,12 @@ impl Accel {
         params: &AccelParams,
         pipelines: &mut Option<bvh::gpu_build::GpuBuilder>,
     ) -> crate::error::Result<Accel> {
-        if params.build == BuildOn::Cpu && kind != AccelKind::RayQuery {
-            return Ok(Self::build_with(kind, scene, params));
+        // The CPU builds open their span in build_with; the device's builds here.
+        let span = (params.build == BuildOn::Gpu || kind == AccelKind::RayQuery)
+            .then(|| crate::timeline::span("build", || format!("build {kind} on the device")));
+        if let Some(s) = &span {
+            s.arg("primitives", scene.prim_count());
         }
-        let span = crate::timeline::span("build", || format!("build {kind} on the device"));
-        span.arg("primitives", scene.prim_count());
         if kind == AccelKind::RayQuery {
             if params.build == BuildOn::Gpu {
                 return Err(crate::error::Error::Usage(
