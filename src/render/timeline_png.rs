@@ -41,7 +41,7 @@ fn colour(cat: &str) -> RGBColor {
 
 /// Nesting level of each span of `track` (by the order of `Trace::on`): a span sits
 /// one level below the innermost span that still holds its start.
-fn levels<'a>(trace: &'a Trace, track: Track) -> Vec<(&'a Event, usize)> {
+fn levels(trace: &Trace, track: Track) -> Vec<(&Event, usize)> {
     let mut spans: Vec<&Event> = trace.on(track).collect();
     spans.sort_by_key(|e| (e.start_ns, std::cmp::Reverse(e.dur_ns)));
     let mut open: Vec<&Event> = Vec::new();
@@ -176,13 +176,15 @@ mod tests {
 
     #[test]
     fn levels_follow_nesting_and_ticks_are_round() {
-        let mut t = Trace::default();
-        t.events = vec![
-            ev(Track::Cpu, "build", 0, 100),
-            ev(Track::Cpu, "build", 10, 20),
-            ev(Track::Cpu, "build", 40, 60),
-            ev(Track::Cpu, "output", 100, 5),
-        ];
+        let t = Trace {
+            events: vec![
+                ev(Track::Cpu, "build", 0, 100),
+                ev(Track::Cpu, "build", 10, 20),
+                ev(Track::Cpu, "build", 40, 60),
+                ev(Track::Cpu, "output", 100, 5),
+            ],
+            ..Default::default()
+        };
         let l: Vec<usize> = levels(&t, Track::Cpu).iter().map(|x| x.1).collect();
         assert_eq!(l, [0, 1, 1, 0]);
         assert_eq!(tick_step(4.3, 10.0), 0.5);
@@ -191,8 +193,8 @@ mod tests {
 
     #[test]
     fn the_picture_shows_both_tracks_in_their_colours() {
-        let mut t = Trace { process: "arbor test".into(), ..Default::default() };
-        t.events = vec![ev(Track::Cpu, "build", 0, 600_000), ev(Track::Gpu, "dispatch", 500_000, 500_000)];
+        let events = vec![ev(Track::Cpu, "build", 0, 600_000), ev(Track::Gpu, "dispatch", 500_000, 500_000)];
+        let t = Trace { process: "arbor test".into(), events, ..Default::default() };
         let png = png(&t).expect("png");
         let img = image::load_from_memory(&png).expect("decodes").to_rgb8();
         assert_eq!(img.width(), WIDTH);
