@@ -437,12 +437,17 @@ impl Figure<'_> {
     /// The figure as PNG bytes.
     pub fn png(&self) -> Result<Vec<u8>> {
         let (l, buf) = self.draw()?;
-        let img = image::RgbImage::from_raw(l.width, l.height, buf)
-            .ok_or_else(|| Error::Usage("heatmap: image buffer size mismatch".into()))?;
-        let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Usage(format!("heatmap: PNG: {e}")))?;
-        Ok(out.into_inner())
+        encode_png("heatmap", l.width, l.height, buf)
     }
+}
+
+/// An RGB8 picture (row-major, 3 bytes a pixel) as PNG bytes; `what` names it in errors.
+pub fn encode_png(what: &str, width: u32, height: u32, rgb: Vec<u8>) -> Result<Vec<u8>> {
+    let img = image::RgbImage::from_raw(width, height, rgb)
+        .ok_or_else(|| Error::Usage(format!("{what}: image buffer size mismatch")))?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Usage(format!("{what}: PNG: {e}")))?;
+    Ok(out.into_inner())
 }
 
 #[cfg(test)]

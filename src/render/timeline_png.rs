@@ -6,7 +6,7 @@
 
 use plotters::prelude::*;
 
-use super::heatmap::font;
+use super::heatmap::{encode_png, font};
 use crate::error::{Error, Result};
 use crate::timeline::{Event, GpuClock, Trace, Track};
 
@@ -159,11 +159,7 @@ pub fn png(trace: &Trace) -> Result<Vec<u8>> {
             .map_err(|e| err(&e))?;
         root.present().map_err(|e| err(&e))?;
     }
-    let img = image::RgbImage::from_raw(WIDTH, height, buf)
-        .ok_or_else(|| Error::Usage("timeline picture: buffer size mismatch".into()))?;
-    let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Usage(format!("timeline picture: PNG: {e}")))?;
-    Ok(out.into_inner())
+    encode_png("timeline picture", WIDTH, height, buf)
 }
 
 #[cfg(test)]
