@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-/// A ray with a unit (or at least non-zero) direction and a [tmin, tmax] interval.
+/// A ray: an origin, a unit direction, and the interval (tmin, tmax] in which hits count.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {
     /// Where the ray starts.
