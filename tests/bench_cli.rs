@@ -182,7 +182,7 @@ fn trace_times_come_from_gpu_timestamps() {
     s.primary_only = true;
     // Several dispatches, each timed: a render whose timestamps came back out of order
     // fails (Context::timestamp_ms, unit-tested with the scaling by timestampPeriod).
-    s.dispatch_budget = 20_000_000;
+    s.pacing.budget = Some(20_000_000);
     let (_, st) = gpu::render(&ctx, &scene, &s, |_, _| {}).expect("render");
     assert!(st.dispatches > 1, "{} dispatches", st.dispatches);
     let t = st.trace_ms.expect("GPU timestamps");

@@ -152,12 +152,12 @@ fn output_is_identical_whatever_the_dispatch_split() {
     let whole = render(&ctx, &scene, 37, 23, |s| {
         s.spp = 3;
         s.seed = 9;
-        s.dispatch_budget = u64::MAX / 4;
+        s.pacing.budget = Some(u64::MAX / 4);
     });
     let split = render(&ctx, &scene, 37, 23, |s| {
         s.spp = 3;
         s.seed = 9;
-        s.dispatch_budget = 1;
+        s.pacing.budget = Some(1);
     });
     assert_eq!(whole.radiance, split.radiance);
     assert_eq!(whole.depth, split.depth);

@@ -253,7 +253,7 @@ fn dispatch_split_does_not_change_the_image() {
     let mut a = settings(20, 16, 6);
     a.max_depth = Some(4);
     let mut b = a.clone();
-    b.dispatch_budget = 1;
+    b.pacing.budget = Some(1);
     let fa = render(&ctx, &scene, &a);
     let fb = render(&ctx, &scene, &b);
     assert_eq!(fa.radiance, fb.radiance);

@@ -7,6 +7,7 @@ mod common;
 
 use arbor::accel::{Accel, AccelKind};
 use arbor::gpu::bindings::MIN_FORCED_TRACE_STEPS;
+use arbor::render::dispatch::PacingChoice;
 use arbor::{Error, Hit, Ray, RayTracer, Scene, TraceOptions};
 use common::scenes::{mixed_scene, Rng};
 use glam::Vec3;
@@ -132,7 +133,11 @@ fn a_batch_over_many_dispatches_and_chunks_is_one_batch() {
     let scene = mixed_scene(Vec3::new(0.0, 0.5, 4.0));
     let rays = rays(&scene, 5000, 11);
     let accel = Accel::build(AccelKind::BvhSah, &scene);
-    let opts = TraceOptions { chunk_rays: 1500, dispatch_budget: 20_000, ..Default::default() };
+    let opts = TraceOptions {
+        chunk_rays: 1500,
+        pacing: PacingChoice { budget: Some(20_000), ..Default::default() },
+        ..Default::default()
+    };
     let tracer = RayTracer::new(&ctx, &scene, &accel, &opts).expect("tracer");
     assert_eq!(tracer.chunk_rays(), 1500);
     let (hits, stats) = tracer.trace_stats(&rays).expect("trace");

@@ -266,6 +266,7 @@ void path_main() {
     uint j = at.z;
 
     Pixel out_px = pixel_start(slot);
+    if (pixel_behind(out_px)) return;
 
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {

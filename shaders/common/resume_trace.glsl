@@ -227,6 +227,21 @@ void sample_done() {
 // Rays of the invocation's complete samples.
 uint job_rays() { return g_suspended ? g_rays_before : g_rays; }
 
+// A trace dispatch that finds its pixel behind: holding fewer samples than the
+// dispatch starts from, because an earlier dispatch stopped one of them and its resume
+// passes had not run yet (dispatches in flight, src/render/dispatch/mod.rs). The pixel
+// is left as it is and counted like a stopped sample, so the resume sweep after this
+// dispatch brings it to the dispatch's end, its samples still summed in index order.
+bool pixel_behind(Pixel p) {
+#ifdef ACCEL_RESUMABLE
+    if (!RESUME_PASS && dispatch_window.w + uint(p.radiance.w) < dispatch_range.z) {
+        atomicAdd(dispatch_chunk.w, 1u);
+        return true;
+    }
+#endif
+    return false;
+}
+
 // The invocation ends: the trace kernel counts a stopped sample in the header (the
 // resume kernel counted its jobs as it gave them out).
 void job_end() {

@@ -48,6 +48,8 @@ pub struct Options {
     pub intersect: Vec<IntersectMode>,
     /// Traversal of coherent rays in the BVH kernels.
     pub traversal: crate::render::Traversal,
+    /// How dispatches are sized and kept in flight.
+    pub pacing: crate::render::dispatch::PacingChoice,
     /// Camera image size.
     pub size: (u32, u32),
     /// Timed repeats after one warm-up.

@@ -35,6 +35,8 @@ pub struct Request {
     pub intersect: Vec<IntersectMode>,
     /// Traversal of coherent rays in the BVH kernels.
     pub traversal: crate::render::Traversal,
+    /// How dispatches are sized and kept in flight.
+    pub pacing: crate::render::dispatch::PacingChoice,
     pub size: (u32, u32),
     /// Timed rounds (1 with `quick`).
     pub repeat: usize,
@@ -74,6 +76,7 @@ impl Request {
             rays,
             intersect: self.intersect.clone(),
             traversal: self.traversal,
+            pacing: self.pacing,
             size: self.size,
             repeat: if self.quick { 1 } else { self.repeat },
             out: self.out.clone(),
@@ -141,6 +144,7 @@ mod tests {
             shadow: false,
             intersect: vec![IntersectMode::Watertight],
             traversal: crate::render::Traversal::Single,
+            pacing: Default::default(),
             size: (16, 16),
             repeat: 3,
             quick: true,

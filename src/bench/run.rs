@@ -203,7 +203,7 @@ fn rounds(
                 ctx,
                 scene,
                 (run.kind, run.params),
-                (rays, run.mode, opts.traversal),
+                (rays, run.mode, opts.traversal, opts.pacing),
                 timed,
                 &mut run.case,
                 &mut run.pipelines,
@@ -234,7 +234,12 @@ fn bench_round(
     ctx: &Context,
     scene: &Scene,
     (kind, params): (AccelKind, &AccelParams),
-    (rays, mode, traversal): (RayKind, IntersectMode, crate::render::Traversal),
+    (rays, mode, traversal, pacing): (
+        RayKind,
+        IntersectMode,
+        crate::render::Traversal,
+        crate::render::dispatch::PacingChoice,
+    ),
     timed: bool,
     case: &mut Case,
     pipelines: &mut Option<GpuBuilder>,
@@ -249,6 +254,7 @@ fn bench_round(
     settings.accel = kind;
     settings.intersect = mode;
     settings.traversal = traversal;
+    settings.pacing = pacing;
     let first = if timed {
         let accel = Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
         Some(accel.timing())

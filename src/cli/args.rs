@@ -4,7 +4,7 @@
 use anyhow::{bail, Result};
 use arbor::accel::{AccelKind, AccelParams};
 use arbor::bench::RayKind;
-use arbor::render;
+
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -97,6 +97,41 @@ impl StructureArgs {
             p.set_flag(flag, spec).map_err(anyhow::Error::msg)?;
         }
         Ok(p)
+    }
+}
+
+/// How dispatches are sized and kept in flight, shared by render and bench.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub(crate) struct PacingArgs {
+    /// Target GPU milliseconds of one dispatch: each is sized from the time the ones
+    /// before it took. Default: 60 on a GPU, 400 on lavapipe (where --dispatch-budget
+    /// bounds dispatches first). The image is the same for any value.
+    #[arg(long, value_name = "MS")]
+    pub(crate) dispatch_ms: Option<f64>,
+    /// Dispatches submitted ahead of the one the device is running (1: wait for each).
+    /// Default: 3 on a GPU, 2 on lavapipe. The image is the same for any value.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub(crate) in_flight: Option<u32>,
+    /// Most primitive tests (estimated from the structure) one dispatch may run: a
+    /// bound for devices with a watchdog. Default: 60000000 on lavapipe (about a
+    /// quarter of a second on 2 cores), none on a GPU. The image is the same.
+    #[arg(long, value_name = "TESTS", value_parser = clap::value_parser!(u64).range(1..))]
+    pub(crate) dispatch_budget: Option<u64>,
+}
+
+impl PacingArgs {
+    /// Sets `settings`' pacing from the flags given.
+    pub(crate) fn apply(&self, settings: &mut arbor::render::RenderSettings) {
+        settings.pacing = self.choice();
+    }
+
+    /// The choice the flags make.
+    pub(crate) fn choice(&self) -> arbor::render::dispatch::PacingChoice {
+        arbor::render::dispatch::PacingChoice {
+            target_ms: self.dispatch_ms,
+            in_flight: self.in_flight,
+            budget: self.dispatch_budget,
+        }
     }
 }
 
@@ -215,6 +250,8 @@ pub(crate) struct BenchArgs {
     pub(crate) spp: Option<u32>,
     #[command(flatten)]
     pub(crate) trace: TraceArgs,
+    #[command(flatten)]
+    pub(crate) pacing: PacingArgs,
 }
 
 #[derive(clap::Args)]
@@ -311,10 +348,8 @@ pub(crate) struct RenderArgs {
     /// Kernel variant: `specialized` (only what the scene needs) or `general`.
     #[arg(long, default_value = "specialized", value_parser = ["specialized", "general"])]
     pub(crate) kernel: String,
-    /// Primitive tests per dispatch (smaller = shorter dispatches, for devices
-    /// with a watchdog); the output is identical for any value.
-    #[arg(long, default_value_t = render::DEFAULT_DISPATCH_BUDGET, value_name = "TESTS")]
-    pub(crate) dispatch_budget: u64,
+    #[command(flatten)]
+    pub(crate) pacing: PacingArgs,
     /// For tests: lower the traversal step budget of a trace to N (at least 48), so
     /// that traces run out of steps and are resumed; the output is identical.
     #[arg(long, hide = true, value_name = "N")]

@@ -36,6 +36,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         shadow: args.shadow,
         intersect: args.intersect.clone(),
         traversal: args.traversal.parse().map_err(anyhow::Error::msg)?,
+        pacing: args.pacing.choice(),
         size,
         repeat: args.repeat,
         quick: args.quick,

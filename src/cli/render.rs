@@ -84,7 +84,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     settings.traversal = a.traversal.parse().map_err(anyhow::Error::msg)?;
     settings.accel = accel;
     settings.params = params;
-    settings.dispatch_budget = a.dispatch_budget.max(1);
+    a.pacing.apply(&mut settings);
     settings.trace_steps = a.trace_steps;
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
     let (spp_total, shard_name) = shard_settings(a, &mut settings)?;

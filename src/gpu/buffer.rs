@@ -56,6 +56,11 @@ impl Buffer {
     pub fn size(&self) -> u64 {
         self.size
     }
+    /// The mapped bytes of a host-visible buffer (staging, readback, uniform).
+    pub(crate) fn mapped(&self) -> Option<&[u8]> {
+        self.allocation.as_ref().and_then(|a| a.mapped_slice())
+    }
+
     /// What the buffer is for.
     pub fn kind(&self) -> BufferKind {
         self.kind

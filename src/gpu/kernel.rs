@@ -321,7 +321,7 @@ impl Context {
 
     /// Checks that `kernel` can be dispatched: every binding bound, push constants of
     /// the declared size, workgroup counts within the device limits.
-    fn check_dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3]) -> Result<()> {
+    pub(super) fn check_dispatch(&self, kernel: &Kernel, push: &[u8], groups: [u32; 3]) -> Result<()> {
         if let Some(i) = kernel.bound.iter().position(Option::is_none) {
             return Err(Error::Vulkan {
                 what: format!("dispatch '{}'", kernel.name),
@@ -523,7 +523,7 @@ pub enum Step<'a> {
 
 /// A global barrier: every earlier transfer, shader or host write is visible to every
 /// later transfer or shader access.
-fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
+pub(super) fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
     let barrier = [vk::MemoryBarrier::default()
         .src_access_mask(vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::HOST_WRITE)
         .dst_access_mask(
@@ -563,7 +563,13 @@ fn record_bind(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: 
 }
 
 /// Binds `kernel` and records one dispatch.
-fn record_dispatch(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8], groups: [u32; 3]) {
+pub(super) fn record_dispatch(
+    dev: &ash::Device,
+    cb: vk::CommandBuffer,
+    kernel: &Kernel,
+    push: &[u8],
+    groups: [u32; 3],
+) {
     record_bind(dev, cb, kernel, push);
     // SAFETY: recording scope of a live command buffer with a compute pipeline bound.
     unsafe { dev.cmd_dispatch(cb, groups[0], groups[1], groups[2]) };

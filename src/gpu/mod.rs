@@ -14,6 +14,7 @@
 pub mod bindings;
 mod buffer;
 mod context;
+mod flight;
 #[allow(missing_docs)] // internal to the renderer; not the stable API
 mod kernel;
 #[allow(missing_docs)] // internal to the renderer; not the stable API
@@ -22,6 +23,7 @@ mod timing;
 
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};
+pub use flight::{DispatchRing, Landed, MAX_DEPTH as MAX_IN_FLIGHT};
 pub use kernel::{BindingDesc, BindingKind, Kernel, Step};
 pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 

@@ -47,8 +47,13 @@ pub(crate) struct Placement {
 }
 
 impl Placement {
+    /// Whether the device clock was read with the host's (else: aligned at submit).
+    pub(crate) fn calibrated(&self) -> bool {
+        self.clock == GpuClock::Calibrated
+    }
+
     /// The CPU instant of device tick `ticks`.
-    fn at(&self, ticks: u64) -> Instant {
+    pub(crate) fn at(&self, ticks: u64) -> Instant {
         let off = |d: u64| Duration::from_nanos((d as f64 * self.period_ns).round() as u64);
         if ticks >= self.anchor_ticks {
             self.anchor + off(ticks - self.anchor_ticks)

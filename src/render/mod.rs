@@ -10,7 +10,6 @@ pub mod dispatch;
 pub mod envdist;
 pub mod gpu;
 pub mod heatmap;
-pub mod kernel;
 pub mod memory;
 pub mod merge;
 pub mod output;
@@ -18,12 +17,11 @@ pub mod part;
 pub mod path;
 #[warn(missing_docs)]
 pub mod rays;
-pub mod readback;
-pub mod resume;
 pub mod shard;
 pub mod timeline_png;
-pub mod upload;
 pub mod whitted;
+
+pub use dispatch::{kernel, readback, resume, upload};
 
 use serde::Serialize;
 
@@ -121,8 +119,10 @@ pub struct RenderSettings {
     /// benchmark's incoherent-ray mode (the image is ambient occlusion). Takes
     /// precedence over `primary_only`.
     pub diffuse_probe: bool,
-    /// Budget of primitive tests per dispatch; smaller means shorter dispatches.
-    pub dispatch_budget: u64,
+    /// How dispatches are sized and kept in flight (`--dispatch-ms`, `--in-flight`,
+    /// `--dispatch-budget`); unset values take the device's defaults. The image is
+    /// the same for any choice.
+    pub pacing: dispatch::PacingChoice,
     /// Path integrator: which direct-light estimators it combines.
     pub mis: Mis,
     /// Path integrator: stop after the first sample wave past this many seconds (the
@@ -249,7 +249,7 @@ impl RenderSettings {
             kernel: KernelChoice::Specialized,
             primary_only: false,
             diffuse_probe: false,
-            dispatch_budget: DEFAULT_DISPATCH_BUDGET,
+            pacing: dispatch::PacingChoice::default(),
             mis: Mis::Both,
             time_budget: None,
             max_depth: None,
@@ -296,6 +296,7 @@ impl RenderSettings {
                 )));
             }
         }
+        dispatch::Pacing::check(&self.pacing)?;
         if let Some(t) = self.time_budget {
             if !(t.is_finite() && t > 0.0) {
                 return Err(Error::Usage(format!("--time must be a positive number of seconds, got {t}")));
@@ -317,8 +318,9 @@ impl RenderSettings {
     }
 }
 
-/// Primitive tests per dispatch: on lavapipe (2 cores) this keeps a dispatch near a
-/// quarter of a second; see docs/kernels.md, "Dispatch splitting".
+/// Primitive tests per dispatch on llvmpipe, where it keeps a dispatch near a quarter
+/// of a second on 2 cores (docs/kernels.md, "Dispatches sized by the device"); on other
+/// devices only `--dispatch-budget` bounds a dispatch, and time sizes it.
 pub const DEFAULT_DISPATCH_BUDGET: u64 = 60_000_000;
 
 /// A rendered frame: linear radiance (averaged over samples) and the AOVs of the
@@ -392,6 +394,21 @@ pub struct RenderStats {
     pub trace_ms: Option<f64>,
     /// Host wall time of the whole trace, uploads and readback included.
     pub wall_ms: f64,
+    /// Host wall time of the dispatch loop alone, first submission to last landing:
+    /// with `trace_ms` beside it, how busy the device was kept.
+    pub loop_ms: f64,
+    /// `trace_ms / loop_ms`: the share of the loop the device spent tracing (1: never
+    /// idle); null without timestamps.
+    pub gpu_busy: Option<f64>,
+    /// The target GPU length dispatches were sized toward (ms).
+    pub dispatch_target_ms: f64,
+    /// Mean, median and longest GPU time of one trace dispatch (ms; 0 without
+    /// timestamps).
+    pub dispatch_mean_ms: f64,
+    pub dispatch_median_ms: f64,
+    pub dispatch_max_ms: f64,
+    /// Most dispatches in flight at once.
+    pub in_flight: u32,
     /// Host time to create the kernel (on lavapipe: compiling it).
     pub kernel_ms: f64,
     /// Host time to load the scene (set by the command line; 0 otherwise).
@@ -432,9 +449,10 @@ impl RenderStats {
         build: crate::accel::BuildStats,
         kernel: String,
         bindings: Vec<String>,
-        totals: dispatch::DispatchTotals,
+        totals: &dispatch::DispatchTotals,
         wall_ms: f64,
     ) -> RenderStats {
+        let (mean, median, longest) = dispatch::length_summary(&totals.lengths_ms);
         let total_pixels = frame.depth.len().max(1) as f64;
         let rays: u64 = frame.rays.iter().map(|&r| u64::from(r)).sum();
         let mrays = totals.gpu_ms.filter(|&ms| ms > 0.0).map(|ms| rays as f64 / (ms * 1e3));
@@ -461,6 +479,13 @@ impl RenderStats {
             bindings,
             trace_ms: totals.gpu_ms,
             wall_ms,
+            loop_ms: totals.loop_ms,
+            gpu_busy: totals.gpu_ms.filter(|_| totals.loop_ms > 0.0).map(|g| g / totals.loop_ms),
+            dispatch_target_ms: totals.target_ms,
+            dispatch_mean_ms: mean,
+            dispatch_median_ms: median,
+            dispatch_max_ms: longest,
+            in_flight: totals.in_flight,
             kernel_ms: 0.0,
             load_ms: 0.0,
             device_ms: 0.0,

@@ -15,14 +15,13 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::dispatch::{self, Next, Waves};
-use super::kernel::{LoopBounds, Variant};
-use super::resume::Resumer;
-use super::upload::{self, GpuScene};
+use super::dispatch::prepare::{Prepared, Request};
+use super::dispatch::upload::GpuScene;
+use super::dispatch::{Next, Waves};
 use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
-use crate::accel::{Accel, GpuImage};
-use crate::error::{Error, Result};
+use crate::accel::Accel;
+use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
 use crate::scene::{Material, Scene};
@@ -250,23 +249,12 @@ fn rays_per_sample(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> u64
     u64::from(max_depth(scene, settings).min(3)) * (1 + shadow_rays(scene, ex))
 }
 
-fn specialization(
-    scene: &Scene,
-    settings: &RenderSettings,
-    image: &GpuImage,
-    bounds: &LoopBounds,
-    ex: &Extras,
-) -> Vec<(u32, u32)> {
+/// The integrator's specialization constants (the loop adds the shared ones).
+fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<(u32, u32)> {
     vec![
         (SPEC_LIGHTS, scene.lights.len() as u32),
         (SPEC_MAX_DEPTH, max_depth(scene, settings)),
-        (SPEC_STACK_SIZE, image.stack_size),
-        (SPEC_TREE_STEPS, bounds.steps as u32),
-        (SPEC_BRUTE_UNROLL, bounds.unroll),
-        (SPEC_INTERSECT, settings.intersect.spec()),
         (SPEC_DIFFUSE_PROBE, 0),
-        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
-        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
         (SPEC_INTEGRATOR, 1),
         (SPEC_EMITTERS, ex.emitter_count),
         (SPEC_ENV_WIDTH, ex.env_size.0),
@@ -274,8 +262,6 @@ fn specialization(
         (SPEC_TEXTURES, u32::from(!scene.textures.is_empty())),
         (SPEC_MIS, settings.mis.spec()),
         (SPEC_RR_DEPTH, RR_DEPTH),
-        (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
-        (SPEC_PACKET, super::kernel::packet_spec(settings, image)),
     ]
 }
 
@@ -284,7 +270,7 @@ fn specialization(
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
     let (intensity, rotation) =
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
-    let mut p = super::kernel::base_params(scene, settings, accel);
+    let mut p = super::dispatch::kernel::base_params(scene, settings, accel);
     p.counts[0] = scene.lights.len() as u32;
     p.tables = ex.tables;
     p.env = [intensity, rotation, ex.total_power, 0.0];
@@ -329,59 +315,40 @@ pub fn render_with(
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
     let Control { mut progress, interrupted, mut checkpoint } = control;
-    super::kernel::check_subgroups(ctx)?;
-    let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
-    let variant = Variant::new("trace", scene, settings, &image)?;
     let mut gs = GpuScene::new(scene);
     let ex = extras(scene, gs.shading.len() as u32)?;
     gs.shading.extend_from_slice(&ex.rows);
-    let traces = traces_per_sample(scene, settings, &ex);
-    let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
-    let spec = specialization(scene, settings, &image, &bounds, &ex);
-    let compile = Instant::now();
-    let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
-    let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
-
+    let request = Request {
+        prefix: "trace",
+        traces: traces_per_sample(scene, settings, &ex),
+        rays_per_sample: rays_per_sample(scene, settings, &ex),
+        spec: specialization(scene, settings, &ex),
+        params: params(scene, settings, accel, &ex),
+        scene: gs,
+        extra_bindings: Vec::new(),
+        chunk_most: MAX_CHUNK_PIXELS,
+    };
+    let prep = Prepared::new(ctx, scene, settings, accel, request)?;
     let start = Instant::now();
     let total_pixels = settings.window().pixels();
-    let chunk_pixels = super::kernel::chunk_pixels(ctx, total_pixels, MAX_CHUNK_PIXELS);
-    let cost = image.cost_per_ray * rays_per_sample(scene, settings, &ex);
-    let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
-    if let Some(most) = bounds.samples_within_limit(ctx, scene, traces)? {
-        spp_per = spp_per.min(most).max(1);
-    }
+    let mut sizer = prep.sizer(settings.spp);
     // Short waves keep a time budget, an interruption and checkpoints responsive.
     if settings.time_budget.is_some() || checkpoint.is_some() {
-        spp_per = spp_per.min(4);
+        sizer.limit_samples(4);
     }
-    let waves = Waves::new(settings, chunk_pixels, px_per, spp_per);
-    let p = params(scene, settings, accel, &ex);
-    let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
+    let waves = Waves::new(settings, prep.chunk_pixels);
     let win = settings.window();
     let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
     let mut last_checkpoint = Instant::now();
     let mut chunk_started = Instant::now();
-    let mut resumer = Resumer::new(
-        ctx,
-        settings,
-        &scene.name,
-        (&variant, &spec),
-        &bound,
-        &image,
-        (traces, bounds.steps),
-        waves.pixels_per_dispatch,
-    )?;
-    let (totals, stopped) = dispatch::run_progressive(
-        ctx,
-        (&kernel, &mut resumer),
-        bound.pixels(),
-        &waves,
-        settings.resume.as_deref(),
-        &mut *progress,
-        |first, len, _samples, complete| {
-            if complete {
-                overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
+    let mut resumer = prep.resumer(settings)?;
+    let pixels = prep.bound.pixels();
+    let (totals, stopped) =
+        prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut *progress, |flight, wave| {
+            let (first, len) = (wave.first, wave.len);
+            if wave.complete {
+                overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
                 chunk_started = Instant::now();
                 return Ok(if interrupted() { Next::Stop } else { Next::Continue });
             }
@@ -390,7 +357,8 @@ pub fn render_with(
             }
             if let Some((every, write)) = checkpoint.as_mut() {
                 if last_checkpoint.elapsed().as_secs_f64() >= *every {
-                    overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
+                    flight.settle()?;
+                    overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
                     write(&frame)?;
                     last_checkpoint = Instant::now();
                 }
@@ -402,15 +370,16 @@ pub fn render_with(
                 }
             }
             Ok(Next::Continue)
-        },
-    )?;
+        })?;
     drop(resumer);
     ctx.check_validation()?;
-    super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
+    prep.check_overflow(overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
-    let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
+    let names = prep.bound.names.clone();
+    let mut stats =
+        RenderStats::new(ctx, scene, settings, &frame, build, prep.variant.name.clone(), names, &totals, wall_ms);
     stats.interrupted = stopped;
-    stats.kernel_ms = kernel_ms + totals.resumes.kernel_ms;
+    stats.kernel_ms = prep.kernel_ms + totals.resumes.kernel_ms;
     Ok((frame, stats))
 }

@@ -13,16 +13,16 @@
 
 use std::time::Instant;
 
-use super::dispatch::{self, Waves};
-use super::kernel::{LoopBounds, Variant};
-use super::resume::Resumer;
-use super::upload::{self, Bound, GpuScene};
+use super::dispatch::pacing::Sizer;
+use super::dispatch::prepare::{Prepared, Request};
+use super::dispatch::upload::GpuScene;
+use super::dispatch::{Next, Waves};
 use super::RenderSettings;
 use crate::accel::gpu_layout::{GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
-use crate::accel::{Accel, GpuImage};
+use crate::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
-use crate::gpu::{BindingDesc, BindingKind, Context, Kernel};
+use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
 use crate::scene::Scene;
@@ -36,9 +36,10 @@ pub struct TraceOptions {
     /// The ray/triangle test: watertight (default) or fast. The CPU reference takes
     /// the same choice ([`Accel::trace_cpu_with`]).
     pub intersect: IntersectMode,
-    /// Work (primitive tests and traversal steps, estimated) per dispatch; smaller
-    /// means more, shorter dispatches. Default [`super::DEFAULT_DISPATCH_BUDGET`].
-    pub dispatch_budget: u64,
+    /// How dispatches are sized and kept in flight: a target GPU length, how many run
+    /// ahead, and a bound on work (primitive tests and traversal steps, estimated) per
+    /// dispatch; unset values take the device's defaults. The hits are the same.
+    pub pacing: super::dispatch::PacingChoice,
     /// Most rays held on the device at once; a larger batch is traced in chunks of
     /// this many (also kept within the device's buffer limits). Default
     /// [`DEFAULT_CHUNK_RAYS`].
@@ -53,7 +54,7 @@ impl Default for TraceOptions {
     fn default() -> Self {
         TraceOptions {
             intersect: IntersectMode::Watertight,
-            dispatch_budget: super::DEFAULT_DISPATCH_BUDGET,
+            pacing: Default::default(),
             chunk_rays: DEFAULT_CHUNK_RAYS,
             trace_steps: None,
         }
@@ -122,25 +123,18 @@ pub fn check_rays(rays: &[Ray]) -> Result<()> {
 /// A scene and a structure on the device, ready to trace batches of rays: the kernel
 /// is compiled and the scene and structure uploaded once, in [`RayTracer::new`].
 pub struct RayTracer<'a> {
-    ctx: &'a Context,
-    scene: &'a Scene,
-    image: GpuImage<'a>,
+    prep: Prepared<'a>,
     settings: RenderSettings,
-    variant: Variant,
-    spec: Vec<(u32, u32)>,
-    bounds: LoopBounds,
-    kernel: Kernel,
-    bound: Bound,
-    chunk_rays: u64,
-    rays_per_dispatch: u64,
+    /// Dispatch sizes carry over from batch to batch.
+    sizer: std::cell::RefCell<Sizer>,
 }
 
 impl std::fmt::Debug for RayTracer<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RayTracer")
-            .field("kernel", &self.variant.name)
-            .field("chunk_rays", &self.chunk_rays)
-            .field("rays_per_dispatch", &self.rays_per_dispatch)
+            .field("kernel", &self.prep.variant.name)
+            .field("chunk_rays", &self.prep.chunk_pixels)
+            .field("pacing", &self.prep.pacing)
             .finish_non_exhaustive()
     }
 }
@@ -157,68 +151,45 @@ impl<'a> RayTracer<'a> {
                 scene.name
             )));
         }
-        super::kernel::check_subgroups(ctx)?;
         let mut settings = RenderSettings::for_size(1, 1);
         settings.intersect = options.intersect;
         settings.trace_steps = options.trace_steps;
-        settings.dispatch_budget = options.dispatch_budget;
+        settings.pacing = options.pacing;
         settings.check()?;
-        let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
-        if image.family == "rayquery" && image.ray_structure.is_none() {
-            return Err(Error::Unsupported(
-                "this rayquery structure was built without a device (CPU traversal only); build it with Accel::build_on"
-                    .into(),
-            ));
-        }
-        let mut variant = Variant::new("rays", scene, &settings, &image)?;
-        variant.bindings.push(BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" });
-        let bounds = LoopBounds::new(ctx, scene, &image, 1, settings.trace_steps)?;
-        bounds.samples_within_limit(ctx, scene, 1)?;
-        let spec = vec![
-            (SPEC_LIGHTS, 0),
-            (SPEC_MAX_DEPTH, 1),
-            (SPEC_STACK_SIZE, image.stack_size),
-            (SPEC_TREE_STEPS, bounds.steps as u32),
-            (SPEC_BRUTE_UNROLL, bounds.unroll),
-            (SPEC_INTERSECT, settings.intersect.spec()),
-            (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
-            (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
-            // The probe kernel's value: the resume sweep finds a stopped ray by its
-            // zero count (shaders/common/resume_trace.glsl).
-            (SPEC_INTEGRATOR, 2),
-            (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, &settings)),
-        ];
-        let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
         // Two texels a ray, within the device's texel-buffer view.
         let by_texels = (ctx.max_texel_elements() / 2).max(1);
-        let chunk_rays = super::kernel::chunk_pixels(ctx, options.chunk_rays.max(1), by_texels);
-        let (per_dispatch, _) = dispatch::dispatch_shape(chunk_rays, 1, image.cost_per_ray, options.dispatch_budget);
-        let params = super::kernel::base_params(scene, &settings, accel);
-        let bound =
-            upload::bind_all(ctx, &mut kernel, &variant.bindings, &params, &GpuScene::new(scene), &image, chunk_rays)?;
-        Ok(RayTracer {
-            ctx,
-            scene,
-            image,
-            settings,
-            variant,
-            spec,
-            bounds,
-            kernel,
-            bound,
-            chunk_rays,
-            rays_per_dispatch: per_dispatch.max(1),
-        })
+        let request = Request {
+            prefix: "rays",
+            traces: 1,
+            rays_per_sample: 1,
+            spec: vec![
+                (SPEC_LIGHTS, 0),
+                (SPEC_MAX_DEPTH, 1),
+                // The probe kernel's value: the resume sweep finds a stopped ray by its
+                // zero count (shaders/common/resume_trace.glsl).
+                (SPEC_INTEGRATOR, 2),
+            ],
+            params: super::dispatch::kernel::base_params(scene, &settings, accel),
+            scene: GpuScene::new(scene),
+            extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
+            chunk_most: options.chunk_rays.max(1).min(by_texels),
+        };
+        // The chunk is sized by the batch, not by an image.
+        let mut sized = settings.clone();
+        sized.width = u32::try_from(request.chunk_most).unwrap_or(u32::MAX).min(crate::scene::MAX_FILM_SIDE);
+        let prep = Prepared::new(ctx, scene, &sized, accel, request)?;
+        let sizer = std::cell::RefCell::new(prep.sizer(1));
+        Ok(RayTracer { prep, settings, sizer })
     }
 
     /// The name of the compiled kernel (`rays_<family>_<geometry>`).
     pub fn kernel_name(&self) -> &str {
-        &self.variant.name
+        &self.prep.variant.name
     }
 
     /// Most rays one chunk holds on the device (see [`TraceOptions::chunk_rays`]).
     pub fn chunk_rays(&self) -> u64 {
-        self.chunk_rays
+        self.prep.chunk_pixels
     }
 
     /// The closest hit of each ray, in order: `None` where the ray meets nothing in
@@ -236,19 +207,12 @@ impl<'a> RayTracer<'a> {
         if rays.is_empty() {
             return Ok((hits, stats));
         }
-        let ray_buf = self.bound.rays().ok_or_else(|| Error::Usage("the ray-batch kernel has no ray buffer".into()))?;
-        let mut resumer = Resumer::new(
-            self.ctx,
-            &self.settings,
-            &self.scene.name,
-            (&self.variant, &self.spec),
-            &self.bound,
-            &self.image,
-            (1, self.bounds.steps),
-            self.rays_per_dispatch,
-        )?;
+        let prep = &self.prep;
+        let ray_buf = prep.bound.rays().ok_or_else(|| Error::Usage("the ray-batch kernel has no ray buffer".into()))?;
+        let mut resumer = prep.resumer(&self.settings)?;
+        let mut sizer = self.sizer.borrow_mut();
         let mut overflow = 0u64;
-        for chunk in rays.chunks(self.chunk_rays as usize) {
+        for chunk in rays.chunks(prep.chunk_pixels as usize) {
             let gpu_rays: Vec<GpuRay> = chunk
                 .iter()
                 .map(|r| GpuRay {
@@ -256,42 +220,35 @@ impl<'a> RayTracer<'a> {
                     dir_tmax: [r.dir.x, r.dir.y, r.dir.z, r.tmax],
                 })
                 .collect();
-            self.ctx.write_storage(ray_buf, 0, bytemuck::cast_slice(&gpu_rays))?;
+            prep.ctx.write_storage(ray_buf, 0, bytemuck::cast_slice(&gpu_rays))?;
             let len = chunk.len() as u64;
             let waves = Waves {
                 total_pixels: len,
                 chunk_pixels: len,
-                pixels_per_dispatch: self.rays_per_dispatch.min(len),
                 spp: 1,
-                samples_per_dispatch: 1,
                 first_sample: 0,
                 window: [0, 0, len as u32],
                 resumed: false,
             };
-            let pixel_buf = self.bound.pixels();
-            let totals = dispatch::run(
-                self.ctx,
-                (&self.kernel, &mut resumer),
-                pixel_buf,
-                &waves,
-                None,
-                |_, _| {},
-                |first, n| {
-                    let px = self.ctx.read_storage_pod::<GpuPixel>(pixel_buf, PIXEL_HEADER_BYTES, n as usize)?;
-                    for (k, p) in px.iter().enumerate() {
-                        if p.prim_cost[3] & OVERFLOW_FLAG != 0 {
-                            overflow += 1;
-                        } else if p.radiance[3] != 1.0 {
-                            return Err(Error::scene(
-                                self.scene.name.clone(),
-                                format!("ray {} of the chunk was not traced to its end", first + k as u64),
-                            ));
-                        }
-                        hits.push(hit_of(p));
+            let pixel_buf = prep.bound.pixels();
+            let (totals, _) = prep.run((&mut resumer, &mut sizer), waves, None, &mut |_, _| {}, |_, wave| {
+                if !wave.complete {
+                    return Ok(Next::Continue);
+                }
+                let px = prep.ctx.read_storage_pod::<GpuPixel>(pixel_buf, PIXEL_HEADER_BYTES, wave.len as usize)?;
+                for (k, p) in px.iter().enumerate() {
+                    if p.prim_cost[3] & OVERFLOW_FLAG != 0 {
+                        overflow += 1;
+                    } else if p.radiance[3] != 1.0 {
+                        return Err(Error::scene(
+                            prep.scene.name.clone(),
+                            format!("ray {} of the chunk was not traced to its end", wave.first + k as u64),
+                        ));
                     }
-                    Ok(())
-                },
-            )?;
+                    hits.push(hit_of(p));
+                }
+                Ok(Next::Continue)
+            })?;
             stats.dispatches += totals.dispatches;
             stats.gpu_ms = match (stats.gpu_ms, totals.gpu_ms) {
                 (Some(a), Some(b)) => Some(a + b),
@@ -301,14 +258,14 @@ impl<'a> RayTracer<'a> {
         stats.resumed = resumer.totals.samples;
         stats.resume_dispatches = resumer.totals.dispatches;
         drop(resumer);
-        self.ctx.check_validation()?;
+        prep.ctx.check_validation()?;
         if overflow > 0 {
             return Err(Error::scene(
-                self.scene.name.clone(),
+                prep.scene.name.clone(),
                 format!(
                     "{overflow} rays needed more than {} traversal steps (the per-trace budget on {}) in a structure that cannot resume a trace; their hits would be wrong, so none are returned",
-                    self.bounds.steps,
-                    self.ctx.info().name
+                    prep.bounds.steps,
+                    prep.ctx.info().name
                 ),
             ));
         }

@@ -1,19 +1,17 @@
 //! The Whitted integrator (`trace.comp`): camera rays, shadow rays toward point and
 //! directional lights, mirror and glass, plus the benchmark's probe modes (camera
 //! rays only; one cosine bounce). Its settings become specialization constants; the
-//! shared parts do the rest: [`super::kernel`] (variant and loop bounds),
-//! [`super::upload`], [`super::dispatch`] and [`super::readback`].
+//! render loop ([`super::dispatch`]) does the rest.
 
 use std::time::Instant;
 
-use super::dispatch::{self, Waves};
-use super::kernel::{LoopBounds, Variant};
-use super::resume::Resumer;
-use super::upload::{self, GpuScene};
+use super::dispatch::prepare::{Prepared, Request};
+use super::dispatch::upload::GpuScene;
+use super::dispatch::{Next, Waves};
 use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
-use crate::accel::{Accel, GpuImage};
-use crate::error::{Error, Result};
+use crate::accel::Accel;
+use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
 use crate::scene::Scene;
@@ -55,50 +53,24 @@ fn lights_used(scene: &Scene, settings: &RenderSettings) -> u32 {
     }
 }
 
-/// The kernel's specialization constants.
-fn specialization(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
+/// The integrator's specialization constants (the loop adds the shared ones).
+fn specialization(scene: &Scene, settings: &RenderSettings) -> Vec<(u32, u32)> {
     let probe = settings.primary_only || settings.diffuse_probe;
     vec![
         (SPEC_LIGHTS, lights_used(scene, settings)),
         (SPEC_MAX_DEPTH, if probe { 1 } else { scene.max_depth }),
-        (SPEC_STACK_SIZE, image.stack_size),
-        (SPEC_TREE_STEPS, bounds.steps as u32),
-        (SPEC_BRUTE_UNROLL, bounds.unroll),
-        (SPEC_INTERSECT, settings.intersect.spec()),
         (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
-        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
-        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
         // The probe modes run the lean probe kernel (trace.comp, probe_main).
         (SPEC_INTEGRATOR, if probe { 2 } else { 0 }),
-        (SPEC_MATERIAL_KINDS, super::kernel::material_kinds(scene, settings)),
-        (SPEC_PACKET, super::kernel::packet_spec(settings, image)),
     ]
 }
 
 /// The uniform parameters: camera, scene box, counts, background.
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams {
-    let mut p = super::kernel::base_params(scene, settings, accel);
+    let mut p = super::dispatch::kernel::base_params(scene, settings, accel);
     p.counts[0] = lights_used(scene, settings);
     p.background[3] = scene.ambient;
     p
-}
-
-/// How the image is cut into dispatches on `ctx`.
-fn waves(
-    ctx: &Context,
-    scene: &Scene,
-    settings: &RenderSettings,
-    image: &GpuImage,
-    bounds: &LoopBounds,
-) -> Result<Waves> {
-    let total_pixels = settings.window().pixels();
-    let chunk_pixels = super::kernel::chunk_pixels(ctx, total_pixels, MAX_CHUNK_PIXELS);
-    let cost = image.cost_per_ray * rays_per_sample(scene, settings);
-    let (px_per, mut spp_per) = dispatch::dispatch_shape(chunk_pixels, settings.spp, cost, settings.dispatch_budget);
-    if let Some(most) = bounds.samples_within_limit(ctx, scene, traces_per_sample(scene, settings))? {
-        spp_per = spp_per.min(most).max(1);
-    }
-    Ok(Waves::new(settings, chunk_pixels, px_per, spp_per))
 }
 
 /// Renders `scene` with an already built structure.
@@ -107,49 +79,43 @@ pub fn render_with(
     scene: &Scene,
     settings: &RenderSettings,
     accel: &Accel,
-    progress: impl FnMut(u64, u64),
+    mut progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
-    super::kernel::check_subgroups(ctx)?;
-    let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
-    let variant = Variant::new("trace", scene, settings, &image)?;
-    let traces = traces_per_sample(scene, settings);
-    let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
-    let spec = specialization(scene, settings, &image, &bounds);
-    let compile = Instant::now();
-    let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
-    let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
-
+    let request = Request {
+        prefix: "trace",
+        traces: traces_per_sample(scene, settings),
+        rays_per_sample: rays_per_sample(scene, settings),
+        spec: specialization(scene, settings),
+        params: params(scene, settings, accel),
+        scene: GpuScene::new(scene),
+        extra_bindings: Vec::new(),
+        chunk_most: MAX_CHUNK_PIXELS,
+    };
+    let prep = Prepared::new(ctx, scene, settings, accel, request)?;
     let start = Instant::now();
-    let waves = waves(ctx, scene, settings, &image, &bounds)?;
-    let gs = GpuScene::new(scene);
-    let p = params(scene, settings, accel);
-    let bound = upload::bind_all(ctx, &mut kernel, &variant.bindings, &p, &gs, &image, waves.chunk_pixels)?;
     let win = settings.window();
     let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
-    let resume = settings.resume.as_deref();
-    let mut resumer = Resumer::new(
-        ctx,
-        settings,
-        &scene.name,
-        (&variant, &spec),
-        &bound,
-        &image,
-        (traces, bounds.steps),
-        waves.pixels_per_dispatch,
-    )?;
-    let totals =
-        dispatch::run(ctx, (&kernel, &mut resumer), bound.pixels(), &waves, resume, progress, |first, len| {
-            overflow += super::readback::read_chunk(ctx, bound.pixels(), &mut frame, first, len)?;
-            Ok(())
+    let mut resumer = prep.resumer(settings)?;
+    let mut sizer = prep.sizer(settings.spp);
+    let waves = Waves::new(settings, prep.chunk_pixels);
+    let pixels = prep.bound.pixels();
+    let (totals, _) =
+        prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut progress, |_, wave| {
+            if wave.complete {
+                overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, wave.first, wave.len)?;
+            }
+            Ok(Next::Continue)
         })?;
     drop(resumer);
     ctx.check_validation()?;
-    super::kernel::check_overflow(ctx, scene, &bounds, overflow)?;
+    prep.check_overflow(overflow)?;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let build = accel.stats(scene);
-    let mut stats = RenderStats::new(ctx, scene, settings, &frame, build, variant.name, bound.names, totals, wall_ms);
-    stats.kernel_ms = kernel_ms + totals.resumes.kernel_ms;
+    let names = prep.bound.names.clone();
+    let mut stats =
+        RenderStats::new(ctx, scene, settings, &frame, build, prep.variant.name.clone(), names, &totals, wall_ms);
+    stats.kernel_ms = prep.kernel_ms + totals.resumes.kernel_ms;
     Ok((frame, stats))
 }

@@ -102,11 +102,12 @@ impl std::fmt::Debug for Resumer<'_> {
 
 impl<'a> Resumer<'a> {
     /// For the kernel of `variant` with specialization `spec` and buffers `bound`,
-    /// `traces` traces a sample, `steps` a trace, dispatches of `pixels` pixels at most.
+    /// `traces` traces a sample, `steps` a trace, dispatches of `pixels` pixels at most
+    /// (a chunk).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &'a Context,
-        settings: &super::RenderSettings,
+        settings: &crate::render::RenderSettings,
         scene: &'a str,
         (variant, spec): (&'a Variant, &[(u32, u32)]),
         bound: &'a Bound,
@@ -184,20 +185,23 @@ impl<'a> Resumer<'a> {
         self.count(pixel_buf)
     }
 
-    /// After the trace dispatch of `header` (its GPU time already in `gpu_ms`): runs
-    /// the samples it stopped to their end, adding the passes' time to `gpu_ms`.
+    /// After the trace dispatch of `header` (its GPU time already in `gpu_ms`), which
+    /// counted `stopped` samples stopped or behind: runs them to the dispatch's end,
+    /// adding the passes' time to `gpu_ms`.
     ///
     /// Each pass after the sweep runs the jobs that hold a record (the first ones of
     /// its list) before the others, in a dispatch of their own: those that stop again
     /// then take the first places of the next list, and so keep a record. So every
     /// pass takes each saved trace at least a step further, and the samples without a
     /// record get the records their owners free.
-    pub fn settle(&mut self, pixel_buf: &Buffer, header: GpuDispatch, gpu_ms: &mut Option<f64>) -> Result<()> {
-        if self.resume_words == 0 {
-            return Ok(());
-        }
-        let stopped = self.count(pixel_buf)?;
-        if stopped == 0 {
+    pub fn settle(
+        &mut self,
+        pixel_buf: &Buffer,
+        header: GpuDispatch,
+        stopped: u32,
+        gpu_ms: &mut Option<f64>,
+    ) -> Result<()> {
+        if self.resume_words == 0 || stopped == 0 {
             return Ok(());
         }
         self.totals.samples += u64::from(stopped);

@@ -1,11 +1,11 @@
 //! Readback and accumulation: a chunk of `GpuPixel`s from the pixel buffer into the
 //! frame (radiance averaged over samples, the AOVs of the pixel-centre camera ray).
 
-use super::Frame;
 use crate::accel::gpu_layout::{GpuPixel, PIXEL_HEADER_BYTES};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::OVERFLOW_FLAG;
 use crate::gpu::{Buffer, Context};
+use crate::render::Frame;
 
 impl Frame {
     /// An empty frame: black, misses everywhere. An error (not an abort) when the host
@@ -15,7 +15,7 @@ impl Frame {
         let too_big = || {
             Error::Usage(format!(
                 "--size {width}x{height}: cannot allocate the frame (about {} MiB); use a smaller --size",
-                (n as u64 * super::memory::FRAME_BYTES_PER_PIXEL) >> 20
+                (n as u64 * crate::render::memory::FRAME_BYTES_PER_PIXEL) >> 20
             ))
         };
         Ok(Frame {

@@ -2,11 +2,11 @@
 //! family x geometry), which buffers it binds, and the loop bounds that keep every
 //! invocation inside the driver's limits.
 
-use super::{KernelChoice, RenderSettings};
 use crate::accel::{GpuImage, TraceLoop};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
+use crate::render::{KernelChoice, RenderSettings};
 use crate::scene::{MaterialKind, Scene};
 
 /// Which geometry a kernel variant handles.
@@ -68,7 +68,7 @@ pub fn check_subgroups(ctx: &Context) -> Result<()> {
 
 /// `SPEC_PACKET`: packet traversal where asked for and the kernel has it (BVHs).
 pub fn packet_spec(settings: &RenderSettings, image: &GpuImage) -> u32 {
-    u32::from(settings.traversal == super::Traversal::Packet && image.family == "bvh")
+    u32::from(settings.traversal == crate::render::Traversal::Packet && image.family == "bvh")
 }
 
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).

@@ -1,0 +1,355 @@
+//! The render loop, one way through for every kernel: [`prepare`] chooses and
+//! specialises the kernel, uploads the scene and structure and bounds the loops; [`run`]
+//! traces the image in chunks of pixels held on the device, each chunk in sample waves
+//! (all its pixels reach the same sample count after each wave), each wave in
+//! dispatches sized by [`pacing`] and kept in flight on a [`DispatchRing`].
+//!
+//! The host waits only where it needs a result: when the ring is full (the oldest
+//! dispatch lands: its GPU time sizes the next ones, its counters say whether traces
+//! stopped, progress moves), at a checkpoint, and at the end of a chunk (readback).
+//! A dispatch that stopped traces (docs/kernels.md, "Resumed traces") has its resume
+//! passes run when it lands; the trace dispatches in flight behind it leave the
+//! pixels it stopped alone and count them as stopped too (`pixel_behind` in
+//! `shaders/common/resume_trace.glsl`), so their own resume passes, run in order, bring
+//! those pixels up to date sample by sample: the image does not depend on how many
+//! dispatches were in flight, nor on how they were sized.
+
+pub mod kernel;
+pub mod pacing;
+pub mod prepare;
+pub mod readback;
+pub mod resume;
+pub mod upload;
+
+use std::collections::VecDeque;
+use std::time::Instant;
+
+use self::pacing::Sizer;
+use self::resume::{ResumeTotals, Resumer};
+use super::Frame;
+use crate::accel::gpu_layout::{GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
+use crate::error::Result;
+use crate::gpu::bindings::WORKGROUP_SIZE;
+use crate::gpu::{Buffer, Context, DispatchRing, Kernel};
+
+pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
+
+/// Byte of the dispatch header the trace kernel counts stopped samples in
+/// (`GpuDispatch::chunk`, copied back after every dispatch).
+const HEADER_COUNTERS: u64 = 16;
+
+/// The image's pixels and samples, and how much of it the device holds at once.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Waves {
+    pub total_pixels: u64,
+    /// Pixels held on the device at once.
+    pub chunk_pixels: u64,
+    /// Samples of each pixel, from `first_sample`.
+    pub spp: u32,
+    /// The first sample index.
+    pub first_sample: u32,
+    /// The window's left column, top row and width: pixel indices count inside it.
+    pub window: [u32; 3],
+    /// Resumed: the pixels start from uploaded sums, never from zero.
+    pub resumed: bool,
+}
+
+impl Waves {
+    /// The pixels and samples of `settings`' window and sample range, `chunk_pixels`
+    /// pixels at a time.
+    pub fn new(settings: &super::RenderSettings, chunk_pixels: u64) -> Waves {
+        let win = settings.window();
+        Waves {
+            total_pixels: win.pixels(),
+            chunk_pixels,
+            spp: settings.spp,
+            first_sample: settings.first_sample,
+            window: [win.x0, win.y0, win.width()],
+            resumed: settings.resume.is_some(),
+        }
+    }
+
+    fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32)) -> GpuDispatch {
+        let [x0, y0, w] = self.window;
+        GpuDispatch {
+            range: [first as u32, n as u32, s, s_end],
+            chunk: [chunk as u32, u32::from(self.resumed), 0, 0],
+            window: [x0, y0, w, self.first_sample],
+        }
+    }
+}
+
+/// What the dispatches cost and how busy they kept the device.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DispatchTotals {
+    /// Sum of the dispatches' GPU time, resume passes included; `None` without
+    /// timestamps.
+    pub gpu_ms: Option<f64>,
+    /// Trace dispatches (resume passes not counted).
+    pub dispatches: u32,
+    /// Traces resumed after running out of steps, and the passes that did it.
+    pub resumes: ResumeTotals,
+    /// GPU milliseconds of each trace dispatch, in order (empty without timestamps).
+    pub lengths_ms: Vec<f64>,
+    /// Host wall time of the loop, first submission to last landing.
+    pub loop_ms: f64,
+    /// Most dispatches that were in flight at once.
+    pub in_flight: u32,
+    /// The target length dispatches were sized toward.
+    pub target_ms: f64,
+}
+
+/// A dispatch in flight: its header and its pixel-samples.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    header: GpuDispatch,
+    units: u64,
+    submitted: Instant,
+}
+
+/// The dispatches in flight of one loop, and what they have cost so far. Wave
+/// callbacks get it to [`Flight::settle`] before they read pixels.
+pub struct Flight<'r, 'a> {
+    ctx: &'a Context,
+    kernel: &'r Kernel,
+    resumer: &'r mut Resumer<'a>,
+    pixel_buf: &'r Buffer,
+    ring: DispatchRing<'a>,
+    pending: VecDeque<Pending>,
+    sizer: &'r mut Sizer,
+    progress: &'r mut dyn FnMut(u64, u64),
+    done: u64,
+    total: u64,
+    last_landed: Option<Instant>,
+    totals: DispatchTotals,
+}
+
+impl std::fmt::Debug for Flight<'_, '_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Flight").field("in_flight", &self.pending.len()).field("done", &self.done).finish()
+    }
+}
+
+impl Flight<'_, '_> {
+    /// Submits the dispatch of `header` (`units` pixel-samples), after landing the
+    /// oldest one if the ring is full.
+    fn submit(&mut self, header: GpuDispatch, units: u64) -> Result<()> {
+        while !self.ring.has_room() {
+            self.land()?;
+        }
+        let [first, n, s, s_end] = header.range;
+        let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
+        let groups = n.div_ceil(WORKGROUP_SIZE);
+        self.ring.submit(
+            self.kernel,
+            self.pixel_buf,
+            (0, bytemuck::bytes_of(&header)),
+            [groups, 1, 1],
+            HEADER_COUNTERS,
+            &label,
+        )?;
+        self.pending.push_back(Pending { header, units, submitted: Instant::now() });
+        self.totals.in_flight = self.totals.in_flight.max(self.ring.in_flight() as u32);
+        self.totals.dispatches += 1;
+        Ok(())
+    }
+
+    /// Lands the oldest dispatch: its time, its stopped samples' resume passes, progress.
+    fn land(&mut self) -> Result<()> {
+        let Some(landed) = self.ring.land_oldest()? else { return Ok(()) };
+        let Some(p) = self.pending.pop_front() else { return Ok(()) };
+        let now = Instant::now();
+        // Without timestamps, the host time since it could have started.
+        let busy_from = self.last_landed.map_or(p.submitted, |t| t.max(p.submitted));
+        self.last_landed = Some(now);
+        let ms = landed.gpu_ms.unwrap_or_else(|| now.duration_since(busy_from).as_secs_f64() * 1e3);
+        self.sizer.measured(p.units, ms);
+        self.totals.gpu_ms = add(self.totals.gpu_ms, landed.gpu_ms);
+        if let Some(ms) = landed.gpu_ms {
+            self.totals.lengths_ms.push(ms);
+        }
+        let stopped = landed.words[3];
+        self.resumer.settle(self.pixel_buf, p.header, stopped, &mut self.totals.gpu_ms)?;
+        self.totals.resumes = self.resumer.totals;
+        self.done += p.units;
+        (self.progress)(self.done.min(self.total), self.total);
+        Ok(())
+    }
+
+    /// Waits until every dispatch submitted so far has landed (and its stopped
+    /// samples are resumed): the pixels then hold what they were given.
+    pub fn settle(&mut self) -> Result<()> {
+        while !self.pending.is_empty() {
+            self.land()?;
+        }
+        Ok(())
+    }
+
+    /// Counts `units` pixel-samples as done without tracing them (a chunk whose share
+    /// of the time budget ran out).
+    fn skip(&mut self, units: u64) {
+        self.done += units;
+    }
+}
+
+/// Writes the chunk's starting pixel states from `resume` (a resumed render).
+fn upload_chunk(ctx: &Context, pixel_buf: &Buffer, resume: Option<&Frame>, first: u64, len: u64) -> Result<()> {
+    let Some(f) = resume else { return Ok(()) };
+    let pixels: Vec<GpuPixel> = (first..first + len).map(|k| f.gpu_pixel(k as usize)).collect();
+    ctx.write_storage(pixel_buf, PIXEL_HEADER_BYTES, bytemuck::cast_slice(&pixels))
+}
+
+/// What a loop does after a sample wave: go on, or stop the whole render
+/// (interrupted) or only this chunk (its share of the time budget is spent).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Next {
+    Continue,
+    NextChunk,
+    Stop,
+}
+
+/// A sample wave just submitted: the chunk's first pixel and length, the samples its
+/// pixels will hold, and whether the chunk is complete (then every dispatch has
+/// landed, and its pixels can be read back).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Wave {
+    pub first: u64,
+    pub len: u64,
+    pub samples: u32,
+    pub complete: bool,
+}
+
+/// What one loop is given: the kernel and its resumer, the pixel buffer, the pixels and
+/// samples, the sizer, the ring's depth and a resumed part's pixels.
+pub struct LoopInput<'r, 'a> {
+    pub ctx: &'a Context,
+    pub kernel: &'r Kernel,
+    pub resumer: &'r mut Resumer<'a>,
+    pub pixel_buf: &'r Buffer,
+    pub waves: Waves,
+    pub sizer: &'r mut Sizer,
+    pub in_flight: u32,
+    pub target_ms: f64,
+    pub resume: Option<&'r Frame>,
+}
+
+impl std::fmt::Debug for LoopInput<'_, '_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LoopInput").field("waves", &self.waves).field("in_flight", &self.in_flight).finish()
+    }
+}
+
+/// Runs the kernel (and its resume passes) over every pixel and sample of `waves`,
+/// sample waves outermost within each chunk. `progress(done, total)` counts
+/// pixel-samples as dispatches land. After each wave is submitted,
+/// `wave_done(flight, wave)` decides what comes next ([`Flight::settle`] first if it
+/// reads pixels); it is called once more with `complete` when a chunk ends early.
+/// Returns the totals and whether the render stopped before its end.
+pub fn run(
+    input: LoopInput<'_, '_>,
+    progress: &mut dyn FnMut(u64, u64),
+    mut wave_done: impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
+) -> Result<(DispatchTotals, bool)> {
+    let LoopInput { ctx, kernel, resumer, pixel_buf, waves, sizer, in_flight, target_ms, resume } = input;
+    let span = crate::timeline::span("trace", || "trace");
+    span.arg("pixels", waves.total_pixels);
+    span.arg("samples", waves.spp);
+    span.arg("in_flight", in_flight);
+    span.arg("target_ms", target_ms);
+    let start = Instant::now();
+    let mut flight = Flight {
+        ctx,
+        kernel,
+        resumer,
+        pixel_buf,
+        ring: ctx.dispatch_ring(in_flight)?,
+        pending: VecDeque::new(),
+        sizer,
+        progress,
+        done: 0,
+        total: waves.total_pixels * u64::from(waves.spp),
+        last_landed: None,
+        totals: DispatchTotals { gpu_ms: Some(0.0), target_ms, ..Default::default() },
+    };
+    let stopped = run_chunks(&mut flight, &waves, resume, &mut wave_done)?;
+    flight.settle()?;
+    let mut totals = std::mem::take(&mut flight.totals);
+    totals.loop_ms = start.elapsed().as_secs_f64() * 1e3;
+    span.arg("dispatches", totals.dispatches);
+    Ok((totals, stopped))
+}
+
+fn run_chunks(
+    flight: &mut Flight<'_, '_>,
+    waves: &Waves,
+    resume: Option<&Frame>,
+    wave_done: &mut impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
+) -> Result<bool> {
+    let end = waves.first_sample + waves.spp;
+    let mut chunk_start = 0u64;
+    while chunk_start < waves.total_pixels {
+        let len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
+        if resume.is_some() {
+            // The pixel buffer is about to be overwritten: the last chunk's dispatches
+            // have landed (its readback waited for them).
+            flight.settle()?;
+            upload_chunk(flight.ctx, flight.pixel_buf, resume, chunk_start, len)?;
+        }
+        let mut s = waves.first_sample;
+        while s < end {
+            let m = flight.sizer.wave_samples(len, end - s);
+            let s_end = s + m;
+            let mut p = 0u64;
+            while p < len {
+                let n = if m > 1 { len - p } else { flight.sizer.pixels(len - p) };
+                let header = waves.header((chunk_start, chunk_start + p, n), (s, s_end));
+                flight.submit(header, n * u64::from(m))?;
+                p += n;
+            }
+            s = s_end;
+            if s == end {
+                flight.settle()?;
+            }
+            let wave = Wave { first: chunk_start, len, samples: s, complete: s == end };
+            match wave_done(flight, wave)? {
+                Next::Continue => {}
+                Next::NextChunk => {
+                    if s < end {
+                        flight.settle()?;
+                        wave_done(flight, Wave { complete: true, ..wave })?;
+                        flight.skip(len * u64::from(end - s));
+                    }
+                    break;
+                }
+                Next::Stop => {
+                    if s < end {
+                        flight.settle()?;
+                        wave_done(flight, Wave { complete: true, ..wave })?;
+                    }
+                    return Ok(chunk_start + len < waves.total_pixels || s < end);
+                }
+            }
+        }
+        chunk_start += len;
+    }
+    Ok(false)
+}
+
+fn add(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a + b),
+        _ => None,
+    }
+}
+
+/// Mean, median and longest of dispatch lengths (ms); zeros for none.
+pub fn length_summary(lengths: &[f64]) -> (f64, f64, f64) {
+    if lengths.is_empty() {
+        return (0.0, 0.0, 0.0);
+    }
+    let mut v = lengths.to_vec();
+    v.sort_by(f64::total_cmp);
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let median = if v.len() % 2 == 1 { v[v.len() / 2] } else { 0.5 * (v[v.len() / 2 - 1] + v[v.len() / 2]) };
+    (mean, median, v[v.len() - 1])
+}

@@ -1,0 +1,184 @@
+//! The one preparation step of every kernel run (the Whitted and path integrators, the
+//! benchmark's probes, ray batches): the kernel variant for the structure's family and
+//! the scene's geometry, the loop bounds that keep each invocation within the driver's
+//! limits, the specialization constants every integrator shares plus its own, the
+//! kernel itself (timed apart: on lavapipe this is the shader compile), the uploads,
+//! and the sizes of chunks and dispatches.
+
+use std::time::Instant;
+
+use super::kernel::{self, LoopBounds, Variant};
+use super::pacing::{Pacing, Sizer};
+use super::resume::Resumer;
+use super::upload::{self, Bound, GpuScene};
+use super::{DispatchTotals, Flight, LoopInput, Next, Wave, Waves};
+use crate::accel::gpu_layout::GpuParams;
+use crate::accel::{Accel, GpuImage};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{BindingDesc, Context, Kernel};
+use crate::render::{Frame, RenderSettings};
+use crate::scene::Scene;
+
+/// What an integrator asks of the loop.
+#[derive(Debug)]
+pub struct Request {
+    /// The kernel's entry: `trace` (the integrators and probes) or `rays` (batches).
+    pub prefix: &'static str,
+    /// Traces one sample may run (each gets its share of the loop limit).
+    pub traces: u64,
+    /// Rays one sample typically costs, to size dispatches from the structure's cost.
+    pub rays_per_sample: u64,
+    /// The integrator's own specialization constants (lights, depth, entry, tables).
+    pub spec: Vec<(u32, u32)>,
+    /// The uniform parameters.
+    pub params: GpuParams,
+    /// The scene as the kernel reads it, with the integrator's extra shading rows.
+    pub scene: GpuScene,
+    /// Bindings beyond the variant's (the ray buffer of batches).
+    pub extra_bindings: Vec<BindingDesc>,
+    /// Most pixels (or rays) a chunk holds; also kept within the device's buffers.
+    pub chunk_most: u64,
+}
+
+/// A kernel ready to run, with its buffers bound.
+pub struct Prepared<'a> {
+    pub ctx: &'a Context,
+    pub scene: &'a Scene,
+    pub image: GpuImage<'a>,
+    pub variant: Variant,
+    pub spec: Vec<(u32, u32)>,
+    pub bounds: LoopBounds,
+    pub kernel: Kernel,
+    pub bound: Bound,
+    /// Host milliseconds to create the kernel.
+    pub kernel_ms: f64,
+    /// Traces one sample may run.
+    pub traces: u64,
+    /// Pixels the pixel buffer holds.
+    pub chunk_pixels: u64,
+    /// The work budget's units one sample of a pixel costs.
+    pub cost_per_sample: u64,
+    /// Most samples one dispatch may run within the driver's loop limit.
+    pub most_samples: Option<u32>,
+    pub pacing: Pacing,
+}
+
+impl std::fmt::Debug for Prepared<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Prepared").field("kernel", &self.variant.name).field("pacing", &self.pacing).finish()
+    }
+}
+
+/// The specialization constants every kernel shares: the structure's stack and loop
+/// bounds, the intersection test, the primitive counts, the material kinds, packets.
+fn shared_spec(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
+    vec![
+        (SPEC_STACK_SIZE, image.stack_size),
+        (SPEC_TREE_STEPS, bounds.steps as u32),
+        (SPEC_BRUTE_UNROLL, bounds.unroll),
+        (SPEC_INTERSECT, settings.intersect.spec()),
+        (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
+        (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
+        (SPEC_MATERIAL_KINDS, kernel::material_kinds(scene, settings)),
+        (SPEC_PACKET, kernel::packet_spec(settings, image)),
+    ]
+}
+
+impl<'a> Prepared<'a> {
+    /// Prepares `request` for `scene` traced through `accel` with `settings`.
+    pub fn new(
+        ctx: &'a Context,
+        scene: &'a Scene,
+        settings: &RenderSettings,
+        accel: &'a Accel,
+        request: Request,
+    ) -> Result<Prepared<'a>> {
+        kernel::check_subgroups(ctx)?;
+        let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
+        let mut variant = Variant::new(request.prefix, scene, settings, &image)?;
+        variant.bindings.extend(request.extra_bindings);
+        let traces = request.traces;
+        let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
+        let most_samples = bounds.samples_within_limit(ctx, scene, traces)?;
+        let mut spec = request.spec;
+        spec.extend(shared_spec(scene, settings, &image, &bounds));
+        let compile = Instant::now();
+        let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+        let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
+        let chunk_pixels = kernel::chunk_pixels(ctx, settings.window().pixels(), request.chunk_most);
+        let bound = upload::bind_all(
+            ctx,
+            &mut kernel,
+            &variant.bindings,
+            &request.params,
+            &request.scene,
+            &image,
+            chunk_pixels,
+        )?;
+        let pacing = Pacing::for_device(ctx, &settings.pacing);
+        Ok(Prepared {
+            ctx,
+            scene,
+            cost_per_sample: image.cost_per_ray.saturating_mul(request.rays_per_sample.max(1)),
+            image,
+            variant,
+            spec,
+            bounds,
+            kernel,
+            bound,
+            kernel_ms,
+            traces,
+            chunk_pixels,
+            most_samples,
+            pacing,
+        })
+    }
+
+    /// A sizer for `spp` samples a pixel in chunks of this kernel's size.
+    pub fn sizer(&self, spp: u32) -> Sizer {
+        Sizer::new(&self.pacing, self.chunk_pixels, spp, self.cost_per_sample, self.most_samples)
+    }
+
+    /// The resume passes of this kernel (created only if a trace stops).
+    pub fn resumer(&self, settings: &RenderSettings) -> Result<Resumer<'_>> {
+        Resumer::new(
+            self.ctx,
+            settings,
+            &self.scene.name,
+            (&self.variant, &self.spec),
+            &self.bound,
+            &self.image,
+            (self.traces, self.bounds.steps),
+            self.chunk_pixels,
+        )
+    }
+
+    /// Runs the loop ([`super::run`]) over `waves`.
+    pub fn run<'x>(
+        &'x self,
+        (resumer, sizer): (&mut Resumer<'x>, &mut Sizer),
+        waves: Waves,
+        resume: Option<&Frame>,
+        progress: &mut dyn FnMut(u64, u64),
+        wave_done: impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
+    ) -> Result<(DispatchTotals, bool)> {
+        let input = LoopInput {
+            ctx: self.ctx,
+            kernel: &self.kernel,
+            resumer,
+            pixel_buf: self.bound.pixels(),
+            waves,
+            sizer,
+            in_flight: self.pacing.in_flight,
+            target_ms: self.pacing.target_ms,
+            resume,
+        };
+        super::run(input, progress, wave_done)
+    }
+
+    /// Refuses a render in which `overflow` pixels ran out of traversal steps.
+    pub fn check_overflow(&self, overflow: u64) -> Result<()> {
+        kernel::check_overflow(self.ctx, self.scene, &self.bounds, overflow)
+    }
+}
