@@ -131,12 +131,18 @@ impl std::fmt::Debug for Flight<'_, '_> {
 }
 
 impl Flight<'_, '_> {
-    /// Submits the dispatch of `header` (`units` pixel-samples), after landing the
-    /// oldest one if the ring is full.
-    fn submit(&mut self, header: GpuDispatch, units: u64) -> Result<()> {
-        while !self.ring.has_room() {
+    /// Lands dispatches until another may be submitted: the ring has room, and the
+    /// first dispatch (a probe: the next ones are sized from its time) has landed.
+    fn make_room(&mut self) -> Result<()> {
+        while !self.ring.has_room() || (self.sizer.unmeasured() && !self.pending.is_empty()) {
             self.land()?;
         }
+        Ok(())
+    }
+
+    /// Submits the dispatch of `header` (`units` pixel-samples); [`Flight::make_room`]
+    /// came first.
+    fn submit(&mut self, header: GpuDispatch, units: u64) -> Result<()> {
         let [first, n, s, s_end] = header.range;
         let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
         let groups = n.div_ceil(WORKGROUP_SIZE);
@@ -297,10 +303,12 @@ fn run_chunks(
         }
         let mut s = waves.first_sample;
         while s < end {
+            flight.make_room()?;
             let m = flight.sizer.wave_samples(len, end - s);
             let s_end = s + m;
             let mut p = 0u64;
             while p < len {
+                flight.make_room()?;
                 let n = if m > 1 { len - p } else { flight.sizer.pixels(len - p) };
                 let header = waves.header((chunk_start, chunk_start + p, n), (s, s_end));
                 flight.submit(header, n * u64::from(m))?;

@@ -127,11 +127,11 @@ impl Sizer {
         let (cap_px, cap_spp) = pacing.budget.map_or((chunk_pixels, spp), shape);
         let cap_samples = most_samples.map_or(cap_spp, |m| cap_spp.min(m)).max(1);
         let cap_units = if cap_px < chunk_pixels { cap_px } else { cap_px * u64::from(cap_samples) };
-        // Without a budget, start as if the default one applied: a short first
-        // dispatch whose time tells the rest.
+        // Start as if the default budget applied (or the smaller one given): a first
+        // dispatch whose time tells the rest. The loop waits for it before the next.
         let (probe_px, probe_spp) = shape(crate::render::DEFAULT_DISPATCH_BUDGET);
         let probe = if probe_px < chunk_pixels { probe_px } else { probe_px * u64::from(probe_spp.min(cap_samples)) };
-        let first_units = if pacing.budget.is_some() { cap_units } else { probe.min(cap_units) };
+        let first_units = probe.min(cap_units);
         Sizer {
             target_ms: pacing.target_ms,
             cap_units: cap_units.max(1),
@@ -146,6 +146,11 @@ impl Sizer {
     /// `--checkpoint`).
     pub fn limit_samples(&mut self, most: u32) {
         self.cap_samples = self.cap_samples.min(most.max(1));
+    }
+
+    /// Whether no dispatch has been measured yet (the loop then waits for the first).
+    pub fn unmeasured(&self) -> bool {
+        self.ms_per_unit.is_none()
     }
 
     /// Pixel-samples the next dispatch should hold.
