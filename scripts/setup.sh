@@ -33,7 +33,7 @@ done
 PACKAGES=(
   mesa-vulkan-drivers vulkan-tools vulkan-validationlayers libvulkan-dev
   libshaderc-dev glslang-dev spirv-tools
-  assimp-testmodels g++ pkg-config fonts-dejavu-core
+  assimp-testmodels g++ pkg-config
   slurm-wlm munge
 )
 missing=()

@@ -1,6 +1,7 @@
 //! `arbor bench` as CI runs it (`--quick`): CSV and JSON with the columns of
 //! `bench::CSV_COLUMNS` (docs/bench.md documents them), plots of the expected size; GPU timestamps behind the trace times; and
-//! `--accel auto` choosing brute force for a handful of triangles and a tree for many.
+//! `--accel auto` choosing brute force for a handful of triangles and a tree for many;
+//! plots in the built-in font, and a bad `ARBOR_FONT` refused before any work.
 
 mod common;
 
@@ -12,8 +13,12 @@ use arbor::bench::{plots, CSV_COLUMNS};
 use arbor::render::{gpu, RenderSettings};
 use arbor::scene::Scene;
 
+/// Runs arbor with `ARBOR_FONT` unset: plots are drawn in the font built into the binary.
+/// arbor never looks up a system font (plotters reads fonts with ab_glyph, not
+/// fontconfig), so these runs show that plots need none.
 fn run(args: &[&str]) -> std::process::Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).output().expect("run arbor");
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).env_remove("ARBOR_FONT").output().expect("run arbor");
     assert!(
         out.status.success(),
         "arbor {args:?} failed:\n{}\n{}",
@@ -91,6 +96,41 @@ fn quick_bench_writes_documented_csv_json_and_plots() {
     // side by side; brute force visits no nodes).
     assert_eq!(pngs, 2 + 2 + 1, "PNG plots");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `ARBOR_FONT` naming a missing file, or a file that is not a font: every command that
+/// draws (`bench --out`, `bench --reference --out`, `render --aov cost=X.png`,
+/// `--trace-events X.png`) exits with status 1 and the path before any work: no device
+/// is opened (no GPU needed) and the output directory stays empty.
+#[test]
+fn a_bad_arbor_font_is_refused_before_any_work() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let not_font = dir.path().join("notes.ttf");
+    std::fs::write(&not_font, "not a font").expect("write");
+    let missing = dir.path().join("missing.ttf");
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    let (o, p) = (out.display().to_string(), |n: &str| out.join(n).display().to_string());
+    let commands: [Vec<String>; 4] = [
+        ["bench", "--quick", "--tris", "100", "--out", &o].map(String::from).into(),
+        ["bench", "--reference", &p("ref.exr"), "--scene", "builtin:default", "--out", &o].map(String::from).into(),
+        ["render", "builtin:default", "--size", "8x8", "-o", &p("a.png"), "--aov", &format!("cost={}", p("c.png"))]
+            .map(String::from)
+            .into(),
+        ["render", "builtin:default", "--size", "8x8", "-o", &p("a.png"), "--trace-events", &p("t.png")]
+            .map(String::from)
+            .into(),
+    ];
+    for (font, why) in [(&not_font, "not a TrueType/OpenType font"), (&missing, "cannot read the font")] {
+        for args in &commands {
+            let r = Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).env("ARBOR_FONT", font).output().expect("run");
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(1), "arbor {args:?} with ARBOR_FONT={}: {err}", font.display());
+            assert!(err.contains(&format!("ARBOR_FONT={}", font.display())) && err.contains(why), "{args:?}: {err}");
+            let left: Vec<_> = std::fs::read_dir(&out).expect("list").collect();
+            assert!(left.is_empty(), "arbor {args:?} left {left:?}");
+        }
+    }
 }
 
 /// The cost figure of `--size 128x128` (--quick) with two panels: two maps zoomed to

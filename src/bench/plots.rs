@@ -3,9 +3,10 @@
 //! and one cost figure per scene: the nodes each structure visits per pixel, side by side
 //! on one colour scale ([`crate::render::heatmap`]).
 //!
-//! Text needs a TrueType font: `ARBOR_FONT=path.ttf`, else DejaVu Sans from Debian's
-//! `fonts-dejavu-core` (installed by scripts/setup.sh). `bench_plots` draws every chart
-//! of a run.
+//! Text is drawn in the font built into the binary (DejaVu Sans), or the one
+//! `ARBOR_FONT=path.ttf` names ([`crate::render::heatmap::font`]); no system font is
+//! needed. SVG files name the family `sans-serif` and leave the font to the viewer.
+//! `bench_plots` draws every chart of a run.
 
 use std::path::{Path, PathBuf};
 

@@ -20,7 +20,7 @@ Environment: ARBOR_VALIDATION=1 enables the Khronos validation layer (any error 
 ARBOR_MAX_STORAGE_RANGE=BYTES lowers the per-buffer limit to check a scene fits a smaller device; \
 ARBOR_MEMORY_LIMIT=BYTES caps the host memory a render or bench may plan for (default: what /proc/meminfo and \
 `ulimit -v` allow; a larger --size is refused before any work); \
-VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf sets the font of `bench --out` plots; \
+VK_DRIVER_FILES pins a Vulkan driver (e.g. lavapipe); ARBOR_FONT=FILE.ttf draws the text of plots and heatmaps in that font (default: DejaVu Sans, built in); \
 MIMALLOC_PURGE_DELAY=MS lets the allocator give freed memory back to the OS after MS ms (default: arbor keeps it for reuse)."
 )]
 pub(crate) struct Cli {

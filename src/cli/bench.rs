@@ -18,6 +18,10 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     if args.trace.trace_events.is_some() && (args.reference.is_some() || !args.shards.is_empty()) {
         bail!("--trace-events traces the structure table; it is not taken with --reference or --shards");
     }
+    // `--out` draws plots at the end: a bad ARBOR_FONT is refused before any work.
+    if args.out.is_some() && args.shards.is_empty() {
+        arbor::render::heatmap::font()?;
+    }
     if let Some(reference) = &args.reference {
         return convergence(args, reference);
     }
