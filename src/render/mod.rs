@@ -1,27 +1,30 @@
-//! From a scene and a structure to pixels: GPU rendering in short dispatches, the
-//! CPU reference, and the output writers.
+//! From a scene and a structure to pixels, in folders that show the stages:
+//!
+//! - [`dispatch`]: the render loop. One preparation step (kernel choice and
+//!   specialization, uploads, loop bounds, the resumer) and one dispatch loop (chunks,
+//!   sample waves, dispatches sized by the device and kept in flight), shared by every
+//!   integrator and by ray batches;
+//! - [`integrators`]: what a sample does: Whitted (and the benchmark's probes), path
+//!   tracing, ray batches;
+//! - [`output`]: what a render leaves: images, AOVs, heatmaps, parts and their merge,
+//!   comparisons, timeline pictures;
+//!
+//! with [`gpu`] (the entry points), [`cpu`] (the CPU reference) and [`cracks`].
 
 #![forbid(unsafe_code)]
 
-pub mod compare;
 pub mod cpu;
 pub mod cracks;
 pub mod dispatch;
-pub mod envdist;
 pub mod gpu;
-pub mod heatmap;
-pub mod memory;
-pub mod merge;
+pub mod integrators;
 pub mod output;
-pub mod part;
-pub mod path;
-#[warn(missing_docs)]
-pub mod rays;
-pub mod shard;
-pub mod timeline_png;
-pub mod whitted;
 
+// The stages' modules by their short names, as the command line, the benchmarks and
+// the library's users reach them.
 pub use dispatch::{kernel, readback, resume, upload};
+pub use integrators::{envdist, path, rays, whitted};
+pub use output::{compare, heatmap, memory, merge, part, shard, timeline_png};
 
 use serde::Serialize;
 

@@ -32,8 +32,8 @@ use std::path::Path;
 
 use exr::prelude::*;
 
-use super::{Crop, Frame, RenderSettings};
 use crate::error::{Error, Result};
+use crate::render::{Crop, Frame, RenderSettings};
 use crate::scene::{Light, Scene};
 
 /// What a part is: its place in the image and the samples it holds.

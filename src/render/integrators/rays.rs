@@ -1,23 +1,18 @@
 //! Ray batches on the device: arbitrary rays in, closest hits out, through any
 //! structure arbor builds (and the driver's, `rayquery`, where the device has ray
 //! queries). The rays go through the render loop's parts: the `rays_<family>_<geometry>`
-//! variant of `trace.comp` ([`super::kernel`]), [`super::upload`] (the scene, the
+//! variant of `trace.comp` ([`crate::render::kernel`]), [`crate::render::upload`] (the scene, the
 //! structure, a pixel buffer that holds one hit per ray and a ray buffer),
-//! [`super::dispatch`] (dispatches sized to the work budget, each followed by the resume
+//! [`crate::render::dispatch`] (dispatches sized to the work budget, each followed by the resume
 //! passes of the traces that ran out of steps) and a readback of the hits.
 //!
 //! Results are exact: a trace that runs out of its step budget is resumed
-//! ([`super::resume`]) and ends where it would have without one; a family that
+//! ([`crate::render::resume`]) and ends where it would have without one; a family that
 //! cannot resume (the driver's structure) makes the batch fail rather than report a
 //! miss. Rays are checked first ([`check_rays`]); a bad one is an [`Error::BadRay`].
 
 use std::time::Instant;
 
-use super::dispatch::pacing::Sizer;
-use super::dispatch::prepare::{Prepared, Request};
-use super::dispatch::upload::GpuScene;
-use super::dispatch::{Next, Waves};
-use super::RenderSettings;
 use crate::accel::gpu_layout::{GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
 use crate::accel::Accel;
 use crate::error::{Error, Result};
@@ -25,6 +20,11 @@ use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
+use crate::render::dispatch::pacing::Sizer;
+use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::upload::GpuScene;
+use crate::render::dispatch::{Next, Waves};
+use crate::render::RenderSettings;
 use crate::scene::Scene;
 
 /// Most rays held on the device at once by default (96 bytes each: the ray and its hit).
@@ -39,7 +39,7 @@ pub struct TraceOptions {
     /// How dispatches are sized and kept in flight: a target GPU length, how many run
     /// ahead, and a bound on work (primitive tests and traversal steps, estimated) per
     /// dispatch; unset values take the device's defaults. The hits are the same.
-    pub pacing: super::dispatch::PacingChoice,
+    pub pacing: crate::render::dispatch::PacingChoice,
     /// Most rays held on the device at once; a larger batch is traced in chunks of
     /// this many (also kept within the device's buffer limits). Default
     /// [`DEFAULT_CHUNK_RAYS`].
@@ -169,7 +169,7 @@ impl<'a> RayTracer<'a> {
                 // zero count (shaders/common/resume_trace.glsl).
                 (SPEC_INTEGRATOR, 2),
             ],
-            params: super::dispatch::kernel::base_params(scene, &settings, accel),
+            params: crate::render::dispatch::kernel::base_params(scene, &settings, accel),
             scene: GpuScene::new(scene),
             extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
             chunk_most: options.chunk_rays.max(1).min(by_texels),

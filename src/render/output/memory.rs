@@ -12,10 +12,10 @@
 
 use std::path::Path;
 
-use super::output::Format;
 use crate::error::{Error, Result};
+use crate::render::output::Format;
 
-/// Bytes per pixel of a [`super::Frame`]: radiance (12), depth (4), normal (12),
+/// Bytes per pixel of a [`crate::render::Frame`]: radiance (12), depth (4), normal (12),
 /// primitive, nodes, tests, rays (4 each), albedo (12), variance and samples (4 each),
 /// the radiance sums (12) and the sum of squared luminance (4).
 pub const FRAME_BYTES_PER_PIXEL: u64 = 80;

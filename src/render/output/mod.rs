@@ -8,6 +8,19 @@
 //! of them are written are they renamed; a failure removes the temporary files, so a
 //! run leaves either every output or none.
 
+//!
+//! Beside them, the other things a render leaves: [`heatmap`] pictures, [`timeline_png`],
+//! [`part`]s of a farm render and their [`merge`], [`shard`] plans, [`compare`] of two
+//! images, and [`memory`] estimates of what a render's outputs take.
+
+pub mod compare;
+pub mod heatmap;
+pub mod memory;
+pub mod merge;
+pub mod part;
+pub mod shard;
+pub mod timeline_png;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -208,11 +221,11 @@ pub fn encode_pfm(width: u32, height: u32, channels: usize, data: &[f32]) -> Vec
 }
 
 /// A timeline ([`crate::timeline`]) as the file `path` names: Chrome trace-event JSON
-/// (`.json`) or a picture of it (`.png`, [`super::timeline_png`]).
+/// (`.json`) or a picture of it (`.png`, [`crate::render::timeline_png`]).
 pub fn encode_trace(path: &Path, trace: &crate::timeline::Trace) -> Result<Vec<u8>> {
     let _span = encode_span(path);
     if trace_is_png(path)? {
-        super::timeline_png::png(trace)
+        crate::render::timeline_png::png(trace)
     } else {
         Ok(trace.to_chrome_json())
     }
@@ -244,12 +257,17 @@ pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rg
 }
 
 /// Adds a rendered frame as `path` to `set`: a PNG of its radiance, or an EXR part
-/// ([`super::part`]: the window in the full image, every sum and AOV, the header
+/// ([`crate::render::part`]: the window in the full image, every sum and AOV, the header
 /// `info`) that `arbor merge` and `--resume` read.
-pub fn write_frame(set: &mut OutputSet, path: &Path, info: &super::part::PartInfo, frame: &Frame) -> Result<()> {
+pub fn write_frame(
+    set: &mut OutputSet,
+    path: &Path,
+    info: &crate::render::part::PartInfo,
+    frame: &Frame,
+) -> Result<()> {
     let _span = encode_span(path);
     match format_of(path, "image")? {
-        Format::Exr => set.add(path, &super::part::encode(info, frame)?),
+        Format::Exr => set.add(path, &crate::render::part::encode(info, frame)?),
         f => set.add(path, &encode_image(f, frame.width, frame.height, &frame.radiance)?),
     }
 }
@@ -354,7 +372,7 @@ pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
 pub struct HeatmapInfo {
     /// Written in the title after the AOV's name: the scene and the structure.
     pub subject: String,
-    pub scale: super::heatmap::Scale,
+    pub scale: crate::render::heatmap::Scale,
 }
 
 /// What each pixel's count is, as the picture says (the frame holds the counts of the
@@ -384,8 +402,8 @@ pub fn aov_heatmap(frame: &Frame, name: &str, info: &HeatmapInfo) -> Result<Vec<
     } else {
         format!("{name} per pixel: {}, {w}x{h}", info.subject)
     };
-    let panel = super::heatmap::Panel { title: String::new(), width: w, height: h, values: &values };
-    super::heatmap::Figure { title, counted, scale: info.scale, panels: vec![panel] }.png()
+    let panel = crate::render::heatmap::Panel { title: String::new(), width: w, height: h, values: &values };
+    crate::render::heatmap::Figure { title, counted, scale: info.scale, panels: vec![panel] }.png()
 }
 
 /// Adds each (name, path) of `aovs` from `frame` (`width` x `height`) to `set`; a .png

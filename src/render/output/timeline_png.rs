@@ -6,8 +6,8 @@
 
 use plotters::prelude::*;
 
-use super::heatmap::{encode_png, font};
 use crate::error::{Error, Result};
+use crate::render::heatmap::{encode_png, font};
 use crate::timeline::{Event, GpuClock, Trace, Track};
 
 const WIDTH: u32 = 1600;

@@ -1,19 +1,19 @@
 //! The Whitted integrator (`trace.comp`): camera rays, shadow rays toward point and
 //! directional lights, mirror and glass, plus the benchmark's probe modes (camera
 //! rays only; one cosine bounce). Its settings become specialization constants; the
-//! render loop ([`super::dispatch`]) does the rest.
+//! render loop ([`crate::render::dispatch`]) does the rest.
 
 use std::time::Instant;
 
-use super::dispatch::prepare::{Prepared, Request};
-use super::dispatch::upload::GpuScene;
-use super::dispatch::{Next, Waves};
-use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
 use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
+use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::upload::GpuScene;
+use crate::render::dispatch::{Next, Waves};
+use crate::render::{Frame, RenderSettings, RenderStats};
 use crate::scene::Scene;
 
 /// Most pixels held on the device at once (64 bytes each).
@@ -67,7 +67,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings) -> Vec<(u32, u32)> {
 
 /// The uniform parameters: camera, scene box, counts, background.
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams {
-    let mut p = super::dispatch::kernel::base_params(scene, settings, accel);
+    let mut p = crate::render::dispatch::kernel::base_params(scene, settings, accel);
     p.counts[0] = lights_used(scene, settings);
     p.background[3] = scene.ambient;
     p
@@ -104,7 +104,8 @@ pub fn render_with(
     let (totals, _) =
         prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut progress, |_, wave| {
             if wave.complete {
-                overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, wave.first, wave.len)?;
+                overflow +=
+                    crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, wave.first, wave.len)?;
             }
             Ok(Next::Continue)
         })?;

@@ -15,15 +15,15 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::dispatch::prepare::{Prepared, Request};
-use super::dispatch::upload::GpuScene;
-use super::dispatch::{Next, Waves};
-use super::{Frame, RenderSettings, RenderStats};
 use crate::accel::gpu_layout::GpuParams;
 use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
+use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::upload::GpuScene;
+use crate::render::dispatch::{Next, Waves};
+use crate::render::{Frame, RenderSettings, RenderStats};
 use crate::scene::{Material, Scene};
 
 /// Most pixels held on the device at once (64 bytes each).
@@ -213,7 +213,7 @@ pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
 }
 
 /// The environment's sampling distribution in the kernel's layout
-/// ([`super::envdist`]), from the texels as the kernel sees them.
+/// ([`crate::render::envdist`]), from the texels as the kernel sees them.
 fn env_distribution(w: u32, h: u32, texels: &[[f32; 3]], intensity: f32) -> Result<Vec<f32>> {
     let env = crate::scene::Environment {
         name: String::new(),
@@ -223,7 +223,7 @@ fn env_distribution(w: u32, h: u32, texels: &[[f32; 3]], intensity: f32) -> Resu
         rotation: 0.0,
         intensity,
     };
-    Ok(super::envdist::Distribution2D::from_environment(&env).gpu_rows())
+    Ok(crate::render::envdist::Distribution2D::from_environment(&env).gpu_rows())
 }
 
 /// The scene's maximum depth, or the settings' override.
@@ -270,7 +270,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
     let (intensity, rotation) =
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
-    let mut p = super::dispatch::kernel::base_params(scene, settings, accel);
+    let mut p = crate::render::dispatch::kernel::base_params(scene, settings, accel);
     p.counts[0] = scene.lights.len() as u32;
     p.tables = ex.tables;
     p.env = [intensity, rotation, ex.total_power, 0.0];
@@ -348,7 +348,7 @@ pub fn render_with(
         prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut *progress, |flight, wave| {
             let (first, len) = (wave.first, wave.len);
             if wave.complete {
-                overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
+                overflow += crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
                 chunk_started = Instant::now();
                 return Ok(if interrupted() { Next::Stop } else { Next::Continue });
             }
@@ -358,7 +358,7 @@ pub fn render_with(
             if let Some((every, write)) = checkpoint.as_mut() {
                 if last_checkpoint.elapsed().as_secs_f64() >= *every {
                     flight.settle()?;
-                    overflow += super::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
+                    overflow += crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
                     write(&frame)?;
                     last_checkpoint = Instant::now();
                 }

@@ -5,8 +5,8 @@
 
 #![forbid(unsafe_code)]
 
-use super::Crop;
 use crate::error::{Error, Result};
+use crate::render::Crop;
 
 /// How `--shard` splits the work.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -3,7 +3,7 @@
 //! figures (one panel per structure, one colour scale for all of them).
 //!
 //! A [`Figure`] is drawn into an RGB buffer and encoded as PNG bytes ([`Figure::png`]),
-//! so that it joins an [`super::output::OutputSet`] like every other output. The image
+//! so that it joins an [`crate::render::output::OutputSet`] like every other output. The image
 //! holds, from the top: the title; the maps (each panel titled, the counts at an integer
 //! zoom, [`Layout::zoom`], so that a map's longer side is at least [`MIN_MAP_SIDE`]
 //! pixels); on the right the colour bar with tick labels, the minimum at the bottom and
