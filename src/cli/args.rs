@@ -300,9 +300,10 @@ pub(crate) struct RenderArgs {
     /// grid (uniform grid), octree, none (brute force), rayquery (the device driver's
     /// own structure, traced with VK_KHR_ray_query, where `arbor devices` says ray
     /// query yes), or auto: the one a cost model expects to build and trace this scene,
-    /// image size and sample count fastest (`arbor info --accel auto` says why).
-    /// Aliases: brute-force (= none), kd (= kdtree), bvh (= bvh-sah).
-    #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+    /// image size and sample count fastest (the default; the summary line and `arbor
+    /// info --accel auto` say which and why). Aliases: brute-force (= none), kd (=
+    /// kdtree), bvh (= bvh-sah).
+    #[arg(long, default_value = "auto", value_name = "KIND|auto")]
     pub(crate) accel: String,
     /// Draw instances as transformed copies of their meshes, under one structure,
     /// instead of one structure per instanced mesh and a BVH over the instances

@@ -127,13 +127,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
         std::process::exit(interrupt::EXIT_CODE);
     }
     if !a.quiet {
-        let trace = match st.trace_ms {
-            Some(t) => format!("{t:.1} ms GPU"),
-            None => format!("{:.0} ms wall (no GPU timestamps)", st.wall_ms),
+        let trace = match (st.trace_ms, st.gpu_busy) {
+            (Some(t), Some(busy)) => format!("{t:.1} ms GPU in {:.1} ms, {:.0}% busy", st.loop_ms, 100.0 * busy),
+            (Some(t), None) => format!("{t:.1} ms GPU"),
+            (None, _) => format!("{:.0} ms wall (no GPU timestamps)", st.wall_ms),
         };
         let mr = st.mrays_per_s.map(|m| format!("{m:.4} Mrays/s, ")).unwrap_or_default();
         eprintln!(
-            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, trace {trace} ({mr}{} dispatches{}), total {:.0} ms",
+            "wrote {} ({w}x{h}{part_note}, {} {}{} spp, {} triangles{}, {} spheres, accel {}) on {}: load {load_ms:.0} ms, build {:.0} ms, kernel {:.0} ms, trace {trace} ({mr}{} dispatches{}), total {:.0} ms",
             a.output.display(),
             st.integrator,
             st.samples_done,
@@ -144,6 +145,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             st.accel,
             st.device,
             st.build_ms,
+            st.kernel_ms,
             st.dispatches,
             if st.resumed_samples > 0 {
                 format!(
