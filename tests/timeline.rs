@@ -39,8 +39,8 @@ fn names<'a>(t: &'a Trace, track: Track, cat: &str) -> Vec<&'a str> {
     t.on(track).filter(|e| e.cat == cat).map(|e| e.name.as_str()).collect()
 }
 
-/// The default render (path tracing, kd-tree) on a small image: every part of the run
-/// is on the timeline, nested, and the GPU spans add up to `trace_ms`.
+/// The default render (path tracing), with the kd-tree, on a small image: every part of
+/// the run is on the timeline, nested, and the GPU spans add up to `trace_ms`.
 #[test]
 fn a_render_timeline_nests_and_its_gpu_spans_sum_to_the_trace_time() {
     let Some(ctx) = common::gpu() else { return };
@@ -52,6 +52,12 @@ fn a_render_timeline_nests_and_its_gpu_spans_sum_to_the_trace_time() {
     run_ok(&[
         "render",
         "builtin:default",
+        "--accel",
+        "kdtree",
+        // Sized by the work budget alone, so that the waves below do not depend on
+        // how loaded the machine is.
+        "--dispatch-ms",
+        "60000",
         "--size",
         "96x72",
         "--spp",

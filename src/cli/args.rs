@@ -104,7 +104,7 @@ impl StructureArgs {
 #[derive(clap::Args, Clone, Debug, Default)]
 pub(crate) struct PacingArgs {
     /// Target GPU milliseconds of one dispatch: each is sized from the time the ones
-    /// before it took. Default: 60 on a GPU, 400 on lavapipe (where --dispatch-budget
+    /// before it took. Default: 60 on a GPU, 1000 on lavapipe (where --dispatch-budget
     /// bounds dispatches first). The image is the same for any value.
     #[arg(long, value_name = "MS")]
     pub(crate) dispatch_ms: Option<f64>,
