@@ -49,7 +49,7 @@ impl Report {
     pub fn new(scene: &Scene, kind: AccelKind, built_on: BuildOn, why: Option<String>, built: &Accel) -> Report {
         let validation = built.validate(scene);
         let bounds = scene.bounds();
-        let geometry = gpu::geometry_suffix(scene, KernelChoice::Specialized);
+        let geometry = gpu::kernel_geometry(scene, KernelChoice::Specialized);
         let family = built.gpu_image(scene).map(|i| i.family).unwrap_or(kind.kernel());
         Report {
             scene: scene.name.clone(),

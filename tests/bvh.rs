@@ -6,7 +6,7 @@ mod common;
 
 use arbor::accel::bvh::{lbvh, treelet, Binary, Bvh, BvhBuilder, PrimRefs, EMPTY_REF, LEAF_REF, MAX_BVH_DEPTH};
 use arbor::accel::sah::SahCosts;
-use arbor::accel::{Accel, AccelKind, Traverse};
+use arbor::accel::{Accel, AccelKind, KernelFamily, Traverse};
 use arbor::render::{cpu, RenderSettings};
 use arbor::scene::procedural;
 use common::scenes::{
@@ -283,7 +283,7 @@ fn gpu_equals_cpu_for_every_builder() {
             let mut s = RenderSettings::for_size(48, 40);
             s.accel = kind;
             let what = format!("{} {kind}", scene.name);
-            let (_, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, "bvh", &what);
+            let (_, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, KernelFamily::Bvh, &what);
             if scene.prim_count() > 1000 {
                 let tested = st.mean_prims_tested.expect("BVH kernels count tests");
                 assert!(tested < scene.prim_count() as f64 / 10.0, "{what}: {tested}");

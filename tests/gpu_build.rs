@@ -8,7 +8,7 @@ use arbor::accel::bvh::gpu_build::GpuBuilder;
 use arbor::accel::bvh::treelet::TreeletParams;
 use arbor::accel::bvh::{Bvh, BvhBuilder};
 use arbor::accel::params::Params;
-use arbor::accel::Accel;
+use arbor::accel::{Accel, KernelFamily};
 use arbor::scene::{procedural, Scene};
 use common::scenes::{bvh_cases, compare_with_brute_force, scene_from, tris};
 use glam::Vec3;
@@ -119,7 +119,7 @@ fn gpu_built_tree_renders_like_the_cpu_reference() {
             settings.accel = kind;
             settings.params = AccelParams { build: BuildOn::Gpu, ..Default::default() };
             let what = format!("{} {kind} built on the GPU", scene.name);
-            common::scenes::gpu_matches_reference(&ctx, &scene, &settings, &reference, "bvh", &what);
+            common::scenes::gpu_matches_reference(&ctx, &scene, &settings, &reference, KernelFamily::Bvh, &what);
         }
     }
 }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use arbor::accel::AccelKind;
+use arbor::accel::{AccelKind, Geometry, KernelFamily};
 use arbor::gpu::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
 use arbor::gpu::{BindingDesc, BindingKind, Context, Kernel};
 use arbor::render::{cpu, gpu, Frame, Integrator, KernelChoice, RenderSettings, Traversal};
@@ -173,11 +173,11 @@ fn output_is_identical_whatever_the_dispatch_split() {
 #[test]
 fn every_pipeline_respects_the_storage_buffer_limit() {
     for kind in AccelKind::ALL {
-        for geometry in ["tris", "spheres", "all"] {
+        for geometry in Geometry::ALL {
             let b = gpu::trace_bindings(kind.kernel(), geometry);
             let storage = b.iter().filter(|d| d.kind == BindingKind::Storage).count();
             assert!(storage <= MAX_STORAGE_BUFFERS_PER_STAGE as usize, "{kind} {geometry}: {storage}");
-            Kernel::check_storage_limit(geometry, &b).expect("within limit");
+            Kernel::check_storage_limit(geometry.name(), &b).expect("within limit");
             let name = format!("trace_{}_{geometry}", kind.kernel());
             assert!(arbor::gpu::spirv::get(&name).is_some(), "{name} was not compiled");
         }
@@ -218,7 +218,7 @@ fn trace_kernels_take_no_push_constants() {
     let probe = arbor::gpu::spirv::get("math_probe").expect("kernel");
     assert!(variable_storage_classes(probe).contains(&PUSH_CONSTANT), "the scan must see math_probe's push constants");
     for kind in AccelKind::ALL {
-        for geometry in ["tris", "spheres", "all"] {
+        for geometry in Geometry::ALL {
             let name = format!("trace_{}_{geometry}", kind.kernel());
             let spv = arbor::gpu::spirv::get(&name).expect("compiled");
             assert!(!variable_storage_classes(spv).contains(&PUSH_CONSTANT), "{name} declares push constants");
@@ -274,7 +274,7 @@ fn validation_errors_fail_the_operation() {
     };
     let spv = arbor::gpu::spirv::get("trace_none_spheres").expect("kernel");
     let short: Vec<BindingDesc> =
-        gpu::trace_bindings("none", "spheres").into_iter().filter(|d| d.name != "pixels").collect();
+        gpu::trace_bindings(KernelFamily::None, Geometry::Spheres).into_iter().filter(|d| d.name != "pixels").collect();
     let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 0).expect_err("validation must fail this");
     let msg = err.to_string();
     assert!(msg.contains("validation") && msg.contains("missing_pixels"), "{msg}");

@@ -223,7 +223,7 @@ fn gpu_equals_cpu_for_grid_and_octree() {
             s.accel = kind;
             s.params = params;
             let what = format!("{} {kind} {params:?}", scene.name);
-            let (g, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, kind.name(), &what);
+            let (g, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, kind.kernel(), &what);
             assert!(g.nodes.iter().any(|&n| n > 0), "{what}: the cost AOV counts cells");
             // Default parameters only, and not the grid's known failure: in the
             // stadium the small mesh sits in a few cells (as it does in an octree

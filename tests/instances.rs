@@ -6,7 +6,7 @@
 
 mod common;
 
-use arbor::accel::{Accel, AccelKind, Traverse};
+use arbor::accel::{Accel, AccelKind, Geometry, KernelFamily, Traverse};
 use arbor::math::{Hit, Ray};
 use arbor::render::{cpu, gpu, Integrator, RenderSettings};
 use arbor::scene::{procedural, Light, Scene, SceneBuilder, Sphere};
@@ -173,8 +173,8 @@ fn instances_shade_like_their_flattened_copies() {
 /// stay within the 8 storage buffers of a stage.
 #[test]
 fn instancing_binds_no_more_than_eight_buffers_and_costs_plain_scenes_nothing() {
-    for family in ["inst_bvh", "inst_bvh4", "inst_bvh8", "inst_cwbvh", "inst_kdtree", "inst_grid", "inst_octree"] {
-        for geometry in ["tris", "all"] {
+    for family in KernelFamily::EVERY.into_iter().filter_map(KernelFamily::instanced) {
+        for geometry in [Geometry::Tris, Geometry::All] {
             let b = gpu::trace_bindings(family, geometry);
             let storage = b.iter().filter(|d| d.kind != arbor::gpu::BindingKind::Uniform).count();
             assert!(storage <= 8, "{family}_{geometry}: {storage} buffers");
@@ -184,7 +184,7 @@ fn instancing_binds_no_more_than_eight_buffers_and_costs_plain_scenes_nothing() 
     assert!(!plain.has_instances());
     let a = Accel::build(AccelKind::BvhSah, &plain);
     assert!(matches!(a, Accel::Bvh(_)));
-    assert_eq!(a.gpu_image(&plain).expect("image").family, "bvh");
+    assert_eq!(a.gpu_image(&plain).expect("image").family, KernelFamily::Bvh);
 }
 
 fn load_toml(text: &str) -> arbor::error::Result<Scene> {

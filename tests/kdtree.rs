@@ -6,7 +6,7 @@ mod common;
 use common::scenes::{self, edge_cases, gpu_cases, gpu_matches_reference, gpu_views, scene_from, tris};
 
 use arbor::accel::kdtree::{KdParams, KdTree, MAX_KD_DEPTH};
-use arbor::accel::{Accel, AccelKind};
+use arbor::accel::{Accel, AccelKind, KernelFamily};
 use arbor::math::Ray;
 use arbor::render::{cpu, RenderSettings};
 use arbor::scene::{procedural, Scene};
@@ -114,7 +114,7 @@ fn gpu_equals_cpu_for_kd_trees() {
             let mut s = RenderSettings::for_size(48, 40);
             s.accel = kind;
             let what = format!("{} {kind}", scene.name);
-            let (_, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, "kdtree", &what);
+            let (_, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, KernelFamily::Kdtree, &what);
             // Trees visit far fewer primitives than brute force.
             if scene.prim_count() > 1000 {
                 let tested = st.mean_prims_tested.expect("kd-tree kernels count tests");

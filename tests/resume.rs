@@ -7,7 +7,7 @@
 
 mod common;
 
-use arbor::accel::{Accel, AccelKind, AccelParams};
+use arbor::accel::{Accel, AccelKind, AccelParams, KernelFamily};
 use arbor::gpu::Context;
 use arbor::render::{cpu, gpu, path, Crop, Frame, Integrator, RenderSettings, RenderStats, Traversal};
 use arbor::scene::{procedural, Light, Scene, SceneBuilder, Sphere};
@@ -297,7 +297,7 @@ fn a_grid_cell_holding_thousands_of_primitives() {
     let reference = cpu::reference_aovs(&scene, w, h);
     let mut s = RenderSettings::for_size(w, h);
     s.accel = AccelKind::Grid;
-    let (g, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, "grid", "cluster grid");
+    let (g, st) = gpu_matches_reference(&ctx, &scene, &s, &reference, KernelFamily::Grid, "cluster grid");
     assert!(st.resumed_samples > 0, "20,000 tests a ray exceed the budget: traces must have been resumed");
     assert!(g.tests.iter().all(|&t| t >= 20_000), "every camera ray tests the whole cell");
     s.accel = AccelKind::None;

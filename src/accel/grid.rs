@@ -549,7 +549,7 @@ impl super::Structure for Grid {
     fn gpu_image(&self, _scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
         let (words, indices) = self.to_gpu();
         Ok(super::GpuImage {
-            family: "grid",
+            family: super::KernelFamily::Grid,
             buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
             stack_size: 1,
             // About half the cells along the diagonal, a few primitives each.

@@ -253,20 +253,6 @@ impl TwoLevel {
         Ok(GpuParts { nodes, indices, stack_size: stack, cost_per_ray: cost + 2 * u64::from(self.top.depth + 1) })
     }
 
-    /// The kernel family of the two-level variant of `family`.
-    fn family(family: &str) -> Option<&'static str> {
-        Some(match family {
-            "bvh" => "inst_bvh",
-            "bvh4" => "inst_bvh4",
-            "bvh8" => "inst_bvh8",
-            "cwbvh" => "inst_cwbvh",
-            "kdtree" => "inst_kdtree",
-            "grid" => "inst_grid",
-            "octree" => "inst_octree",
-            _ => return None,
-        })
-    }
-
     /// Children of top-level node `n`.
     fn top_children(&self, n: usize) -> [(u32, Aabb); 2] {
         self.top.children(n)
@@ -421,7 +407,7 @@ impl super::Structure for TwoLevel {
 
     fn gpu_image(&self, scene: &Scene) -> Result<GpuImage<'_>, ValidateError> {
         let kind = self.kind;
-        let family = Self::family(kind.kernel()).ok_or_else(|| {
+        let family = kind.kernel().instanced().ok_or_else(|| {
             ValidateError::whole(format!(
                 "{kind} tests every primitive and has no instance level; render the instanced scene with a structure"
             ))

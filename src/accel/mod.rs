@@ -22,6 +22,7 @@
 pub mod auto;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod bvh;
+pub mod family;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod gpu_layout;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
@@ -43,6 +44,7 @@ pub mod sah;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod validate;
 
+pub use family::{Geometry, KernelFamily};
 pub use prim::Prims;
 pub use validate::{Site, ValidateError};
 
@@ -190,18 +192,19 @@ impl AccelKind {
         }
     }
 
-    /// The kernel family (`trace_<kernel>_<geometry>`) that traverses this structure.
-    pub fn kernel(self) -> &'static str {
+    /// The kernel family (`trace_<kernel>_<geometry>`) that traverses this structure
+    /// over a flat scene.
+    pub fn kernel(self) -> KernelFamily {
         match self {
-            AccelKind::None => "none",
-            AccelKind::Kdtree | AccelKind::BspCourse => "kdtree",
-            AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => "bvh",
-            AccelKind::Bvh4 => "bvh4",
-            AccelKind::Bvh8 => "bvh8",
-            AccelKind::Cwbvh => "cwbvh",
-            AccelKind::Grid => "grid",
-            AccelKind::Octree => "octree",
-            AccelKind::RayQuery => "rayquery",
+            AccelKind::None => KernelFamily::None,
+            AccelKind::Kdtree | AccelKind::BspCourse => KernelFamily::Kdtree,
+            AccelKind::BvhSah | AccelKind::Lbvh | AccelKind::Trbvh => KernelFamily::Bvh,
+            AccelKind::Bvh4 => KernelFamily::Bvh4,
+            AccelKind::Bvh8 => KernelFamily::Bvh8,
+            AccelKind::Cwbvh => KernelFamily::Cwbvh,
+            AccelKind::Grid => KernelFamily::Grid,
+            AccelKind::Octree => KernelFamily::Octree,
+            AccelKind::RayQuery => KernelFamily::RayQuery,
         }
     }
 }
@@ -392,7 +395,7 @@ impl TraceLoop {
 #[derive(Debug, Clone)]
 pub struct GpuImage<'a> {
     /// Kernel family: `shaders/accel/<family>.glsl`, kernels `trace_<family>_<geometry>`.
-    pub family: &'static str,
+    pub family: KernelFamily,
     /// Node words and index words; `None` binds neither buffer.
     pub buffers: Option<(std::borrow::Cow<'a, [u8]>, &'a [u32])>,
     /// Entries of the kernel's traversal stack (`SPEC_STACK_SIZE`).

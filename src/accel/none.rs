@@ -66,7 +66,7 @@ impl super::Structure for BruteForce {
 
     fn gpu_image(&self, scene: &Scene) -> Result<super::GpuImage<'_>, ValidateError> {
         Ok(super::GpuImage {
-            family: "none",
+            family: super::KernelFamily::None,
             buffers: None,
             stack_size: 1,
             cost_per_ray: scene.prim_count().max(1) as u64,

@@ -697,7 +697,7 @@ impl super::Structure for Octree {
         }
         let (words, indices) = self.to_gpu();
         Ok(super::GpuImage {
-            family: "octree",
+            family: super::KernelFamily::Octree,
             buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
             stack_size: 1,
             // A descent from the root per cell visited.

@@ -25,7 +25,7 @@
 use std::sync::{Arc, OnceLock};
 
 use super::params::{Key, Preset};
-use super::{Accel, AccelKind, BuildStats, GpuImage, Phase, Prims, TraceLoop, Traverse};
+use super::{Accel, AccelKind, BuildStats, GpuImage, KernelFamily, Phase, Prims, TraceLoop, Traverse};
 use crate::accel::validate::ValidateError;
 use crate::error::Result;
 use crate::gpu::{BlasDesc, Context, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
@@ -279,9 +279,9 @@ impl super::Structure for RayQuery {
         let (family, buffers, stack_size) = match &self.records {
             Some(r) => {
                 let img = r.gpu_image(scene)?;
-                ("inst_rayquery", img.buffers, img.stack_size)
+                (KernelFamily::InstRayQuery, img.buffers, img.stack_size)
             }
-            None => ("rayquery", None, 1),
+            None => (KernelFamily::RayQuery, None, 1),
         };
         Ok(GpuImage {
             family,

@@ -10,7 +10,7 @@ use crate::gpu::Context;
 use crate::scene::Scene;
 
 pub use super::dispatch::dispatch_shape;
-pub use super::kernel::{geometry_suffix, trace_bindings};
+pub use super::kernel::{kernel_geometry, trace_bindings};
 pub use super::upload::GpuScene;
 
 /// Renders `scene` on `ctx`. `progress(done, total)` is called after each dispatch.

@@ -1,8 +1,8 @@
 //! Scenes and ray sets shared by the structure tests.
 
 use arbor::accel::none::BruteForce;
-use arbor::accel::Accel;
 use arbor::accel::Traverse;
+use arbor::accel::{Accel, KernelFamily};
 use arbor::gpu::Context;
 use arbor::math::{Aabb, Ray};
 use arbor::render::{gpu, Frame, RenderSettings, RenderStats};
@@ -230,12 +230,12 @@ pub fn gpu_matches_reference(
     scene: &Scene,
     settings: &RenderSettings,
     reference: &Frame,
-    family: &str,
+    family: KernelFamily,
     what: &str,
 ) -> (Frame, RenderStats) {
     let (g, st) = gpu::render(ctx, scene, settings, |_, _| {}).expect("render");
     ctx.check_validation().expect("no validation errors");
-    assert_eq!(st.kernel.split('_').nth(1), Some(family), "{what}");
+    assert_eq!(st.kernel.split('_').nth(1), Some(family.name()), "{what}");
     for i in 0..g.prim.len() {
         assert_eq!(g.prim[i], reference.prim[i], "{what}: pixel {i}");
         let (a, b) = (g.depth[i], reference.depth[i]);

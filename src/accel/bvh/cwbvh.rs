@@ -48,7 +48,7 @@ use super::wide::{check_limits, open_wide, traverse_wide};
 use super::{Bvh, BvhBuilder, EMPTY_REF, LEAF_REF};
 use crate::accel::prim::Prims;
 use crate::accel::validate::ValidateError;
-use crate::accel::{BuildStats, GpuImage, Phase, TraceLoop};
+use crate::accel::{BuildStats, GpuImage, KernelFamily, Phase, TraceLoop};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -302,7 +302,7 @@ impl crate::accel::Structure for Cwbvh {
         // Each node visited pushes at most 7 children.
         let stack_size = 7 * self.depth + 1;
         Ok(GpuImage {
-            family: "cwbvh",
+            family: KernelFamily::Cwbvh,
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
             stack_size,
             cost_per_ray: 8 * (u64::from(self.depth) + 8),

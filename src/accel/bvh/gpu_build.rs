@@ -49,7 +49,7 @@ use super::treelet::{TreeletParams, KEEP_FACTOR};
 use super::{Bvh, BvhBuilder, GpuBvhNode, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
 use crate::accel::gpu_layout::{GpuBuildPush as Push, GpuSphere, GpuTriangle, GpuVertex};
 use crate::accel::sah::SahCosts;
-use crate::accel::Phase;
+use crate::accel::{Geometry, Phase};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context, Kernel, Step};
@@ -67,7 +67,7 @@ fn storage(binding: u32, name: &'static str) -> BindingDesc {
 
 /// The build pipelines, created once and reused for every build on one context.
 pub struct GpuBuilder {
-    bounds: HashMap<&'static str, Kernel>,
+    bounds: HashMap<Geometry, Kernel>,
     morton: Kernel,
     hist: [Kernel; 2],
     scan: Kernel,
@@ -145,13 +145,9 @@ fn by_height<'a>(
     steps
 }
 
-/// Geometry suffix of the bounds kernel: only the buffers the scene has.
-fn geometry(scene: &Scene) -> &'static str {
-    match (scene.triangles.is_empty(), scene.spheres.is_empty()) {
-        (false, true) => "tris",
-        (true, false) => "spheres",
-        _ => "all",
-    }
+/// Geometry of the bounds kernel: only the buffers the scene has.
+fn geometry(scene: &Scene) -> Geometry {
+    Geometry::of(!scene.triangles.is_empty(), !scene.spheres.is_empty())
 }
 
 /// Buffers of one build.
@@ -184,13 +180,13 @@ impl GpuBuilder {
         let out_nodes = storage(BINDING_BUILD_OUT_NODES, "accel_nodes");
         let out_idx = storage(BINDING_BUILD_OUT_INDICES, "accel_indices");
         let mut bounds = HashMap::new();
-        for (geo, tris, spheres) in [("tris", true, false), ("spheres", false, true), ("all", true, true)] {
+        for geo in Geometry::ALL {
             let mut b = vec![hdr.clone(), pb.clone()];
-            if tris {
+            if geo.has_triangles() {
                 b.push(storage(BINDING_VERTICES, "vertices"));
                 b.push(storage(BINDING_TRIANGLES, "triangles"));
             }
-            if spheres {
+            if geo.has_spheres() {
                 b.push(storage(BINDING_SPHERES, "spheres"));
             }
             bounds.insert(geo, kernel(ctx, &format!("build_bounds_{geo}"), &b)?);
@@ -304,7 +300,7 @@ impl GpuBuilder {
         let groups = |threads: u64, size: u32| ctx.grid_for(threads.div_ceil(u64::from(size)));
         let blocks = (n as u64).div_ceil(TILE);
         let geo = geometry(scene);
-        let bounds_k = &self.bounds[geo];
+        let bounds_k = &self.bounds[&geo];
         let mut steps = vec![
             Step::Dispatch {
                 kernel: bounds_k,
@@ -399,7 +395,7 @@ impl GpuBuilder {
 
     fn bind(&mut self, ctx: &Context, scene: &Scene, b: &Buffers) -> Result<()> {
         let geo = geometry(scene);
-        let bounds_k = self.bounds.get_mut(geo).ok_or_else(|| Error::Usage("no bounds kernel".into()))?;
+        let bounds_k = self.bounds.get_mut(&geo).ok_or_else(|| Error::Usage("no bounds kernel".into()))?;
         ctx.bind(bounds_k, BINDING_BUILD_HEADER, &b.header)?;
         ctx.bind(bounds_k, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
         for (binding, buf) in &b.geometry {

@@ -678,7 +678,7 @@ impl super::Structure for Bvh {
         }
         let (nodes, indices) = self.to_gpu();
         Ok(super::GpuImage {
-            family: "bvh",
+            family: super::KernelFamily::Bvh,
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
             stack_size: self.depth + 1,
             cost_per_ray: 4 * (u64::from(self.depth) + 8),

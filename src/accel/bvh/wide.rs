@@ -39,7 +39,7 @@ use super::{leaf_range, Bvh, BvhBuilder, EMPTY_REF, LEAF_REF, MAX_BVH_DEPTH, MAX
 use crate::accel::prim::{self, Prims};
 use crate::accel::sah;
 use crate::accel::validate::ValidateError;
-use crate::accel::{BuildStats, GpuImage, Phase, TraceLoop};
+use crate::accel::{BuildStats, GpuImage, KernelFamily, Phase, TraceLoop};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -345,7 +345,7 @@ impl<const W: usize> crate::accel::Structure for WideBvh<W> {
         // Each node visited pushes at most W - 1 children.
         let stack_size = (W as u32 - 1) * self.depth + 1;
         Ok(GpuImage {
-            family: Self::name(),
+            family: if W == 8 { KernelFamily::Bvh8 } else { KernelFamily::Bvh4 },
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
             stack_size,
             cost_per_ray: W as u64 * (u64::from(self.depth) + 8),

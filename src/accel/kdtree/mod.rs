@@ -514,7 +514,7 @@ impl super::Structure for KdTree {
         }
         let (nodes, indices) = self.to_gpu();
         Ok(super::GpuImage {
-            family: "kdtree",
+            family: super::KernelFamily::Kdtree,
             buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
             stack_size: self.depth + 1,
             // A few steps per level: about one step per level plus a few tests.

@@ -2,44 +2,41 @@
 //! family x geometry), which buffers it binds, and the loop bounds that keep every
 //! invocation inside the driver's limits.
 
-use crate::accel::{GpuImage, TraceLoop};
+use crate::accel::{Geometry, GpuImage, KernelFamily, TraceLoop};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::render::{KernelChoice, RenderSettings};
 use crate::scene::{MaterialKind, Scene};
 
-/// Which geometry a kernel variant handles.
-pub fn geometry_suffix(scene: &Scene, choice: KernelChoice) -> &'static str {
-    match (choice, scene.stored_triangles() == 0, scene.spheres.is_empty()) {
-        (KernelChoice::General, _, _) => "all",
-        (_, false, true) => "tris",
-        (_, true, false) => "spheres",
-        _ => "all",
+/// Which geometry a kernel variant handles: the scene's, or every kind with
+/// [`KernelChoice::General`].
+pub fn kernel_geometry(scene: &Scene, choice: KernelChoice) -> Geometry {
+    match choice {
+        KernelChoice::General => Geometry::All,
+        KernelChoice::Specialized => Geometry::of(scene.stored_triangles() > 0, !scene.spheres.is_empty()),
     }
 }
 
-/// The descriptor bindings of a trace variant: structure kernel family (`none`,
-/// `kdtree`) and geometry (`tris`, `spheres` or `all`). A family whose structure has
-/// no buffers (`GpuImage::buffers` is `None`) binds no node or index buffer.
-pub fn trace_bindings(family: &str, geometry: &str) -> Vec<BindingDesc> {
+/// The descriptor bindings of a trace variant: structure kernel family and geometry.
+/// A family whose structure has no buffers (`GpuImage::buffers` is `None`) binds no
+/// node or index buffer.
+pub fn trace_bindings(family: KernelFamily, geometry: Geometry) -> Vec<BindingDesc> {
     let mut b = vec![BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" }];
-    if geometry != "spheres" {
+    if geometry.has_triangles() {
         b.push(BindingDesc { binding: BINDING_VERTICES, kind: BindingKind::Texel, name: "vertices" });
         b.push(BindingDesc { binding: BINDING_TRIANGLES, kind: BindingKind::Texel, name: "triangles" });
     }
-    if geometry != "tris" {
+    if geometry.has_spheres() {
         b.push(BindingDesc { binding: BINDING_SPHERES, kind: BindingKind::Texel, name: "spheres" });
     }
     b.push(BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" });
     b.push(BindingDesc { binding: BINDING_PIXELS, kind: BindingKind::Storage, name: "pixels" });
-    // The driver's structure (ray queries) has no buffers of its own; over an
-    // instanced scene it reads the two-level records from the node buffer.
-    if family != "none" && family != "rayquery" {
+    if family.has_buffers() {
         b.push(BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Texel, name: "accel_nodes" });
         b.push(BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Texel, name: "accel_indices" });
     }
-    if family.ends_with("rayquery") {
+    if family.uses_ray_queries() {
         b.push(BindingDesc { binding: BINDING_TLAS, kind: BindingKind::RayStructure, name: "tlas" });
     }
     b
@@ -68,7 +65,7 @@ pub fn check_subgroups(ctx: &Context) -> Result<()> {
 
 /// `SPEC_PACKET`: packet traversal where asked for and the kernel has it (BVHs).
 pub fn packet_spec(settings: &RenderSettings, image: &GpuImage) -> u32 {
-    u32::from(settings.traversal == crate::render::Traversal::Packet && image.family == "bvh")
+    u32::from(settings.traversal == crate::render::Traversal::Packet && image.family.has_packet_traversal())
 }
 
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
@@ -170,7 +167,7 @@ impl Variant {
     /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
     /// geometry (or every buffer with [`KernelChoice::General`]).
     pub fn new(prefix: &str, scene: &Scene, settings: &RenderSettings, image: &GpuImage) -> Result<Variant> {
-        let geometry = geometry_suffix(scene, settings.kernel);
+        let geometry = kernel_geometry(scene, settings.kernel);
         let name = format!("{prefix}_{}_{geometry}", image.family);
         let spirv =
             crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
