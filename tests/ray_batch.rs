@@ -146,6 +146,8 @@ fn a_batch_over_many_dispatches_and_chunks_is_one_batch() {
     let one = RayTracer::new(&ctx, &scene, &accel, &TraceOptions::default()).expect("tracer");
     let (whole, one_stats) = one.trace_stats(&rays).expect("trace");
     assert_eq!(one_stats.dispatches, 1);
+    // A batch holds up to 1M rays on the device by default, not an image's worth.
+    assert_eq!(one.chunk_rays(), arbor::render::rays::DEFAULT_CHUNK_RAYS);
     assert_eq!(hits, whole, "splitting changed a hit");
     assert_same("split", &rays, &hits, &accel.trace_cpu(&scene, &rays));
     // The same tracer traces a second batch.

@@ -299,16 +299,10 @@ impl RenderSettings {
                 )));
             }
         }
-        dispatch::Pacing::check(&self.pacing)?;
+        self.loop_settings().check()?;
         if let Some(t) = self.time_budget {
             if !(t.is_finite() && t > 0.0) {
                 return Err(Error::Usage(format!("--time must be a positive number of seconds, got {t}")));
-            }
-        }
-        if let Some(n) = self.trace_steps {
-            let least = crate::gpu::bindings::MIN_FORCED_TRACE_STEPS;
-            if n < least {
-                return Err(Error::Usage(format!("--trace-steps must be at least {least}, got {n}")));
             }
         }
         if let Some(d) = self.max_depth {

@@ -6,7 +6,7 @@ use crate::accel::{Geometry, GpuImage, KernelFamily, TraceLoop};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
-use crate::render::{KernelChoice, RenderSettings};
+use crate::render::KernelChoice;
 use crate::scene::{MaterialKind, Scene};
 
 /// Which geometry a kernel variant handles: the scene's, or every kind with
@@ -44,8 +44,8 @@ pub fn trace_bindings(family: KernelFamily, geometry: Geometry) -> Vec<BindingDe
 
 /// The material kinds `scene` uses, a bit per kind (`SPEC_MATERIAL_KINDS`); Lambert at
 /// least, the kind of the default material. The general kernel has code for every kind.
-pub fn material_kinds(scene: &Scene, settings: &RenderSettings) -> u32 {
-    if settings.kernel == KernelChoice::General {
+pub fn material_kinds(scene: &Scene, choice: KernelChoice) -> u32 {
+    if choice == KernelChoice::General {
         return (1 << (MaterialKind::Emissive as u32 + 1)) - 1;
     }
     scene.materials.iter().fold(1 << MaterialKind::Lambert as u32, |m, x| m | 1 << x.kind as u32)
@@ -64,8 +64,8 @@ pub fn check_subgroups(ctx: &Context) -> Result<()> {
 }
 
 /// `SPEC_PACKET`: packet traversal where asked for and the kernel has it (BVHs).
-pub fn packet_spec(settings: &RenderSettings, image: &GpuImage) -> u32 {
-    u32::from(settings.traversal == crate::render::Traversal::Packet && image.family.has_packet_traversal())
+pub fn packet_spec(traversal: crate::render::Traversal, image: &GpuImage) -> u32 {
+    u32::from(traversal == crate::render::Traversal::Packet && image.family.has_packet_traversal())
 }
 
 /// Smallest per-trace step budget a tree traversal is given (nodes + primitive tests).
@@ -166,8 +166,8 @@ pub struct Variant {
 impl Variant {
     /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
     /// geometry (or every buffer with [`KernelChoice::General`]).
-    pub fn new(prefix: &str, scene: &Scene, settings: &RenderSettings, image: &GpuImage) -> Result<Variant> {
-        let geometry = kernel_geometry(scene, settings.kernel);
+    pub fn new(prefix: &str, scene: &Scene, choice: KernelChoice, image: &GpuImage) -> Result<Variant> {
+        let geometry = kernel_geometry(scene, choice);
         let name = format!("{prefix}_{}_{geometry}", image.family);
         let spirv =
             crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
@@ -209,10 +209,10 @@ pub fn check_overflow(ctx: &Context, scene: &Scene, bounds: &LoopBounds, overflo
 /// no path-integrator tables); each integrator fills in the rest.
 pub fn base_params(
     scene: &Scene,
-    settings: &RenderSettings,
+    (w, h): (u32, u32),
+    seed: u32,
     accel: &crate::accel::Accel,
 ) -> crate::accel::gpu_layout::GpuParams {
-    let (w, h) = (settings.width, settings.height);
     let basis = scene.camera.basis(w, h);
     let bounds = accel.bounds();
     crate::accel::gpu_layout::GpuParams {
@@ -223,7 +223,7 @@ pub fn base_params(
         scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
         scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
         dims: [w, h, scene.stored_triangles() as u32, scene.spheres.len() as u32],
-        counts: [0, scene.materials.len() as u32, settings.seed, 0],
+        counts: [0, scene.materials.len() as u32, seed, 0],
         background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
         tables: [0; 4],
         env: [0.0; 4],

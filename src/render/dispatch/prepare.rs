@@ -11,14 +11,64 @@ use super::kernel::{self, LoopBounds, Variant};
 use super::pacing::{Pacing, Sizer};
 use super::resume::Resumer;
 use super::upload::{self, Bound, GpuScene};
-use super::{DispatchTotals, Flight, LoopInput, Next, Wave, Waves};
+use super::{DispatchTotals, Flight, LoopInput, Next, PacingChoice, Wave, Waves};
 use crate::accel::gpu_layout::GpuParams;
 use crate::accel::{Accel, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, Context, Kernel};
-use crate::render::{Frame, RenderSettings};
+use crate::math::intersect::IntersectMode;
+use crate::render::{Frame, KernelChoice, RenderSettings, Traversal};
 use crate::scene::Scene;
+
+/// What the loop takes of a render's settings; ray batches give their own
+/// ([`RenderSettings::loop_settings`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopSettings {
+    /// The specialised kernel, or the general one.
+    pub kernel: KernelChoice,
+    /// Ray/triangle test: watertight or fast.
+    pub intersect: IntersectMode,
+    /// Traversal of coherent rays in the BVH kernels.
+    pub traversal: Traversal,
+    /// For tests: a lower per-trace step budget.
+    pub trace_steps: Option<u32>,
+    /// For tests: at most this many resume records a pass.
+    pub resume_records: Option<u32>,
+    /// How dispatches are sized and kept in flight.
+    pub pacing: PacingChoice,
+    /// Pixels (or rays) of the work: a chunk holds no more.
+    pub pixels: u64,
+}
+
+impl LoopSettings {
+    /// Rejects values no loop takes.
+    pub fn check(&self) -> Result<()> {
+        Pacing::check(&self.pacing)?;
+        if let Some(n) = self.trace_steps {
+            let least = MIN_FORCED_TRACE_STEPS;
+            if n < least {
+                return Err(Error::Usage(format!("--trace-steps must be at least {least}, got {n}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RenderSettings {
+    /// What the render loop takes of these settings.
+    pub fn loop_settings(&self) -> LoopSettings {
+        LoopSettings {
+            kernel: self.kernel,
+            intersect: self.intersect,
+            traversal: self.traversal,
+            trace_steps: self.trace_steps,
+            resume_records: self.resume_records,
+            pacing: self.pacing,
+            pixels: self.window().pixels(),
+        }
+    }
+}
 
 /// What an integrator asks of the loop.
 #[derive(Debug)]
@@ -62,6 +112,8 @@ pub struct Prepared<'a> {
     /// Most samples one dispatch may run within the driver's loop limit.
     pub most_samples: Option<u32>,
     pub pacing: Pacing,
+    /// For tests: at most this many resume records a pass.
+    pub resume_records: Option<u32>,
 }
 
 impl std::fmt::Debug for Prepared<'_> {
@@ -72,7 +124,7 @@ impl std::fmt::Debug for Prepared<'_> {
 
 /// The specialization constants every kernel shares: the structure's stack and loop
 /// bounds, the intersection test, the primitive counts, the material kinds, packets.
-fn shared_spec(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
+fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
     vec![
         (SPEC_STACK_SIZE, image.stack_size),
         (SPEC_TREE_STEPS, bounds.steps as u32),
@@ -80,8 +132,8 @@ fn shared_spec(scene: &Scene, settings: &RenderSettings, image: &GpuImage, bound
         (SPEC_INTERSECT, settings.intersect.spec()),
         (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
         (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
-        (SPEC_MATERIAL_KINDS, kernel::material_kinds(scene, settings)),
-        (SPEC_PACKET, kernel::packet_spec(settings, image)),
+        (SPEC_MATERIAL_KINDS, kernel::material_kinds(scene, settings.kernel)),
+        (SPEC_PACKET, kernel::packet_spec(settings.traversal, image)),
     ]
 }
 
@@ -90,13 +142,13 @@ impl<'a> Prepared<'a> {
     pub fn new(
         ctx: &'a Context,
         scene: &'a Scene,
-        settings: &RenderSettings,
+        settings: &LoopSettings,
         accel: &'a Accel,
         request: Request,
     ) -> Result<Prepared<'a>> {
         kernel::check_subgroups(ctx)?;
         let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
-        let mut variant = Variant::new(request.prefix, scene, settings, &image)?;
+        let mut variant = Variant::new(request.prefix, scene, settings.kernel, &image)?;
         variant.bindings.extend(request.extra_bindings);
         let traces = request.traces;
         let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
@@ -106,7 +158,7 @@ impl<'a> Prepared<'a> {
         let compile = Instant::now();
         let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
         let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
-        let chunk_pixels = kernel::chunk_pixels(ctx, settings.window().pixels(), request.chunk_most);
+        let chunk_pixels = kernel::chunk_pixels(ctx, settings.pixels.max(1), request.chunk_most);
         let bound = upload::bind_all(
             ctx,
             &mut kernel,
@@ -132,6 +184,7 @@ impl<'a> Prepared<'a> {
             chunk_pixels,
             most_samples,
             pacing,
+            resume_records: settings.resume_records,
         })
     }
 
@@ -141,10 +194,10 @@ impl<'a> Prepared<'a> {
     }
 
     /// The resume passes of this kernel (created only if a trace stops).
-    pub fn resumer(&self, settings: &RenderSettings) -> Result<Resumer<'_>> {
+    pub fn resumer(&self) -> Result<Resumer<'_>> {
         Resumer::new(
             self.ctx,
-            settings,
+            self.resume_records,
             &self.scene.name,
             (&self.variant, &self.spec),
             &self.bound,

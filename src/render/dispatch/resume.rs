@@ -107,7 +107,7 @@ impl<'a> Resumer<'a> {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &'a Context,
-        settings: &crate::render::RenderSettings,
+        resume_records: Option<u32>,
         scene: &'a str,
         (variant, spec): (&'a Variant, &[(u32, u32)]),
         bound: &'a Bound,
@@ -117,7 +117,7 @@ impl<'a> Resumer<'a> {
     ) -> Result<Resumer<'a>> {
         let log = u32::try_from(traces).unwrap_or(u32::MAX);
         let shape = if image.resume_words > 0 {
-            PoolShape::new(image, log, pixels, ctx.max_storage_range(), settings.resume_records)?
+            PoolShape::new(image, log, pixels, ctx.max_storage_range(), resume_records)?
         } else {
             PoolShape { record_words: 0, records: 0, jobs: 0 }
         };

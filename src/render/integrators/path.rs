@@ -270,7 +270,8 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
     let (intensity, rotation) =
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
-    let mut p = crate::render::dispatch::kernel::base_params(scene, settings, accel);
+    let mut p =
+        crate::render::dispatch::kernel::base_params(scene, (settings.width, settings.height), settings.seed, accel);
     p.counts[0] = scene.lights.len() as u32;
     p.tables = ex.tables;
     p.env = [intensity, rotation, ex.total_power, 0.0];
@@ -328,7 +329,7 @@ pub fn render_with(
         extra_bindings: Vec::new(),
         chunk_most: MAX_CHUNK_PIXELS,
     };
-    let prep = Prepared::new(ctx, scene, settings, accel, request)?;
+    let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
     let start = Instant::now();
     let total_pixels = settings.window().pixels();
     let mut sizer = prep.sizer(settings.spp);
@@ -342,7 +343,7 @@ pub fn render_with(
     let mut overflow = 0u64;
     let mut last_checkpoint = Instant::now();
     let mut chunk_started = Instant::now();
-    let mut resumer = prep.resumer(settings)?;
+    let mut resumer = prep.resumer()?;
     let pixels = prep.bound.pixels();
     let (totals, stopped) =
         prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut *progress, |flight, wave| {

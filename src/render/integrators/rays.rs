@@ -20,11 +20,12 @@ use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
+use crate::render::dispatch::kernel::base_params;
 use crate::render::dispatch::pacing::Sizer;
-use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::prepare::{LoopSettings, Prepared, Request};
 use crate::render::dispatch::upload::GpuScene;
 use crate::render::dispatch::{Next, Waves};
-use crate::render::RenderSettings;
+use crate::render::{KernelChoice, Traversal};
 use crate::scene::Scene;
 
 /// Most rays held on the device at once by default (96 bytes each: the ray and its hit).
@@ -124,7 +125,6 @@ pub fn check_rays(rays: &[Ray]) -> Result<()> {
 /// is compiled and the scene and structure uploaded once, in [`RayTracer::new`].
 pub struct RayTracer<'a> {
     prep: Prepared<'a>,
-    settings: RenderSettings,
     /// Dispatch sizes carry over from batch to batch.
     sizer: std::cell::RefCell<Sizer>,
 }
@@ -151,13 +151,17 @@ impl<'a> RayTracer<'a> {
                 scene.name
             )));
         }
-        let mut settings = RenderSettings::for_size(1, 1);
-        settings.intersect = options.intersect;
-        settings.trace_steps = options.trace_steps;
-        settings.pacing = options.pacing;
+        let settings = LoopSettings {
+            kernel: KernelChoice::Specialized,
+            intersect: options.intersect,
+            traversal: Traversal::Single,
+            trace_steps: options.trace_steps,
+            resume_records: None,
+            pacing: options.pacing,
+            // Two texels a ray, within the device's texel-buffer view.
+            pixels: options.chunk_rays.max(1).min((ctx.max_texel_elements() / 2).max(1)),
+        };
         settings.check()?;
-        // Two texels a ray, within the device's texel-buffer view.
-        let by_texels = (ctx.max_texel_elements() / 2).max(1);
         let request = Request {
             prefix: "rays",
             traces: 1,
@@ -169,17 +173,15 @@ impl<'a> RayTracer<'a> {
                 // zero count (shaders/common/resume_trace.glsl).
                 (SPEC_INTEGRATOR, 2),
             ],
-            params: crate::render::dispatch::kernel::base_params(scene, &settings, accel),
+            // No camera: the rays come from the batch.
+            params: base_params(scene, (1, 1), 0, accel),
             scene: GpuScene::new(scene),
             extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
-            chunk_most: options.chunk_rays.max(1).min(by_texels),
+            chunk_most: settings.pixels,
         };
-        // The chunk is sized by the batch, not by an image.
-        let mut sized = settings.clone();
-        sized.width = u32::try_from(request.chunk_most).unwrap_or(u32::MAX).min(crate::scene::MAX_FILM_SIDE);
-        let prep = Prepared::new(ctx, scene, &sized, accel, request)?;
+        let prep = Prepared::new(ctx, scene, &settings, accel, request)?;
         let sizer = std::cell::RefCell::new(prep.sizer(1));
-        Ok(RayTracer { prep, settings, sizer })
+        Ok(RayTracer { prep, sizer })
     }
 
     /// The name of the compiled kernel (`rays_<family>_<geometry>`).
@@ -209,7 +211,7 @@ impl<'a> RayTracer<'a> {
         }
         let prep = &self.prep;
         let ray_buf = prep.bound.rays().ok_or_else(|| Error::Usage("the ray-batch kernel has no ray buffer".into()))?;
-        let mut resumer = prep.resumer(&self.settings)?;
+        let mut resumer = prep.resumer()?;
         let mut sizer = self.sizer.borrow_mut();
         let mut overflow = 0u64;
         for chunk in rays.chunks(prep.chunk_pixels as usize) {

@@ -67,7 +67,8 @@ fn specialization(scene: &Scene, settings: &RenderSettings) -> Vec<(u32, u32)> {
 
 /// The uniform parameters: camera, scene box, counts, background.
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel) -> GpuParams {
-    let mut p = crate::render::dispatch::kernel::base_params(scene, settings, accel);
+    let mut p =
+        crate::render::dispatch::kernel::base_params(scene, (settings.width, settings.height), settings.seed, accel);
     p.counts[0] = lights_used(scene, settings);
     p.background[3] = scene.ambient;
     p
@@ -92,12 +93,12 @@ pub fn render_with(
         extra_bindings: Vec::new(),
         chunk_most: MAX_CHUNK_PIXELS,
     };
-    let prep = Prepared::new(ctx, scene, settings, accel, request)?;
+    let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
     let start = Instant::now();
     let win = settings.window();
     let mut frame = Frame::new(win.width(), win.height())?;
     let mut overflow = 0u64;
-    let mut resumer = prep.resumer(settings)?;
+    let mut resumer = prep.resumer()?;
     let mut sizer = prep.sizer(settings.spp);
     let waves = Waves::new(settings, prep.chunk_pixels);
     let pixels = prep.bound.pixels();
