@@ -229,7 +229,7 @@ uint job_rays() { return g_suspended ? g_rays_before : g_rays; }
 
 // A trace dispatch that finds its pixel behind: holding fewer samples than the
 // dispatch starts from, because an earlier dispatch stopped one of them and its resume
-// passes had not run yet (dispatches in flight, src/render/dispatch/mod.rs). The pixel
+// passes had not run yet (dispatches in flight; docs/kernels.md, "Resumed traces"). The pixel
 // is left as it is and counted like a stopped sample, so the resume sweep after this
 // dispatch brings it to the dispatch's end, its samples still summed in index order.
 bool pixel_behind(Pixel p) {
