@@ -192,9 +192,15 @@ impl DispatchRing<'_> {
                 .map_err(vk_err("vkBeginCommandBuffer"))?;
                 if ctx.timestamps {
                     dev.cmd_reset_query_pool(cb, self.queries, q, 2);
-                    dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::TOP_OF_PIPE, self.queries, q);
                 }
                 barrier_all(dev, cb);
+                if ctx.timestamps {
+                    // Written once every earlier command has finished (a top-of-pipe
+                    // stamp could be taken while the dispatch before this one still
+                    // runs): the span is this submission's own time, and the spans of
+                    // a ring never overlap.
+                    dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.queries, q);
+                }
                 dev.cmd_update_buffer(cb, buffer.raw, offset, data);
                 barrier_all(dev, cb);
                 record_dispatch(dev, cb, kernel, &[], groups);
