@@ -272,35 +272,7 @@ impl Context {
         }
         let rb = self.create_buffer(&format!("{}.readback", buffer.name), len, BufferKind::Readback)?;
         self.submit(&format!("readback {}", buffer.name), |dev, cb| {
-            let barrier = [vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ)];
-            let region = [vk::BufferCopy { src_offset: offset, dst_offset: 0, size: len }];
-            // SAFETY: live buffers; the barrier orders earlier writes before the copy.
-            unsafe {
-                dev.cmd_pipeline_barrier(
-                    cb,
-                    vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::DependencyFlags::empty(),
-                    &barrier,
-                    &[],
-                    &[],
-                );
-                dev.cmd_copy_buffer(cb, buffer.raw, rb.raw, &region);
-                let to_host = [vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::HOST_READ)];
-                dev.cmd_pipeline_barrier(
-                    cb,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::HOST,
-                    vk::DependencyFlags::empty(),
-                    &to_host,
-                    &[],
-                    &[],
-                );
-            }
+            record_copy_to_host(dev, cb, (buffer, offset), (&rb, 0), len);
         })?;
         let a = rb
             .allocation
@@ -308,5 +280,47 @@ impl Context {
             .and_then(|a| a.mapped_slice())
             .ok_or_else(|| Error::Vulkan { what: "readback".into(), result: "not host visible".into() })?;
         Ok(take(&a[..len as usize]))
+    }
+}
+
+/// Records a copy of `len` bytes from `src` at its offset into the host-visible `dst`
+/// at its offset, after every earlier shader or transfer write and before the host
+/// reads it (the submission's fence then makes it visible).
+pub(super) fn record_copy_to_host(
+    dev: &ash::Device,
+    cb: vk::CommandBuffer,
+    (src, src_offset): (&Buffer, u64),
+    (dst, dst_offset): (&Buffer, u64),
+    len: u64,
+) {
+    let before = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::TRANSFER_READ)];
+    let after = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::HOST_READ)];
+    let region = [vk::BufferCopy { src_offset, dst_offset, size: len }];
+    // SAFETY: recording scope of a live command buffer of `dev`; both buffers are live
+    // and the caller checked the ranges.
+    unsafe {
+        dev.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &before,
+            &[],
+            &[],
+        );
+        dev.cmd_copy_buffer(cb, src.raw, dst.raw, &region);
+        dev.cmd_pipeline_barrier(
+            cb,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::HOST,
+            vk::DependencyFlags::empty(),
+            &after,
+            &[],
+            &[],
+        );
     }
 }

@@ -16,7 +16,7 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::buffer::{Buffer, BufferKind};
+use super::buffer::{record_copy_to_host, Buffer, BufferKind};
 use super::context::{timestamp_ms, vk_err, Context, Work};
 use super::kernel::{barrier_all, record_dispatch, Kernel};
 use super::timing::Placement;
@@ -204,32 +204,7 @@ impl DispatchRing<'_> {
                 dev.cmd_update_buffer(cb, buffer.raw, offset, data);
                 barrier_all(dev, cb);
                 record_dispatch(dev, cb, kernel, &[], groups);
-                let to_copy = [vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ)];
-                dev.cmd_pipeline_barrier(
-                    cb,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::DependencyFlags::empty(),
-                    &to_copy,
-                    &[],
-                    &[],
-                );
-                let region = [vk::BufferCopy { src_offset: copy_offset, dst_offset: slot_copy, size: COPY_BACK_BYTES }];
-                dev.cmd_copy_buffer(cb, buffer.raw, self.readback.raw, &region);
-                let to_host = [vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::HOST_READ)];
-                dev.cmd_pipeline_barrier(
-                    cb,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::HOST,
-                    vk::DependencyFlags::empty(),
-                    &to_host,
-                    &[],
-                    &[],
-                );
+                record_copy_to_host(dev, cb, (buffer, copy_offset), (&self.readback, slot_copy), COPY_BACK_BYTES);
                 if ctx.timestamps {
                     dev.cmd_write_timestamp(cb, vk::PipelineStageFlags::BOTTOM_OF_PIPE, self.queries, q + 1);
                 }

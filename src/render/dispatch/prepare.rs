@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, Context, Kernel};
 use crate::math::intersect::IntersectMode;
-use crate::render::{Frame, KernelChoice, RenderSettings, Traversal};
+use crate::render::{Frame, KernelChoice, RenderSettings, RenderStats, Traversal};
 use crate::scene::Scene;
 
 /// What the loop takes of a render's settings; ray batches give their own
@@ -228,6 +228,26 @@ impl<'a> Prepared<'a> {
             resume,
         };
         super::run(input, progress, wave_done)
+    }
+
+    /// The figures of a render that started at `start`: after the validation layer's
+    /// and the step budget's checks (`overflow` pixels ran out of steps in a family
+    /// that cannot resume).
+    pub fn finish(
+        &self,
+        (settings, accel): (&RenderSettings, &Accel),
+        frame: &Frame,
+        totals: &DispatchTotals,
+        (overflow, start): (u64, Instant),
+    ) -> Result<RenderStats> {
+        self.ctx.check_validation()?;
+        self.check_overflow(overflow)?;
+        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        let (name, names) = (self.variant.name.clone(), self.bound.names.clone());
+        let build = accel.stats(self.scene);
+        let mut stats = RenderStats::new(self.ctx, self.scene, settings, frame, build, name, names, totals, wall_ms);
+        stats.kernel_ms = self.kernel_ms + totals.resumes.kernel_ms;
+        Ok(stats)
     }
 
     /// Refuses a render in which `overflow` pixels ran out of traversal steps.

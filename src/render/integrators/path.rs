@@ -373,14 +373,7 @@ pub fn render_with(
             Ok(Next::Continue)
         })?;
     drop(resumer);
-    ctx.check_validation()?;
-    prep.check_overflow(overflow)?;
-    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let build = accel.stats(scene);
-    let names = prep.bound.names.clone();
-    let mut stats =
-        RenderStats::new(ctx, scene, settings, &frame, build, prep.variant.name.clone(), names, &totals, wall_ms);
+    let mut stats = prep.finish((settings, accel), &frame, &totals, (overflow, start))?;
     stats.interrupted = stopped;
-    stats.kernel_ms = prep.kernel_ms + totals.resumes.kernel_ms;
     Ok((frame, stats))
 }

@@ -111,13 +111,6 @@ pub fn render_with(
             Ok(Next::Continue)
         })?;
     drop(resumer);
-    ctx.check_validation()?;
-    prep.check_overflow(overflow)?;
-    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let build = accel.stats(scene);
-    let names = prep.bound.names.clone();
-    let mut stats =
-        RenderStats::new(ctx, scene, settings, &frame, build, prep.variant.name.clone(), names, &totals, wall_ms);
-    stats.kernel_ms = prep.kernel_ms + totals.resumes.kernel_ms;
+    let stats = prep.finish((settings, accel), &frame, &totals, (overflow, start))?;
     Ok((frame, stats))
 }
