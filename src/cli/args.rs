@@ -113,8 +113,9 @@ pub(crate) struct PacingArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
     pub(crate) in_flight: Option<u32>,
     /// Most primitive tests (estimated from the structure) one dispatch may run: a
-    /// bound for devices with a watchdog. Default: 60000000 on lavapipe (about a
-    /// quarter of a second on 2 cores), none on a GPU. The image is the same.
+    /// bound for devices with a watchdog. Default: 60000000 on lavapipe (dispatches of
+    /// about 50 ms in the default render on 2 cores), none on a GPU. The image is the
+    /// same.
     #[arg(long, value_name = "TESTS", value_parser = clap::value_parser!(u64).range(1..))]
     pub(crate) dispatch_budget: Option<u64>,
 }

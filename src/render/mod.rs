@@ -315,8 +315,9 @@ impl RenderSettings {
     }
 }
 
-/// Primitive tests per dispatch on llvmpipe, where it keeps a dispatch near a quarter
-/// of a second on 2 cores (docs/kernels.md, "Dispatches sized by the device"); on other
+/// Primitive tests per dispatch on llvmpipe, where it keeps dispatches short (a median
+/// of 43 ms in the default render on 2 cores, kd-tree; docs/kernels.md, "Dispatches
+/// sized by the device"); on other
 /// devices only `--dispatch-budget` bounds a dispatch, and time sizes it.
 pub const DEFAULT_DISPATCH_BUDGET: u64 = 60_000_000;
 

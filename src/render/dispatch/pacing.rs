@@ -14,7 +14,8 @@ use crate::gpu::Context;
 pub const GPU_TARGET_MS: f64 = 60.0;
 
 /// Target on llvmpipe, where the work budget ([`crate::render::DEFAULT_DISPATCH_BUDGET`])
-/// already keeps a dispatch near a quarter of a second on 2 cores: the target only
+/// already keeps dispatches short (a median of 43 ms in the default render on 2 cores,
+/// kd-tree): the target only
 /// shortens dispatches that run much longer than that (a loaded machine, a
 /// structure the cost estimate misjudges).
 pub const LLVMPIPE_TARGET_MS: f64 = 1000.0;
