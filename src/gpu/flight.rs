@@ -18,7 +18,7 @@ use ash::vk;
 
 use super::buffer::{record_copy_to_host, Buffer, BufferKind};
 use super::context::{timestamp_ms, vk_err, Context, Work};
-use super::kernel::{barrier_all, record_dispatch, Kernel};
+use super::kernel::{barrier_all, check_update, record_dispatch, Kernel};
 use super::timing::Placement;
 use crate::error::{Error, Result};
 
@@ -45,6 +45,8 @@ pub struct Landed {
     pub gpu_ms: Option<f64>,
     /// The 16 bytes copied back, as words.
     pub words: [u32; 4],
+    /// When the host submitted it.
+    pub submitted: Instant,
 }
 
 /// Up to `depth` dispatches in flight on `ctx`'s queue.
@@ -131,19 +133,8 @@ impl DispatchRing<'_> {
         label: &str,
     ) -> Result<()> {
         self.ctx.check_dispatch(kernel, &[], groups)?;
-        let len = data.len() as u64;
-        let in_range = |o: u64, l: u64| o.checked_add(l).is_some_and(|end| end <= buffer.size());
-        if offset % 4 != 0 || len % 4 != 0 || len == 0 || len > 65_536 || !in_range(offset, len) {
-            return Err(Error::Vulkan {
-                what: format!("write before dispatch '{}'", kernel.name()),
-                result: format!(
-                    "{len} bytes at byte {offset} of the {}-byte buffer '{}'",
-                    buffer.size(),
-                    buffer.name()
-                ),
-            });
-        }
-        if copy_offset % 4 != 0 || !in_range(copy_offset, COPY_BACK_BYTES) {
+        check_update(kernel, buffer, offset, data)?;
+        if copy_offset % 4 != 0 || copy_offset.checked_add(COPY_BACK_BYTES).is_none_or(|end| end > buffer.size()) {
             return Err(Error::Vulkan {
                 what: format!("copy back after dispatch '{}'", kernel.name()),
                 result: format!("byte {copy_offset} of the {}-byte buffer '{}'", buffer.size(), buffer.name()),
@@ -267,7 +258,7 @@ impl DispatchRing<'_> {
             *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
         }
         if !self.ctx.timestamps {
-            return Ok(Landed { gpu_ms: None, words });
+            return Ok(Landed { gpu_ms: None, words, submitted: slot.submitted });
         }
         let mut ts = [0u64; 2];
         // SAFETY: both queries were written by the completed submission.
@@ -290,7 +281,7 @@ impl DispatchRing<'_> {
             super::timing::record(place, (&slot.label, slot.work.cat, args), ts[0], ts[1]);
             self.last_end = Some(place.at(ts[1]));
         }
-        Ok(Landed { gpu_ms: Some(gpu_ms), words })
+        Ok(Landed { gpu_ms: Some(gpu_ms), words, submitted: slot.submitted })
     }
 }
 

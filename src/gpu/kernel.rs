@@ -371,19 +371,7 @@ impl Context {
         label: &str,
     ) -> Result<Option<f64>> {
         self.check_dispatch(kernel, &[], groups)?;
-        let len = data.len() as u64;
-        // vkCmdUpdateBuffer: offset and size multiples of 4, size at most 65536.
-        let in_range = offset.checked_add(len).is_some_and(|end| end <= buffer.size());
-        if offset % 4 != 0 || len % 4 != 0 || len == 0 || len > 65_536 || !in_range {
-            return Err(Error::Vulkan {
-                what: format!("write before dispatch '{}'", kernel.name),
-                result: format!(
-                    "{len} bytes at byte {offset} of the {}-byte buffer '{}'",
-                    buffer.size(),
-                    buffer.name()
-                ),
-            });
-        }
+        check_update(kernel, buffer, offset, data)?;
         let work = Work::new("dispatch").arg("kernel", kernel.name.as_str()).arg("groups", groups[0]);
         self.submit_as(work, label, |dev, cb| {
             barrier_all(dev, cb);
@@ -519,6 +507,20 @@ pub enum Step<'a> {
     DispatchIndirect { kernel: &'a Kernel, push: Vec<u8>, args: &'a Buffer, offset: u64 },
     /// Ends a timed phase of this name.
     Mark(&'a str),
+}
+
+/// Checks a vkCmdUpdateBuffer before `kernel`'s dispatch: offset and size multiples
+/// of 4, size 4..=65536, inside `buffer`.
+pub(super) fn check_update(kernel: &Kernel, buffer: &Buffer, offset: u64, data: &[u8]) -> Result<()> {
+    let len = data.len() as u64;
+    let in_range = offset.checked_add(len).is_some_and(|end| end <= buffer.size());
+    if offset % 4 != 0 || len % 4 != 0 || len == 0 || len > 65_536 || !in_range {
+        return Err(Error::Vulkan {
+            what: format!("write before dispatch '{}'", kernel.name),
+            result: format!("{len} bytes at byte {offset} of the {}-byte buffer '{}'", buffer.size(), buffer.name()),
+        });
+    }
+    Ok(())
 }
 
 /// A global barrier: every earlier transfer, shader or host write is visible to every

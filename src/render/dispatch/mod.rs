@@ -35,8 +35,8 @@ use crate::gpu::{Buffer, Context, DispatchRing, Kernel};
 pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
 
 /// Byte of the dispatch header the trace kernel counts stopped samples in
-/// (`GpuDispatch::chunk`, copied back after every dispatch).
-const HEADER_COUNTERS: u64 = 16;
+/// (`GpuDispatch::chunk`, whose last word it is; copied back after every dispatch).
+const HEADER_COUNTERS: u64 = std::mem::offset_of!(GpuDispatch, chunk) as u64;
 
 /// The image's pixels and samples, and how much of it the device holds at once.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,7 +104,6 @@ pub struct DispatchTotals {
 struct Pending {
     header: GpuDispatch,
     units: u64,
-    submitted: Instant,
 }
 
 /// The dispatches in flight of one loop, and what they have cost so far. Wave
@@ -154,7 +153,7 @@ impl Flight<'_, '_> {
             HEADER_COUNTERS,
             &label,
         )?;
-        self.pending.push_back(Pending { header, units, submitted: Instant::now() });
+        self.pending.push_back(Pending { header, units });
         self.totals.in_flight = self.totals.in_flight.max(self.ring.in_flight() as u32);
         self.totals.dispatches += 1;
         Ok(())
@@ -166,7 +165,7 @@ impl Flight<'_, '_> {
         let Some(p) = self.pending.pop_front() else { return Ok(()) };
         let now = Instant::now();
         // Without timestamps, the host time since it could have started.
-        let busy_from = self.last_landed.map_or(p.submitted, |t| t.max(p.submitted));
+        let busy_from = self.last_landed.map_or(landed.submitted, |t| t.max(landed.submitted));
         self.last_landed = Some(now);
         let ms = landed.gpu_ms.unwrap_or_else(|| now.duration_since(busy_from).as_secs_f64() * 1e3);
         self.sizer.measured(p.units, ms);

@@ -139,7 +139,7 @@ impl<'a> Resumer<'a> {
     /// Samples the last dispatch stopped, or the jobs the last resume pass gave out
     /// (the header's counter).
     fn count(&self, pixel_buf: &Buffer) -> Result<u32> {
-        let chunk = self.ctx.read_storage_pod::<u32>(pixel_buf, 16, 4)?;
+        let chunk = self.ctx.read_storage_pod::<u32>(pixel_buf, std::mem::offset_of!(GpuDispatch, chunk) as u64, 4)?;
         Ok(chunk[3])
     }
 
