@@ -284,7 +284,7 @@ fn bench_compares_cpu_and_gpu_builds() {
         .output()
         .expect("run");
     assert_eq!(bad.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("--build gpu builds lbvh and trbvh"));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--build gpu builds lbvh, trbvh, bvh4 and bvh8"));
     let ok = run(&["info", "builtin:blob:500", "--accel", "trbvh", "--build", "gpu"]);
     let text = String::from_utf8_lossy(&ok.stdout);
     assert!(text.contains("built on      GPU") && text.contains("validate      ok"), "{text}");

@@ -550,7 +550,10 @@ impl super::Structure for Grid {
         let (words, indices) = self.to_gpu();
         Ok(super::GpuImage {
             family: super::KernelFamily::Grid,
-            buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()),
+                indices,
+            )),
             stack_size: 1,
             // About half the cells along the diagonal, a few primitives each.
             cost_per_ray: self.res.iter().map(|&r| u64::from(r)).sum::<u64>() + 16,

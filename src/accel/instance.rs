@@ -176,7 +176,7 @@ impl TwoLevel {
         // (node base, index base, box) of each bottom-level structure.
         let mut place = |a: &Accel, s: &Scene| -> Result<(u32, u32, Aabb), String> {
             let img = a.gpu_image(s).map_err(|e| e.to_string())?;
-            let Some((n, ix)) = img.buffers else {
+            let Some(crate::accel::AccelBuffers::Host(n, ix)) = img.buffers else {
                 return Err(format!("the {} structure has no instance level", a.stats(s).kind));
             };
             stack = stack.max(img.stack_size);
@@ -415,7 +415,7 @@ impl super::Structure for TwoLevel {
         let parts = self.gpu.get_or_init(|| self.assemble(scene)).as_ref().map_err(ValidateError::whole)?;
         Ok(GpuImage {
             family,
-            buffers: Some((std::borrow::Cow::Borrowed(&parts.nodes), &parts.indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(std::borrow::Cow::Borrowed(&parts.nodes), &parts.indices)),
             stack_size: parts.stack_size,
             cost_per_ray: parts.cost_per_ray,
             trace_loop: TraceLoop::StepBudget,

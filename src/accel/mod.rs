@@ -170,7 +170,7 @@ impl AccelKind {
 
     /// Whether `--build gpu` can build this structure ([`bvh::gpu_build`]).
     pub fn builds_on_gpu(self) -> bool {
-        matches!(self, AccelKind::Lbvh | AccelKind::Trbvh)
+        matches!(self, AccelKind::Lbvh | AccelKind::Trbvh | AccelKind::Bvh4 | AccelKind::Bvh8)
     }
 
     /// The command-line flag (without `--`) whose parameters this structure's builder
@@ -397,7 +397,7 @@ pub struct GpuImage<'a> {
     /// Kernel family: `shaders/accel/<family>.glsl`, kernels `trace_<family>_<geometry>`.
     pub family: KernelFamily,
     /// Node words and index words; `None` binds neither buffer.
-    pub buffers: Option<(std::borrow::Cow<'a, [u8]>, &'a [u32])>,
+    pub buffers: Option<AccelBuffers<'a>>,
     /// Entries of the kernel's traversal stack (`SPEC_STACK_SIZE`).
     pub stack_size: u32,
     /// Estimated work (primitive tests or traversal steps) of one ray, to size dispatches.
@@ -415,6 +415,16 @@ pub struct GpuImage<'a> {
     pub resume_words: u32,
 }
 
+/// Where a structure's node and index words are: on the host, uploaded for each
+/// render, or already on the device that built them (`--build gpu`), bound as they are.
+#[derive(Debug, Clone)]
+pub enum AccelBuffers<'a> {
+    /// Node bytes and index words on the host.
+    Host(std::borrow::Cow<'a, [u8]>, &'a [u32]),
+    /// Node and index buffers on the device.
+    Device(std::sync::Arc<crate::gpu::Buffer>, std::sync::Arc<crate::gpu::Buffer>),
+}
+
 /// [`GpuImage::resume_words`] of a kernel that traverses `levels` levels (2 with
 /// instances) with a stack of `stack_size` entries: per level the fixed words and two
 /// stack arrays (shaders/common/resume.glsl).
@@ -422,15 +432,15 @@ pub fn resume_words(levels: u32, stack_size: u32) -> u32 {
     levels * (crate::gpu::bindings::RESUME_LEVEL_WORDS + 2 * stack_size)
 }
 
-/// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh and
-/// trbvh, [`bvh::gpu_build`]).
+/// Where a structure is built: on the CPU (every structure), or on the GPU (lbvh,
+/// trbvh, bvh4 and bvh8, [`bvh::gpu_build`]), where it then stays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BuildOn {
     /// On the CPU (every structure).
     #[default]
     Cpu,
-    /// On the GPU (lbvh and trbvh).
+    /// On the GPU (lbvh, trbvh, bvh4, bvh8), kept there ([`bvh::device::DeviceTree`]).
     Gpu,
 }
 
@@ -458,7 +468,7 @@ impl FromStr for BuildOn {
 /// Builder parameters of every structure that has any.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct AccelParams {
-    /// Where to build (the GPU builds lbvh and trbvh only).
+    /// Where to build (the GPU builds lbvh, trbvh, bvh4 and bvh8).
     pub build: BuildOn,
     /// The kd-tree builder's (`--kd`).
     pub kd: kdtree::KdParams,
@@ -533,6 +543,8 @@ pub enum Accel {
     TwoLevel(Box<instance::TwoLevel>),
     /// The driver's structure (ray queries), instanced scenes included.
     RayQuery(Box<rayquery::RayQuery>),
+    /// A BVH built on the device and kept there (`--build gpu`).
+    Device(Box<bvh::device::DeviceTree>),
 }
 
 impl Accel {
@@ -576,7 +588,7 @@ impl Accel {
     }
 
     /// Builds `kind` where `params.build` says: on the CPU as [`Accel::build_with`], or
-    /// with the GPU builder on `ctx` (lbvh and trbvh; anything else is a usage error).
+    /// with the GPU builder on `ctx` (lbvh, trbvh, bvh4, bvh8; anything else is a usage error).
     pub fn build_on(
         ctx: &crate::gpu::Context,
         kind: AccelKind,
@@ -604,7 +616,7 @@ impl Accel {
         if kind == AccelKind::RayQuery {
             if params.build == BuildOn::Gpu {
                 return Err(crate::error::Error::Usage(
-                    "--build gpu builds lbvh and trbvh; rayquery is built by the device's driver (use --build cpu)"
+                    "--build gpu builds lbvh, trbvh, bvh4 and bvh8; rayquery is built by the device's driver (use --build cpu)"
                         .into(),
                 ));
             }
@@ -616,20 +628,16 @@ impl Accel {
                 Err(crate::error::Error::Usage("--build gpu does not build instanced scenes; use --build cpu".into()))
             }
             BuildOn::Gpu => {
-                let builder = match kind {
-                    AccelKind::Lbvh => bvh::BvhBuilder::Lbvh,
-                    AccelKind::Trbvh => bvh::BvhBuilder::Trbvh,
-                    other => {
-                        return Err(crate::error::Error::Usage(format!(
-                            "--build gpu builds lbvh and trbvh; {other} is built on the CPU (use --build cpu)"
-                        )))
-                    }
-                };
+                let target = bvh::gpu_build::Target::of(kind).ok_or_else(|| {
+                    crate::error::Error::Usage(format!(
+                        "--build gpu builds lbvh, trbvh, bvh4 and bvh8; {kind} is built on the CPU (use --build cpu)"
+                    ))
+                })?;
                 let g = match pipelines {
                     Some(g) => g,
                     None => pipelines.insert(bvh::gpu_build::GpuBuilder::new(ctx)?),
                 };
-                Ok(Accel::Bvh(g.build(ctx, scene, builder, &params.treelet)?))
+                Ok(Accel::Device(Box::new(g.build_target(ctx, scene, target, &params.treelet)?)))
             }
         }
     }
@@ -647,6 +655,23 @@ impl Accel {
             Accel::Octree(t) => t,
             Accel::TwoLevel(t) => t.as_ref(),
             Accel::RayQuery(t) => t.as_ref(),
+            Accel::Device(t) => t.as_ref(),
+        }
+    }
+
+    /// Whether the structure lives on the device only (built there and not read back),
+    /// so that CPU traversal, `validate` and the full `stats` need [`Accel::read_back`].
+    pub fn on_device_only(&self) -> bool {
+        matches!(self, Accel::Device(t) if t.host().is_none())
+    }
+
+    /// Reads a structure built on the device back to the host, for what needs the
+    /// whole tree there (`validate`, node statistics, CPU traversal); its time is a
+    /// phase of the build's (`readback for the host`). Nothing for any other structure.
+    pub fn read_back(&mut self, ctx: &crate::gpu::Context) -> crate::error::Result<()> {
+        match self {
+            Accel::Device(t) => t.read_back(ctx),
+            _ => Ok(()),
         }
     }
 

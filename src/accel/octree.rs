@@ -698,7 +698,10 @@ impl super::Structure for Octree {
         let (words, indices) = self.to_gpu();
         Ok(super::GpuImage {
             family: super::KernelFamily::Octree,
-            buffers: Some((std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()), indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Owned(bytemuck::cast_slice(&words).to_vec()),
+                indices,
+            )),
             stack_size: 1,
             // A descent from the root per cell visited.
             cost_per_ray: 8 * (u64::from(self.depth) + 4),

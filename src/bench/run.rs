@@ -261,8 +261,18 @@ fn bench_round(
     } else {
         None
     };
-    let accel = Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
-    let (frame, st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
+    let mut accel = Accel::build_on_reusing(ctx, kind, scene, params, pipelines)?;
+    let (frame, mut st) = crate::render::gpu::render_with(ctx, scene, &settings, &accel, |_, _| {})?;
+    if accel.on_device_only() {
+        // The row's SAH cost and leaf counts need the tree on the host: read back
+        // after the trace, outside the timed build.
+        accel.read_back(ctx)?;
+        st.build = crate::accel::BuildStats {
+            build_ms: st.build.build_ms,
+            phases: std::mem::take(&mut st.build.phases),
+            ..accel.stats(scene)
+        };
+    }
     case.misses = frame.prim.iter().filter(|&&p| p == u32::MAX).count() as u64;
     case.nodes_p99 = quantile(&frame.nodes, 0.99);
     case.prims_p99 = quantile(&frame.tests, 0.99);

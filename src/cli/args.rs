@@ -68,8 +68,9 @@ pub(crate) struct StructureArgs {
     /// (compact the bottom-level structures after building, default true).
     #[arg(long, default_value = "default", value_name = "PRESET|KEY=VALUE,...")]
     pub(crate) rayquery: String,
-    /// Where to build: cpu (every structure), or gpu (lbvh and trbvh as Vulkan compute
-    /// kernels; the same tree as the CPU builder's, word for word). `bench` takes a
+    /// Where to build: cpu (every structure), or gpu (lbvh, trbvh, bvh4 and bvh8 as
+    /// Vulkan compute kernels, traced where they were built; lbvh and trbvh are the CPU
+    /// builder's tree word for word, bvh4 and bvh8 collapse trbvh's). `bench` takes a
     /// list (cpu,gpu): one row per structure and build device.
     #[arg(long, value_delimiter = ',', default_value = "cpu", value_name = "cpu|gpu")]
     pub(crate) build: Vec<arbor::accel::BuildOn>,

@@ -24,7 +24,11 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
         _ => {
             let ctx = context(&a.device)?;
             trace_device(&ctx);
-            Accel::build_on(&ctx, accel, &scene, &params)?
+            let mut built = Accel::build_on(&ctx, accel, &scene, &params)?;
+            // A tree built on the GPU stays there; info's statistics and validation
+            // need it on the host (the copy's time is a phase of the build).
+            built.read_back(&ctx)?;
+            built
         }
     };
     let report = {

@@ -52,6 +52,11 @@ pub const BINDING_BUILD_OUT_INDICES: u32 = 11;
 /// Build: the schedule of the passes by height (per-height counts, offsets and dispatch
 /// arguments, the nodes listed by height, node heights; see build/common.glsl).
 pub const BINDING_BUILD_LEVELS: u32 = 12;
+/// Build, wide collapse: one word per binary output node (its wide depth, then its
+/// wide node or none), then per-block counts of the wide nodes and their prefix sums.
+pub const BINDING_BUILD_WIDE: u32 = 13;
+/// Build, wide collapse: the wide nodes in the `bvh4` / `bvh8` layout.
+pub const BINDING_BUILD_WIDE_NODES: u32 = 14;
 /// Header words: centroid box min xyz and max xyz as order-preserving uints.
 pub const BUILD_HDR_CMIN: u32 = 0;
 pub const BUILD_HDR_CMAX: u32 = 3;
@@ -61,6 +66,10 @@ pub const BUILD_HDR_DEPTH: u32 = 6;
 pub const BUILD_HDR_ERRORS: u32 = 7;
 /// Header word: output inner nodes.
 pub const BUILD_HDR_NODES: u32 = 8;
+/// Header word: nodes of the wide collapse (`build_wide.comp`).
+pub const BUILD_HDR_WIDE_NODES: u32 = 9;
+/// Header word: deepest wide node (root = 1).
+pub const BUILD_HDR_WIDE_DEPTH: u32 = 10;
 /// Header words in all.
 pub const BUILD_HDR_WORDS: u32 = 16;
 /// Error bit: a climb from a leaf (`build_fit.comp`) exceeded BUILD_MAX_WALK steps.
@@ -107,6 +116,17 @@ pub const BUILD_FINALIZE_COLLAPSE: u32 = 1;
 /// Modes of `build_emit.comp`: seed the root, then one height from the top.
 pub const BUILD_EMIT_ROOT: u32 = 0;
 pub const BUILD_EMIT_TOP: u32 = 1;
+/// Modes of `build_wide.comp`: seed the root, mark wide nodes (one height from the
+/// top), count them per block, scan the counts, number them, write them.
+pub const BUILD_WIDE_SEED: u32 = 0;
+pub const BUILD_WIDE_MARK: u32 = 1;
+pub const BUILD_WIDE_COUNT: u32 = 2;
+pub const BUILD_WIDE_SCAN: u32 = 3;
+pub const BUILD_WIDE_NUMBER: u32 = 4;
+pub const BUILD_WIDE_WRITE: u32 = 5;
+/// Output nodes per thread of the wide collapse's count and number passes (a block is
+/// BUILD_GROUP x this).
+pub const BUILD_WIDE_ITEMS: u32 = 16;
 
 /// Threads per workgroup of the trace kernel (1D).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -283,11 +303,15 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_BUILD_OUT_NODES", BINDING_BUILD_OUT_NODES),
     ("BINDING_BUILD_OUT_INDICES", BINDING_BUILD_OUT_INDICES),
     ("BINDING_BUILD_LEVELS", BINDING_BUILD_LEVELS),
+    ("BINDING_BUILD_WIDE", BINDING_BUILD_WIDE),
+    ("BINDING_BUILD_WIDE_NODES", BINDING_BUILD_WIDE_NODES),
     ("BUILD_HDR_CMIN", BUILD_HDR_CMIN),
     ("BUILD_HDR_CMAX", BUILD_HDR_CMAX),
     ("BUILD_HDR_DEPTH", BUILD_HDR_DEPTH),
     ("BUILD_HDR_ERRORS", BUILD_HDR_ERRORS),
     ("BUILD_HDR_NODES", BUILD_HDR_NODES),
+    ("BUILD_HDR_WIDE_NODES", BUILD_HDR_WIDE_NODES),
+    ("BUILD_HDR_WIDE_DEPTH", BUILD_HDR_WIDE_DEPTH),
     ("BUILD_ERR_WALK", BUILD_ERR_WALK),
     ("BUILD_ERR_LEVELS", BUILD_ERR_LEVELS),
     ("BUILD_MAX_LEVELS", BUILD_MAX_LEVELS),
@@ -309,4 +333,11 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_FINALIZE_COLLAPSE", BUILD_FINALIZE_COLLAPSE),
     ("BUILD_EMIT_ROOT", BUILD_EMIT_ROOT),
     ("BUILD_EMIT_TOP", BUILD_EMIT_TOP),
+    ("BUILD_WIDE_SEED", BUILD_WIDE_SEED),
+    ("BUILD_WIDE_MARK", BUILD_WIDE_MARK),
+    ("BUILD_WIDE_COUNT", BUILD_WIDE_COUNT),
+    ("BUILD_WIDE_SCAN", BUILD_WIDE_SCAN),
+    ("BUILD_WIDE_NUMBER", BUILD_WIDE_NUMBER),
+    ("BUILD_WIDE_WRITE", BUILD_WIDE_WRITE),
+    ("BUILD_WIDE_ITEMS", BUILD_WIDE_ITEMS),
 ];

@@ -303,7 +303,10 @@ impl crate::accel::Structure for Cwbvh {
         let stack_size = 7 * self.depth + 1;
         Ok(GpuImage {
             family: KernelFamily::Cwbvh,
-            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)),
+                &self.indices,
+            )),
             stack_size,
             cost_per_ray: 8 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,

@@ -14,6 +14,12 @@
 //! | restructure round r | `build_levels`, `build_treelet` per height | 7-leaf treelets, lowest first (trbvh) |
 //! | collapse (finalize for lbvh) | `build_levels`, `build_finalize` per height | collapse decisions, output-node counts |
 //! | emit | `build_emit`, per height from the top | nodes and indices in the traversal layout |
+//! | collapse to W-wide (bvh4, bvh8) | `build_wide`: mark per height from the top, count, scan, number; then write | the wide nodes, numbered in preorder |
+//!
+//! **The tree stays on the device** ([`super::device::DeviceTree`]): the trace kernel
+//! binds the buffers `emit` (or `build_wide`) wrote. The host reads back only the
+//! header (errors, node count, depth: a few words), and for a wide tree allocates the
+//! wide nodes once their count is known, between the two submissions.
 //!
 //! **Passes by height.** llvmpipe runs the body of a divergent `if` under a lane mask
 //! even when no lane is active, so a kernel that climbs from the leaves and does a
@@ -34,7 +40,10 @@
 //! optimised only after every treelet below it, as on the CPU, and the emit pass writes
 //! the flattener's preorder (a node's preorder index and first primitive handed down
 //! from its parent).
-//! The tests check this equality, which implies the same SAH cost.
+//! The tests check this equality, which implies the same SAH cost. The wide collapse
+//! equals [`super::wide::WideBvh::collapse`] of the same binary tree, word for word:
+//! the same `open_wide` choices (same areas, the first of equal ones), wide nodes in
+//! preorder on both.
 //!
 //! Buffers (at most 6 per kernel): header, primitive boxes, two pair arrays, the sort's
 //! histogram, canonical nodes (32 bytes), per-node aux words (16 bytes), the schedule
@@ -45,11 +54,13 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
+use super::device::DeviceTree;
 use super::treelet::{TreeletParams, KEEP_FACTOR};
-use super::{Bvh, BvhBuilder, GpuBvhNode, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
+use super::wide::{Bvh4, Bvh8};
+use super::{Bvh, BvhBuilder, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
 use crate::accel::gpu_layout::{GpuBuildPush as Push, GpuSphere, GpuTriangle, GpuVertex};
 use crate::accel::sah::SahCosts;
-use crate::accel::{Geometry, Phase};
+use crate::accel::{AccelKind, Geometry, Phase};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, Context, Kernel, Step};
@@ -61,8 +72,56 @@ const _: () = assert!(BUILD_MAX_LEVELS > MAX_BVH_DEPTH && BUILD_GROUP > BUILD_MA
 
 /// Sort tile: pairs per workgroup.
 const TILE: u64 = (BUILD_GROUP * BUILD_SORT_ITEMS) as u64;
+/// Output nodes per workgroup of the wide collapse's count and number passes.
+const WIDE_BLOCK: u64 = (BUILD_GROUP * BUILD_WIDE_ITEMS) as u64;
 fn storage(binding: u32, name: &'static str) -> BindingDesc {
     BindingDesc { binding, kind: BindingKind::Storage, name }
+}
+
+/// What `--build gpu` makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// A binary BVH from this builder (`lbvh`, `trbvh`).
+    Binary(BvhBuilder),
+    /// The binary tree of `source` collapsed into `width`-wide nodes (4: `bvh4`, 8:
+    /// `bvh8`).
+    Wide {
+        /// The binary builder.
+        source: BvhBuilder,
+        /// Children per node.
+        width: u32,
+    },
+}
+
+impl Target {
+    /// The target of `--accel kind --build gpu`, if the GPU builds that kind: the wide
+    /// kinds collapse trbvh's tree (the CPU's collapse the binned SAH tree).
+    pub fn of(kind: AccelKind) -> Option<Target> {
+        match kind {
+            AccelKind::Lbvh => Some(Target::Binary(BvhBuilder::Lbvh)),
+            AccelKind::Trbvh => Some(Target::Binary(BvhBuilder::Trbvh)),
+            AccelKind::Bvh4 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: 4 }),
+            AccelKind::Bvh8 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: 8 }),
+            _ => None,
+        }
+    }
+
+    /// The structure made.
+    pub fn kind(self) -> AccelKind {
+        match self {
+            Target::Binary(BvhBuilder::Lbvh) => AccelKind::Lbvh,
+            Target::Binary(_) => AccelKind::Trbvh,
+            Target::Wide { width: 8, .. } => AccelKind::Bvh8,
+            Target::Wide { .. } => AccelKind::Bvh4,
+        }
+    }
+
+    /// The binary builder.
+    pub fn source(self) -> BvhBuilder {
+        match self {
+            Target::Binary(b) | Target::Wide { source: b, .. } => b,
+        }
+    }
 }
 
 /// The build pipelines, created once and reused for every build on one context.
@@ -79,6 +138,7 @@ pub struct GpuBuilder {
     treelet: Kernel,
     finalize: Kernel,
     emit: Kernel,
+    wide: Kernel,
     /// Milliseconds spent creating the pipelines (once per process, not per build).
     pub setup_ms: f64,
 }
@@ -162,6 +222,8 @@ struct Buffers {
     levels: Buffer,
     out_nodes: Buffer,
     out_indices: Buffer,
+    /// The wide collapse's words (a stand-in for binary targets).
+    wide: Buffer,
     geometry: Vec<(u32, Buffer)>,
 }
 
@@ -212,13 +274,23 @@ impl GpuBuilder {
             levels: kernel(ctx, "build_levels", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
-            emit: kernel(ctx, "build_emit", &[hdr, nodes, aux, levels, out_nodes, out_idx])?,
+            emit: kernel(ctx, "build_emit", &[hdr.clone(), nodes, aux, levels, out_nodes.clone(), out_idx])?,
+            wide: kernel(
+                ctx,
+                "build_wide",
+                &[
+                    hdr,
+                    out_nodes,
+                    storage(BINDING_BUILD_WIDE, "build_wide"),
+                    storage(BINDING_BUILD_WIDE_NODES, "accel_wide_nodes"),
+                ],
+            )?,
             setup_ms: 0.0,
         };
         Ok(GpuBuilder { setup_ms: t.elapsed().as_secs_f64() * 1e3, ..g })
     }
 
-    fn buffers(&self, ctx: &Context, scene: &Scene) -> Result<Buffers> {
+    fn buffers(&self, ctx: &Context, scene: &Scene, wide: bool) -> Result<Buffers> {
         let n = scene.prim_count() as u64;
         let blocks = n.div_ceil(TILE);
         let mut header = vec![0u32; BUILD_HDR_WORDS as usize];
@@ -259,30 +331,54 @@ impl GpuBuilder {
             levels: storage("build_levels", (u64::from(BUILD_LV_LIST) + n + 2 * n) * 4)?,
             out_nodes: storage("accel_nodes", n.saturating_sub(1).max(1) * 64)?,
             out_indices: storage("accel_indices", n * 4)?,
+            wide: storage("build_wide", if wide { wide_words(n) * 4 } else { 16 })?,
             geometry,
         })
     }
 
-    /// Builds `builder` (lbvh or trbvh; `tp` for trbvh's restructuring) for `scene`
-    /// on the GPU and reads the tree back. Phases: host upload, each GPU phase (from
-    /// timestamps, named `gpu ...`), host readback; `build_ms` is the wall clock of all.
-    pub fn build(&mut self, ctx: &Context, scene: &Scene, builder: BvhBuilder, tp: &TreeletParams) -> Result<Bvh> {
+    /// Builds the binary tree of `builder` (lbvh or trbvh; `tp` for trbvh's
+    /// restructuring) on the GPU and keeps it there ([`GpuBuilder::build_target`]).
+    pub fn build(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        builder: BvhBuilder,
+        tp: &TreeletParams,
+    ) -> Result<DeviceTree> {
+        self.build_target(ctx, scene, Target::Binary(builder), tp)
+    }
+
+    /// Builds `target` for `scene` on the GPU and keeps it there. Phases: the host's
+    /// upload of the geometry, each GPU phase (from timestamps, named `gpu ...`), and
+    /// the host's read of the header (with, for a wide tree, the allocation of its
+    /// nodes); `build_ms` is the wall clock of all.
+    pub fn build_target(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        target: Target,
+        tp: &TreeletParams,
+    ) -> Result<DeviceTree> {
+        let builder = target.source();
         if builder == BvhBuilder::Sah {
-            return Err(Error::Usage("--build gpu builds lbvh and trbvh; bvh-sah is built on the CPU".into()));
+            return Err(Error::Usage("--build gpu builds lbvh and trbvh trees; bvh-sah is built on the CPU".into()));
         }
         let n = scene.prim_count();
         if n == 0 {
-            // Nothing to build: the one-empty-leaf tree every builder makes.
-            return Ok(Bvh::build_with(scene, builder, tp));
+            return empty_tree(ctx, scene, target, tp);
         }
         if n > MAX_BVH_PRIMS || 2 * n as u64 - 1 > u64::from(u32::MAX / 2) {
             return Err(Error::Usage(format!("{n} primitives: the GPU build handles at most {MAX_BVH_PRIMS}")));
         }
+        let width = match target {
+            Target::Wide { width, .. } => width,
+            Target::Binary(_) => 2,
+        };
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
-        let b = self.buffers(ctx, scene)?;
-        super::lap(&mut phases, "upload", &mut t);
+        let b = self.buffers(ctx, scene, width > 2)?;
+        super::lap(&mut phases, "upload geometry", &mut t);
         self.bind(ctx, scene, &b)?;
         let n32 = n as u32;
         let costs = SahCosts::default();
@@ -294,7 +390,7 @@ impl GpuBuilder {
             ct: costs.traversal,
             ci: costs.intersect,
             keep: KEEP_FACTOR,
-            d: 0,
+            d: width,
         };
         let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
         let groups = |threads: u64, size: u32| ctx.grid_for(threads.div_ceil(u64::from(size)));
@@ -344,7 +440,41 @@ impl GpuBuilder {
         steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(BUILD_EMIT_ROOT, 0)), groups: [1, 1, 1] });
         steps.extend(per_height(&self.emit, &b.levels, push(BUILD_EMIT_TOP, 0), true));
         steps.push(Step::Mark("gpu emit"));
-        let gpu = ctx.run_steps(&format!("build {}", builder.name()), &steps)?;
+        // The wide collapse's plan: mark the wide nodes from the top, then number them.
+        let wide_blocks = (n as u64).div_ceil(WIDE_BLOCK);
+        let wide_grid = ctx.grid_for(wide_blocks)?;
+        let mark_name = format!("gpu {width}-wide: mark");
+        let plan_name = format!("gpu {width}-wide: number");
+        if width > 2 {
+            if n as u64 / 2 > 65_535 * u64::from(BUILD_GROUP) {
+                return Err(Error::Usage(format!("{n} primitives: the GPU's wide collapse handles at most 33M")));
+            }
+            let wb = wide_blocks as u32;
+            steps.push(Step::Dispatch {
+                kernel: &self.wide,
+                push: bytes(push(BUILD_WIDE_SEED, wb)),
+                groups: groups(n as u64, BUILD_GROUP)?,
+            });
+            // One indirect dispatch per wide level (a wide tree is no deeper than its
+            // binary tree, which the traversal limits to MAX_BVH_DEPTH).
+            let levels_at = wide_words(n as u64) - u64::from(4 * BUILD_LV_SLOTS);
+            for level in 0..MAX_BVH_DEPTH {
+                steps.push(Step::DispatchIndirect {
+                    kernel: &self.wide,
+                    push: bytes(Push { c: level, ..push(BUILD_WIDE_MARK, wb) }),
+                    args: &b.wide,
+                    offset: (levels_at + u64::from(BUILD_LV_SLOTS + 3 * level)) * 4,
+                });
+            }
+            steps.push(Step::Mark(&mark_name));
+            for (mode, grid) in
+                [(BUILD_WIDE_COUNT, wide_grid), (BUILD_WIDE_SCAN, [1, 1, 1]), (BUILD_WIDE_NUMBER, wide_grid)]
+            {
+                steps.push(Step::Dispatch { kernel: &self.wide, push: bytes(push(mode, wb)), groups: grid });
+            }
+            steps.push(Step::Mark(&plan_name));
+        }
+        let gpu = ctx.run_steps(&format!("build {}", target.kind()), &steps)?;
         drop(steps);
         let gpu_wall = t.elapsed().as_secs_f64() * 1e3;
         if gpu.is_empty() {
@@ -353,44 +483,60 @@ impl GpuBuilder {
         phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
         t = Instant::now();
         let header: Vec<u32> = ctx.read_storage_pod(&b.header, 0, BUILD_HDR_WORDS as usize)?;
-        if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
-            return Err(Error::Usage(format!(
-                "GPU build: the tree is more than {} levels deep, deeper than the traversal kernel's limit \
-                 {MAX_BVH_DEPTH} (use --build cpu to see the final depth)",
-                BUILD_MAX_LEVELS - 1
-            )));
+        check_header(&header, n)?;
+        let binary_nodes = u64::from(header[BUILD_HDR_NODES as usize]);
+        let Buffers { out_nodes, out_indices, wide, .. } = b;
+        if width == 2 {
+            super::lap(&mut phases, "read header", &mut t);
+            let depth = header[BUILD_HDR_DEPTH as usize];
+            return Ok(DeviceTree::new(
+                target.kind(),
+                builder,
+                (out_nodes, out_indices),
+                binary_nodes,
+                depth,
+                n,
+                scene.bounds(),
+                (start.elapsed().as_secs_f64() * 1e3, phases),
+            ));
         }
-        if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
-            return Err(Error::Usage(format!(
-                "GPU build: a walk between a node and the root took over {BUILD_MAX_WALK} steps (use --build cpu)"
-            )));
-        }
-        let depth = header[BUILD_HDR_DEPTH as usize];
-        let count = header[BUILD_HDR_NODES as usize] as u64;
-        if depth > MAX_BVH_DEPTH {
-            return Err(Error::Usage(format!(
-                "GPU build: the tree is {depth} deep, deeper than the traversal kernel's limit {MAX_BVH_DEPTH}"
-            )));
-        }
-        if count == 0 || count > n.max(2) as u64 - 1 {
+        let count = u64::from(header[BUILD_HDR_WIDE_NODES as usize]);
+        let depth = header[BUILD_HDR_WIDE_DEPTH as usize];
+        if count == 0 || count > binary_nodes || depth > MAX_BVH_DEPTH {
             return Err(Error::Vulkan {
                 what: "GPU build".into(),
-                result: format!("{count} output nodes for {n} primitives"),
+                result: format!("{count} {width}-wide nodes of depth {depth} from {binary_nodes} binary nodes"),
             });
         }
-        let nodes: Vec<GpuBvhNode> = ctx.read_storage_pod(&b.out_nodes, 0, count as usize)?;
-        let indices: Vec<u32> = ctx.read_storage_pod(&b.out_indices, 0, n)?;
-        super::lap(&mut phases, "readback", &mut t);
-        Ok(Bvh {
-            bounds: scene.bounds(),
-            nodes,
-            indices,
-            depth,
-            prims: n,
+        let texels = if width == 8 { Bvh8::TEXELS } else { Bvh4::TEXELS } as u64;
+        let wide_nodes = ctx.create_buffer("accel_nodes", count * texels * 16, crate::gpu::BufferKind::Storage)?;
+        ctx.bind(&mut self.wide, BINDING_BUILD_WIDE_NODES, &wide_nodes)?;
+        super::lap(&mut phases, "read header, allocate the wide nodes", &mut t);
+        let write_name = format!("gpu {width}-wide: write");
+        let steps = [
+            Step::Dispatch {
+                kernel: &self.wide,
+                push: bytes(push(BUILD_WIDE_WRITE, wide_blocks as u32)),
+                groups: groups(count, BUILD_GROUP)?,
+            },
+            Step::Mark(&write_name),
+        ];
+        let gpu = ctx.run_steps(&format!("build {} (write)", target.kind()), &steps)?;
+        if gpu.is_empty() {
+            super::lap(&mut phases, "gpu write (no timestamps)", &mut t);
+        }
+        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
+        drop((out_nodes, wide));
+        Ok(DeviceTree::new(
+            target.kind(),
             builder,
-            build_ms: start.elapsed().as_secs_f64() * 1e3,
-            phases,
-        })
+            (wide_nodes, out_indices),
+            count,
+            depth,
+            n,
+            scene.bounds(),
+            (start.elapsed().as_secs_f64() * 1e3, phases),
+        ))
     }
 
     fn bind(&mut self, ctx: &Context, scene: &Scene, b: &Buffers) -> Result<()> {
@@ -430,6 +576,83 @@ impl GpuBuilder {
         }
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_NODES, &b.out_nodes)?;
         ctx.bind(&mut self.emit, BINDING_BUILD_OUT_INDICES, &b.out_indices)?;
+        for (binding, buf) in [
+            (BINDING_BUILD_HEADER, &b.header),
+            (BINDING_BUILD_OUT_NODES, &b.out_nodes),
+            (BINDING_BUILD_WIDE, &b.wide),
+            // A stand-in until the wide nodes are counted and allocated.
+            (BINDING_BUILD_WIDE_NODES, &b.wide),
+        ] {
+            ctx.bind(&mut self.wide, binding, buf)?;
+        }
         Ok(())
     }
+}
+
+/// Words of the wide collapse's buffer for `n` primitives (shaders/build_wide.comp):
+/// a word per output node, the block counts, two level lists of n / 2 + 1, and per
+/// level a count and three dispatch arguments.
+fn wide_words(n: u64) -> u64 {
+    n + n.div_ceil(WIDE_BLOCK) + 2 * (n / 2 + 1) + u64::from(4 * BUILD_LV_SLOTS)
+}
+
+/// Checks the header of a build of `n` primitives: error bits, depth, node count.
+fn check_header(header: &[u32], n: usize) -> Result<()> {
+    if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
+        return Err(Error::Usage(format!(
+            "GPU build: the tree is more than {} levels deep, deeper than the traversal kernel's limit \
+             {MAX_BVH_DEPTH} (use --build cpu to see the final depth)",
+            BUILD_MAX_LEVELS - 1
+        )));
+    }
+    if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
+        return Err(Error::Usage(format!(
+            "GPU build: a walk between a node and the root took over {BUILD_MAX_WALK} steps (use --build cpu)"
+        )));
+    }
+    let depth = header[BUILD_HDR_DEPTH as usize];
+    let count = u64::from(header[BUILD_HDR_NODES as usize]);
+    if depth > MAX_BVH_DEPTH {
+        return Err(Error::Usage(format!(
+            "GPU build: the tree is {depth} deep, deeper than the traversal kernel's limit {MAX_BVH_DEPTH}"
+        )));
+    }
+    if count == 0 || count > n.max(2) as u64 - 1 {
+        return Err(Error::Vulkan {
+            what: "GPU build".into(),
+            result: format!("{count} output nodes for {n} primitives"),
+        });
+    }
+    Ok(())
+}
+
+/// The tree of a scene without primitives (the one-empty-leaf tree every builder
+/// makes), built on the host and put on the device like a built one.
+fn empty_tree(ctx: &Context, scene: &Scene, target: Target, tp: &TreeletParams) -> Result<DeviceTree> {
+    let start = Instant::now();
+    let bin = Bvh::build_with(scene, target.source(), tp);
+    let (words, count, depth): (Vec<u8>, u64, u32) = match target {
+        Target::Binary(_) => (bytemuck::cast_slice(&bin.nodes).to_vec(), bin.nodes.len() as u64, bin.depth),
+        Target::Wide { width: 8, .. } => {
+            let w = Bvh8::collapse(&bin);
+            (bytemuck::cast_slice(&w.nodes).to_vec(), w.node_count() as u64, w.depth)
+        }
+        Target::Wide { .. } => {
+            let w = Bvh4::collapse(&bin);
+            (bytemuck::cast_slice(&w.nodes).to_vec(), w.node_count() as u64, w.depth)
+        }
+    };
+    let nodes = ctx.upload_storage("accel_nodes", &words)?;
+    let indices = ctx.upload_storage("accel_indices", bytemuck::cast_slice(&bin.indices))?;
+    let phases = vec![Phase::since("empty scene: one leaf, uploaded", start)];
+    Ok(DeviceTree::new(
+        target.kind(),
+        target.source(),
+        (nodes, indices),
+        count,
+        depth,
+        0,
+        scene.bounds(),
+        (start.elapsed().as_secs_f64() * 1e3, phases),
+    ))
 }

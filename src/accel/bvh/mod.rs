@@ -40,6 +40,7 @@ use crate::scene::Scene;
 
 pub mod binned;
 pub mod cwbvh;
+pub mod device;
 mod flatten;
 pub mod gpu_build;
 pub mod lbvh;
@@ -679,7 +680,10 @@ impl super::Structure for Bvh {
         let (nodes, indices) = self.to_gpu();
         Ok(super::GpuImage {
             family: super::KernelFamily::Bvh,
-            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)),
+                indices,
+            )),
             stack_size: self.depth + 1,
             cost_per_ray: 4 * (u64::from(self.depth) + 8),
             trace_loop: super::TraceLoop::StepBudget,

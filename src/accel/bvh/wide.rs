@@ -134,10 +134,16 @@ impl<const W: usize> WideBvh<W> {
             build_ms: 0.0,
             phases: Vec::new(),
         };
-        // (binary inner node, wide slot to fill, depth of the wide node)
-        let mut work = vec![(0usize, 0usize, 1u32)];
-        w.nodes.resize(Self::TEXELS, [0; 4]);
-        while let Some((b, slot, d)) = work.pop() {
+        // Wide nodes in preorder, children in order: the numbering the device's collapse
+        // gets by counting wide nodes along the binary tree's preorder (gpu_build.rs).
+        // (binary inner node, the parent's slot that points at it, depth of the wide node)
+        let mut work = vec![(0usize, None::<(usize, usize)>, 1u32)];
+        while let Some((b, parent, d)) = work.pop() {
+            let slot = w.node_count();
+            w.nodes.resize((slot + 1) * Self::TEXELS, [0; 4]);
+            if let Some((p, k)) = parent {
+                w.set(p * Self::TEXELS, 6, k, slot as u32);
+            }
             w.depth = w.depth.max(d);
             let kids = open_wide(bin, b, W);
             let base = slot * Self::TEXELS;
@@ -149,15 +155,13 @@ impl<const W: usize> WideBvh<W> {
                 for (row, v) in planes.iter().enumerate() {
                     w.set(base, row, k, v.to_bits());
                 }
-                let reference = if r & LEAF_REF != 0 {
-                    *r
-                } else {
-                    let child = w.node_count();
-                    w.nodes.resize((child + 1) * Self::TEXELS, [0; 4]);
-                    work.push((*r as usize, child, d + 1));
-                    child as u32
-                };
-                w.set(base, 6, k, reference);
+                // An inner child's reference is set when it gets its slot.
+                w.set(base, 6, k, *r);
+            }
+            for (k, (r, _)) in kids.iter().enumerate().rev() {
+                if r & LEAF_REF == 0 {
+                    work.push((*r as usize, Some((slot, k)), d + 1));
+                }
             }
         }
         w
@@ -346,7 +350,10 @@ impl<const W: usize> crate::accel::Structure for WideBvh<W> {
         let stack_size = (W as u32 - 1) * self.depth + 1;
         Ok(GpuImage {
             family: if W == 8 { KernelFamily::Bvh8 } else { KernelFamily::Bvh4 },
-            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)), &self.indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Borrowed(bytemuck::cast_slice(&self.nodes)),
+                &self.indices,
+            )),
             stack_size,
             cost_per_ray: W as u64 * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,

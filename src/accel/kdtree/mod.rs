@@ -515,7 +515,10 @@ impl super::Structure for KdTree {
         let (nodes, indices) = self.to_gpu();
         Ok(super::GpuImage {
             family: super::KernelFamily::Kdtree,
-            buffers: Some((std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)), indices)),
+            buffers: Some(crate::accel::AccelBuffers::Host(
+                std::borrow::Cow::Borrowed(bytemuck::cast_slice(nodes)),
+                indices,
+            )),
             stack_size: self.depth + 1,
             // A few steps per level: about one step per level plus a few tests.
             cost_per_ray: 4 * (u64::from(self.depth) + 8),

@@ -2,11 +2,12 @@
 //! kernel declares (and only those), checked against the device's buffer range.
 
 use crate::accel::gpu_layout::*;
-use crate::accel::GpuImage;
+use crate::accel::{AccelBuffers, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
 use crate::scene::{Light, Scene};
+use std::sync::Arc;
 
 /// Scene data in GPU layout.
 #[derive(Debug, Clone)]
@@ -91,8 +92,8 @@ fn material_flags(m: &crate::scene::Material) -> u32 {
 pub struct Bound {
     /// The uniform parameters.
     pub uniform: Buffer,
-    /// Storage buffers in binding order.
-    pub storage: Vec<Buffer>,
+    /// Storage buffers in binding order (a structure kept on the device shares its own).
+    pub storage: Vec<Arc<Buffer>>,
     /// Names of every bound buffer, uniform first (for the stats).
     pub names: Vec<String>,
     /// Index in `storage` of the pixel buffer.
@@ -115,7 +116,7 @@ impl Bound {
 
     /// The ray buffer (one `GpuRay` per pixel of a chunk), where the kernel reads rays.
     pub fn rays(&self) -> Option<&Buffer> {
-        self.rays.map(|k| &self.storage[k])
+        self.rays.map(|k| &*self.storage[k])
     }
 }
 
@@ -133,7 +134,7 @@ pub fn bind_all(
 ) -> Result<Bound> {
     let _span = crate::timeline::span("upload", || "upload scene and structure");
     let uniform = ctx.upload_uniform("params", bytemuck::bytes_of(params))?;
-    let mut storage: Vec<Buffer> = Vec::new();
+    let mut storage: Vec<Arc<Buffer>> = Vec::new();
     let mut names = Vec::new();
     let mut pixels = None;
     let mut rays = None;
@@ -151,38 +152,18 @@ pub fn bind_all(
             names.push(b.name.to_string());
             continue;
         }
-        let buf = match b.binding {
-            BINDING_VERTICES => upload_checked(ctx, "vertices", bytemuck::cast_slice(&scene.vertices))?,
-            BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&scene.triangles))?,
-            BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&scene.spheres))?,
-            BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&scene.shading))?,
-            BINDING_ACCEL_NODES => match &image.buffers {
-                Some((nodes, _)) => upload_checked(ctx, "accel_nodes", nodes)?,
-                None => return Err(Error::Usage(format!("the {} structure has no nodes", image.family))),
-            },
-            BINDING_ACCEL_INDICES => match &image.buffers {
-                Some((_, indices)) => upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?,
-                None => return Err(Error::Usage(format!("the {} structure has no indices", image.family))),
-            },
-            // Resumable families: the trace kernel never touches the pool (resume.rs).
-            BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
-            BINDING_PIXELS => {
-                let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
-                check_range(ctx, "pixels", size)?;
-                pixels = Some(storage.len());
-                let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
-                // Cleared here so that on a CPU device the first touch of its pages
-                // (the kernel zeroing them) is not charged to the first trace.
-                ctx.fill_zero(&buf)?;
-                buf
-            }
-            BINDING_RAYS => {
-                let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
-                check_range(ctx, "rays", size)?;
-                rays = Some(storage.len());
-                ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
-            }
-            other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
+        let buf = match (b.binding, &image.buffers) {
+            (BINDING_ACCEL_NODES, Some(AccelBuffers::Device(nodes, _))) => Arc::clone(nodes),
+            (BINDING_ACCEL_INDICES, Some(AccelBuffers::Device(_, indices))) => Arc::clone(indices),
+            _ => Arc::new(upload_one(
+                ctx,
+                b.binding,
+                scene,
+                image,
+                chunk_pixels,
+                (&mut pixels, &mut rays),
+                storage.len(),
+            )?),
         };
         ctx.bind(kernel, b.binding, &buf)?;
         names.push(b.name.to_string());
@@ -190,6 +171,54 @@ pub fn bind_all(
     }
     let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
     Ok(Bound { uniform, storage, names, pixels, rays })
+}
+
+/// Creates the buffer of one binding of [`bind_all`] (uploading what the host has),
+/// noting where the pixel and ray buffers are (`at`: its index in the storage list).
+fn upload_one(
+    ctx: &Context,
+    binding: u32,
+    scene: &GpuScene,
+    image: &GpuImage,
+    chunk_pixels: u64,
+    (pixels, rays): (&mut Option<usize>, &mut Option<usize>),
+    at: usize,
+) -> Result<Buffer> {
+    Ok(match binding {
+        BINDING_VERTICES => upload_checked(ctx, "vertices", bytemuck::cast_slice(&scene.vertices))?,
+        BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&scene.triangles))?,
+        BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&scene.spheres))?,
+        BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&scene.shading))?,
+        BINDING_ACCEL_NODES => match &image.buffers {
+            Some(AccelBuffers::Host(nodes, _)) => upload_checked(ctx, "accel_nodes", nodes)?,
+            _ => return Err(Error::Usage(format!("the {} structure has no nodes", image.family))),
+        },
+        BINDING_ACCEL_INDICES => match &image.buffers {
+            Some(AccelBuffers::Host(_, indices)) => {
+                upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?
+            }
+            _ => return Err(Error::Usage(format!("the {} structure has no indices", image.family))),
+        },
+        // Resumable families: the trace kernel never touches the pool (resume.rs).
+        BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
+        BINDING_PIXELS => {
+            let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
+            check_range(ctx, "pixels", size)?;
+            *pixels = Some(at);
+            let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
+            // Cleared here so that on a CPU device the first touch of its pages
+            // (the kernel zeroing them) is not charged to the first trace.
+            ctx.fill_zero(&buf)?;
+            buf
+        }
+        BINDING_RAYS => {
+            let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
+            check_range(ctx, "rays", size)?;
+            *rays = Some(at);
+            ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
+        }
+        other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
+    })
 }
 
 /// Binds the buffers of `bound` (bound by [`bind_all`] for the same `bindings`) to
