@@ -1,7 +1,7 @@
 #version 460
 #extension GL_EXT_control_flow_attributes : require
 // The binary tree the emit pass wrote (out_nodes, the flattener's preorder) collapsed
-// into W-wide nodes (W = 4 or 8, push d) in the bvh4 / bvh8 layout, equal word for
+// into W-wide nodes (W = 4 or 8) in the bvh4 / bvh8 layout, equal word for
 // word to WideBvh::collapse of the same tree (src/accel/bvh/wide.rs). A wide node's
 // children are open_wide's: its two children, then the inner child of largest area
 // (the first of equal ones) opened in place while fewer than W; the inner ones among
@@ -25,7 +25,8 @@
 //                      inverse map (wide node -> output node) over both
 //   LEVELS             per level: listed nodes (BUILD_LV_SLOTS), dispatch arguments
 //                      (3 words each)
-// Push: n, a = mode, b = blocks, c = level (MARK), d = W.
+// Push: n, a = mode, b = blocks, c = level (MARK). W is a specialization constant
+// (SPEC_WIDE_WIDTH), so every loop over a node's children unrolls to W steps.
 #define USE_HEADER 1
 #include "build/common.glsl"
 
@@ -43,7 +44,7 @@ const uint NUMBER = BUILD_WIDE_NUMBER;
 const uint WRITE = BUILD_WIDE_WRITE;
 const uint LEAF_REF = 0x80000000u;
 const uint EMPTY_REF = 0xffffffffu;
-const uint MAX_W = 8u;
+layout(constant_id = SPEC_WIDE_WIDTH) const uint W = 4u;
 
 uint half_list() { return pc.n / 2u + 1u; }
 uint lists() { return pc.n + pc.b; }
@@ -54,19 +55,19 @@ shared uint s_scan[BUILD_GROUP];
 
 // The children of a wide node: references (binary preorder index or leaf reference)
 // and boxes.
-uint kref[MAX_W];
-vec3 klo[MAX_W];
-vec3 khi[MAX_W];
+uint kref[W];
+vec3 klo[W];
+vec3 khi[W];
 uint nk;
 
 // open_wide of output node b (src/accel/bvh/wide.rs), with the same area and the same
 // choice among equal areas (the first). Every loop is unrolled so that the arrays are
 // indexed by constants only (registers, not memory, on llvmpipe too); slots from nk on
 // hold EMPTY_REF.
-void open_kids(uint b, uint width) {
+void open_kids(uint b) {
     uvec4 l0 = out_nodes[4u * b], l1 = out_nodes[4u * b + 1u];
     uvec4 l2 = out_nodes[4u * b + 2u], l3 = out_nodes[4u * b + 3u];
-    [[unroll]] for (uint k = 0u; k < MAX_W; k++) {
+    [[unroll]] for (uint k = 0u; k < W; k++) {
         kref[k] = EMPTY_REF;
         klo[k] = vec3(0.0);
         khi[k] = vec3(0.0);
@@ -76,31 +77,31 @@ void open_kids(uint b, uint width) {
     kref[1] = l1.w;
     if (l1.w != EMPTY_REF) { klo[1] = uintBitsToFloat(l2.xyz); khi[1] = uintBitsToFloat(l3.xyz); }
     nk = l1.w == EMPTY_REF ? 1u : 2u;
-    [[unroll]] for (uint round = 0u; round < MAX_W - 2u; round++) {
-        uint best = MAX_W;
+    [[unroll]] for (uint round = 0u; round < W - 2u; round++) {
+        uint best = W;
         uint r = 0u;
         float best_area = 0.0;
-        [[unroll]] for (uint k = 0u; k < MAX_W; k++) {
+        [[unroll]] for (uint k = 0u; k < W; k++) {
             float a = box_area(klo[k], khi[k]);
-            if ((kref[k] & LEAF_REF) == 0u && (best == MAX_W || a > best_area)) {
+            if ((kref[k] & LEAF_REF) == 0u && (best == W || a > best_area)) {
                 best = k;
                 best_area = a;
                 r = kref[k];
             }
         }
-        if (nk < width && best != MAX_W) {
+        if (nk < W && best != W) {
             // An inner node other than a lone root has two children: those after
             // `best` move up by one, and both children take its place.
             uvec4 a0 = out_nodes[4u * r], a1 = out_nodes[4u * r + 1u];
             uvec4 a2 = out_nodes[4u * r + 2u], a3 = out_nodes[4u * r + 3u];
-            [[unroll]] for (int k = int(MAX_W) - 1; k >= 1; k--) {
+            [[unroll]] for (int k = int(W) - 1; k >= 1; k--) {
                 if (uint(k) > best + 1u) {
                     kref[k] = kref[k - 1]; klo[k] = klo[k - 1]; khi[k] = khi[k - 1];
                 } else if (uint(k) == best + 1u) {
                     kref[k] = a1.w; klo[k] = uintBitsToFloat(a2.xyz); khi[k] = uintBitsToFloat(a3.xyz);
                 }
             }
-            [[unroll]] for (uint k = 0u; k < MAX_W; k++) {
+            [[unroll]] for (uint k = 0u; k < W; k++) {
                 if (k == best) { kref[k] = a0.w; klo[k] = uintBitsToFloat(a0.xyz); khi[k] = uintBitsToFloat(a1.xyz); }
             }
             nk++;
@@ -119,7 +120,6 @@ uint marked(uint i) {
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
-    uint width = pc.d;
     if (pc.a == SEED) {
         uint i = thread_index();
         if (i < pc.n) wide[i] = i == 0u ? 1u : 0u;
@@ -141,15 +141,15 @@ void main() {
         if (t >= wide[level_count(l)]) return;
         if (t == 0u) atomicMax(hdr[BUILD_HDR_WIDE_DEPTH], l + 1u);
         uint b = wide[lists() + (l % 2u) * half_list() + t];
-        open_kids(b, width);
+        open_kids(b);
         uint m = 0u;
-        [[unroll]] for (uint k = 0u; k < MAX_W; k++) m += (kref[k] & LEAF_REF) == 0u ? 1u : 0u;
+        [[unroll]] for (uint k = 0u; k < W; k++) m += (kref[k] & LEAF_REF) == 0u ? 1u : 0u;
         uint next = lists() + ((l + 1u) % 2u) * half_list();
         uint at = m > 0u ? atomicAdd(wide[level_count(l + 1u)], m) : 0u;
         // Workgroups of the next level: each reservation adds those it begins.
         uint groups = (at + m + BUILD_GROUP - 1u) / BUILD_GROUP - (at + BUILD_GROUP - 1u) / BUILD_GROUP;
         if (groups > 0u) atomicAdd(wide[level_args(l + 1u)], groups);
-        [[unroll]] for (uint k = 0u; k < MAX_W; k++) {
+        [[unroll]] for (uint k = 0u; k < W; k++) {
             if ((kref[k] & LEAF_REF) == 0u) {
                 wide[kref[k]] = 1u;
                 wide[next + at] = kref[k];
@@ -220,12 +220,11 @@ void main() {
     // WRITE
     uint j = thread_index();
     if (j >= hdr[BUILD_HDR_WIDE_NODES]) return;
-    open_kids(wide[lists() + j], width);
-    uint row = width / 4u;
+    open_kids(wide[lists() + j]);
+    uint row = W / 4u;
     uint base = j * 7u * row;
-    [[unroll]] for (uint k = 0u; k < MAX_W; k++) {
+    [[unroll]] for (uint k = 0u; k < W; k++) {
         uint r = kref[k];
-        if (k >= width) break;
         if ((r & LEAF_REF) == 0u) r = wide[r];
         // Empty slots: EMPTY_REF with an all-zero box (open_kids cleared them).
         uint planes[7] = uint[7](floatBitsToUint(klo[k].x), floatBitsToUint(klo[k].y), floatBitsToUint(klo[k].z),

@@ -168,6 +168,8 @@ pub const SPEC_SCATTER_GROUP: u32 = 8;
 /// for the reason given at SPEC_LIGHTS).
 pub const SPEC_TRIANGLE_COUNT: u32 = 9;
 pub const SPEC_SPHERE_COUNT: u32 = 10;
+/// Children per node of the wide collapse (`build_wide.comp`): 4 or 8.
+pub const SPEC_WIDE_WIDTH: u32 = 20;
 /// Integrator of the trace kernel: 0 Whitted, 1 path tracing, 2 the benchmark's probe
 /// (camera rays and, with `SPEC_DIFFUSE_PROBE`, one bounce; no shading).
 pub const SPEC_INTEGRATOR: u32 = 11;
@@ -262,6 +264,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("SPEC_FIT_GROUP", SPEC_FIT_GROUP),
     ("SPEC_SCATTER_GROUP", SPEC_SCATTER_GROUP),
+    ("SPEC_WIDE_WIDTH", SPEC_WIDE_WIDTH),
     ("SPEC_TRIANGLE_COUNT", SPEC_TRIANGLE_COUNT),
     ("SPEC_SPHERE_COUNT", SPEC_SPHERE_COUNT),
     ("SPEC_INTEGRATOR", SPEC_INTEGRATOR),

@@ -138,7 +138,8 @@ pub struct GpuBuilder {
     treelet: Kernel,
     finalize: Kernel,
     emit: Kernel,
-    wide: Kernel,
+    /// The wide collapse, 4 and 8 wide (`SPEC_WIDE_WIDTH`).
+    wide: [Kernel; 2],
     /// Milliseconds spent creating the pipelines (once per process, not per build).
     pub setup_ms: f64,
 }
@@ -275,16 +276,18 @@ impl GpuBuilder {
             treelet: kernel(ctx, "build_treelet", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             finalize: kernel(ctx, "build_finalize", &[hdr.clone(), nodes.clone(), aux.clone(), levels.clone()])?,
             emit: kernel(ctx, "build_emit", &[hdr.clone(), nodes, aux, levels, out_nodes.clone(), out_idx])?,
-            wide: kernel(
-                ctx,
-                "build_wide",
-                &[
-                    hdr,
-                    out_nodes,
-                    storage(BINDING_BUILD_WIDE, "build_wide"),
-                    storage(BINDING_BUILD_WIDE_NODES, "accel_wide_nodes"),
-                ],
-            )?,
+            wide: {
+                let [four, eight] = [4, 8].map(|w| {
+                    let b = [
+                        hdr.clone(),
+                        out_nodes.clone(),
+                        storage(BINDING_BUILD_WIDE, "build_wide"),
+                        storage(BINDING_BUILD_WIDE_NODES, "accel_wide_nodes"),
+                    ];
+                    kernel_with(ctx, "build_wide", &b, &[(SPEC_WIDE_WIDTH, w)])
+                });
+                [four?, eight?]
+            },
             setup_ms: 0.0,
         };
         Ok(GpuBuilder { setup_ms: t.elapsed().as_secs_f64() * 1e3, ..g })
@@ -374,6 +377,7 @@ impl GpuBuilder {
             Target::Wide { width, .. } => width,
             Target::Binary(_) => 2,
         };
+        let wk = usize::from(width == 8);
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
@@ -451,7 +455,7 @@ impl GpuBuilder {
             }
             let wb = wide_blocks as u32;
             steps.push(Step::Dispatch {
-                kernel: &self.wide,
+                kernel: &self.wide[wk],
                 push: bytes(push(BUILD_WIDE_SEED, wb)),
                 groups: groups(n as u64, BUILD_GROUP)?,
             });
@@ -460,7 +464,7 @@ impl GpuBuilder {
             let levels_at = wide_words(n as u64) - u64::from(4 * BUILD_LV_SLOTS);
             for level in 0..MAX_BVH_DEPTH {
                 steps.push(Step::DispatchIndirect {
-                    kernel: &self.wide,
+                    kernel: &self.wide[wk],
                     push: bytes(Push { c: level, ..push(BUILD_WIDE_MARK, wb) }),
                     args: &b.wide,
                     offset: (levels_at + u64::from(BUILD_LV_SLOTS + 3 * level)) * 4,
@@ -470,7 +474,7 @@ impl GpuBuilder {
             for (mode, grid) in
                 [(BUILD_WIDE_COUNT, wide_grid), (BUILD_WIDE_SCAN, [1, 1, 1]), (BUILD_WIDE_NUMBER, wide_grid)]
             {
-                steps.push(Step::Dispatch { kernel: &self.wide, push: bytes(push(mode, wb)), groups: grid });
+                steps.push(Step::Dispatch { kernel: &self.wide[wk], push: bytes(push(mode, wb)), groups: grid });
             }
             steps.push(Step::Mark(&plan_name));
         }
@@ -510,12 +514,12 @@ impl GpuBuilder {
         }
         let texels = if width == 8 { Bvh8::TEXELS } else { Bvh4::TEXELS } as u64;
         let wide_nodes = ctx.create_buffer("accel_nodes", count * texels * 16, crate::gpu::BufferKind::Storage)?;
-        ctx.bind(&mut self.wide, BINDING_BUILD_WIDE_NODES, &wide_nodes)?;
+        ctx.bind(&mut self.wide[wk], BINDING_BUILD_WIDE_NODES, &wide_nodes)?;
         super::lap(&mut phases, "read header, allocate the wide nodes", &mut t);
         let write_name = format!("gpu {width}-wide: write");
         let steps = [
             Step::Dispatch {
-                kernel: &self.wide,
+                kernel: &self.wide[wk],
                 push: bytes(push(BUILD_WIDE_WRITE, wide_blocks as u32)),
                 groups: groups(count, BUILD_GROUP)?,
             },
@@ -583,7 +587,9 @@ impl GpuBuilder {
             // A stand-in until the wide nodes are counted and allocated.
             (BINDING_BUILD_WIDE_NODES, &b.wide),
         ] {
-            ctx.bind(&mut self.wide, binding, buf)?;
+            for k in &mut self.wide {
+                ctx.bind(k, binding, buf)?;
+            }
         }
         Ok(())
     }
