@@ -13,7 +13,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::wide::{check_limits, Bvh4, Bvh8};
+use super::wide::{check_limits, Bvh4, Bvh8, WideBvh};
 use super::{Bvh, BvhBuilder, GpuBvhNode};
 use crate::accel::prim::Prims;
 use crate::accel::validate::ValidateError;
@@ -122,34 +122,9 @@ impl DeviceTree {
     pub fn to_host(&self, ctx: &Context) -> Result<Accel> {
         let texels = (self.node_count * self.node_texels()) as usize;
         let indices: Vec<u32> = ctx.read_storage_pod(&self.indices, 0, self.prims)?;
-        let timing = (self.build_ms, self.phases.clone());
         Ok(match self.kind {
-            AccelKind::Bvh4 => {
-                let nodes: Vec<[u32; 4]> = ctx.read_storage_pod(&self.nodes, 0, texels)?;
-                Accel::Bvh4(Bvh4 {
-                    bounds: self.bounds,
-                    nodes,
-                    indices,
-                    depth: self.depth,
-                    prims: self.prims,
-                    source: self.source,
-                    build_ms: timing.0,
-                    phases: timing.1,
-                })
-            }
-            AccelKind::Bvh8 => {
-                let nodes: Vec<[u32; 4]> = ctx.read_storage_pod(&self.nodes, 0, texels)?;
-                Accel::Bvh8(Bvh8 {
-                    bounds: self.bounds,
-                    nodes,
-                    indices,
-                    depth: self.depth,
-                    prims: self.prims,
-                    source: self.source,
-                    build_ms: timing.0,
-                    phases: timing.1,
-                })
-            }
+            AccelKind::Bvh4 => Accel::Bvh4(self.wide_host(ctx, texels, indices)?),
+            AccelKind::Bvh8 => Accel::Bvh8(self.wide_host(ctx, texels, indices)?),
             _ => {
                 let nodes: Vec<GpuBvhNode> = ctx.read_storage_pod(&self.nodes, 0, self.node_count as usize)?;
                 Accel::Bvh(Bvh {
@@ -159,10 +134,24 @@ impl DeviceTree {
                     depth: self.depth,
                     prims: self.prims,
                     builder: self.source,
-                    build_ms: timing.0,
-                    phases: timing.1,
+                    build_ms: self.build_ms,
+                    phases: self.phases.clone(),
                 })
             }
+        })
+    }
+
+    /// The W-wide host structure of `texels` node texels and the read `indices`.
+    fn wide_host<const W: usize>(&self, ctx: &Context, texels: usize, indices: Vec<u32>) -> Result<WideBvh<W>> {
+        Ok(WideBvh {
+            bounds: self.bounds,
+            nodes: ctx.read_storage_pod(&self.nodes, 0, texels)?,
+            indices,
+            depth: self.depth,
+            prims: self.prims,
+            source: self.source,
+            build_ms: self.build_ms,
+            phases: self.phases.clone(),
         })
     }
 
