@@ -139,6 +139,11 @@ fn gpu_built_wide_trees_render_without_readback() {
     assert_eq!(frame.prim, reference.prim, "trbvh kept on the device");
     let names: Vec<&str> = st.build.phases.iter().map(|p| p.name.as_str()).collect();
     assert!(!names.iter().any(|n| n.contains("readback")), "{names:?}");
+    // The geometry crossed the bus once: the trace bound the build's buffers.
+    for name in ["vertices", "triangles"] {
+        assert!(st.bindings.contains(&format!("{name} (the build's)")), "{name}: {:?}", st.bindings);
+        assert!(!st.bindings.iter().any(|b| b == name), "{name} uploaded again: {:?}", st.bindings);
+    }
 }
 
 #[test]

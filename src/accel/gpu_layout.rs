@@ -8,6 +8,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::scene::Scene;
+
 /// One vertex: position and shading normal, interleaved so that one storage buffer
 /// holds both. `normal[3]` is 1.0 when the normal is valid, 0.0 when the triangle
 /// should use its geometric normal.
@@ -37,6 +39,37 @@ pub struct GpuSphere {
     pub center_radius: [f32; 4],
     /// bytes 16..20 material index, 20..32 unused (0)
     pub material: [u32; 4],
+}
+
+/// The vertices of one mesh `g` in GPU layout: positions, shading normals and texture
+/// coordinates (0 where the mesh has none; a vertex without a normal gets the zero one). The render and the GPU build upload the
+/// same words, so a tree built on the device is traced over the build's buffers.
+pub fn gpu_vertices(g: &Scene) -> impl Iterator<Item = GpuVertex> + '_ {
+    g.positions.iter().enumerate().map(move |(k, p)| {
+        let uv = g.uvs.get(k).copied().unwrap_or(glam::Vec2::ZERO);
+        let n = g.normals.get(k).copied().unwrap_or(glam::Vec3::ZERO);
+        GpuVertex { position: [p.x, p.y, p.z, uv.x], normal: [n.x, n.y, n.z, uv.y] }
+    })
+}
+
+/// The triangles of one mesh `g` in GPU layout, their vertex indices offset by `base`.
+pub fn gpu_triangles(g: &Scene, base: u32) -> impl Iterator<Item = GpuTriangle> + '_ {
+    g.triangles
+        .iter()
+        .zip(&g.tri_material)
+        .map(move |(t, m)| GpuTriangle { v: [t[0] + base, t[1] + base, t[2] + base, *m] })
+}
+
+/// The analytic spheres of `scene` in GPU layout.
+pub fn gpu_spheres(scene: &Scene) -> Vec<GpuSphere> {
+    scene
+        .spheres
+        .iter()
+        .map(|s| GpuSphere {
+            center_radius: [s.center.x, s.center.y, s.center.z, s.radius],
+            material: [s.material, 0, 0, 0],
+        })
+        .collect()
 }
 
 /// One material: four vec4 rows of the shading buffer.

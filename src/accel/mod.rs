@@ -421,8 +421,16 @@ pub struct GpuImage<'a> {
 pub enum AccelBuffers<'a> {
     /// Node bytes and index words on the host.
     Host(std::borrow::Cow<'a, [u8]>, &'a [u32]),
-    /// Node and index buffers on the device.
-    Device(std::sync::Arc<crate::gpu::Buffer>, std::sync::Arc<crate::gpu::Buffer>),
+    /// Node and index buffers on the device, with the geometry the build uploaded
+    /// (by binding, in the render's layout), which the trace binds instead of its own.
+    Device {
+        /// The node buffer.
+        nodes: std::sync::Arc<crate::gpu::Buffer>,
+        /// The primitive index buffer.
+        indices: std::sync::Arc<crate::gpu::Buffer>,
+        /// `(binding, buffer)` for vertices, triangles and spheres.
+        geometry: &'a [(u32, std::sync::Arc<crate::gpu::Buffer>)],
+    },
 }
 
 /// [`GpuImage::resume_words`] of a kernel that traverses `levels` levels (2 with

@@ -35,6 +35,10 @@ pub struct DeviceTree {
     pub nodes: Arc<Buffer>,
     /// Primitive index buffer: `prims` words.
     pub indices: Arc<Buffer>,
+    /// The scene's geometry as the build uploaded it, in the render's layout, by
+    /// binding (vertices and triangles, spheres): the trace binds these too, so the
+    /// geometry crosses the bus once. Empty for a tree without primitives.
+    pub geometry: Vec<(u32, Arc<Buffer>)>,
     /// Nodes in `nodes`.
     pub node_count: u64,
     /// Nodes on the longest root-to-leaf path (the host structure's `depth`).
@@ -56,7 +60,7 @@ impl DeviceTree {
     pub(super) fn new(
         kind: AccelKind,
         source: BvhBuilder,
-        (nodes, indices): (Buffer, Buffer),
+        (nodes, indices, geometry): (Buffer, Buffer, Vec<(u32, Arc<Buffer>)>),
         node_count: u64,
         depth: u32,
         prims: usize,
@@ -68,6 +72,7 @@ impl DeviceTree {
             source,
             nodes: Arc::new(nodes),
             indices: Arc::new(indices),
+            geometry,
             node_count,
             depth,
             prims,
@@ -216,7 +221,11 @@ impl crate::accel::Structure for DeviceTree {
         };
         Ok(GpuImage {
             family,
-            buffers: Some(AccelBuffers::Device(Arc::clone(&self.nodes), Arc::clone(&self.indices))),
+            buffers: Some(AccelBuffers::Device {
+                nodes: Arc::clone(&self.nodes),
+                indices: Arc::clone(&self.indices),
+                geometry: &self.geometry,
+            }),
             stack_size,
             cost_per_ray: width * (u64::from(self.depth) + 8),
             trace_loop: TraceLoop::StepBudget,

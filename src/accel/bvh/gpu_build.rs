@@ -52,13 +52,14 @@
 //! storage-buffer range: about 4M primitives at 128 MiB.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::device::DeviceTree;
 use super::treelet::{TreeletParams, KEEP_FACTOR};
 use super::wide::{Bvh4, Bvh8};
 use super::{Bvh, BvhBuilder, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
-use crate::accel::gpu_layout::{GpuBuildPush as Push, GpuSphere, GpuTriangle, GpuVertex};
+use crate::accel::gpu_layout::{gpu_spheres, gpu_triangles, gpu_vertices, GpuBuildPush as Push, GpuTriangle, GpuVertex};
 use crate::accel::sah::SahCosts;
 use crate::accel::{AccelKind, Geometry, Phase};
 use crate::error::{Error, Result};
@@ -225,7 +226,8 @@ struct Buffers {
     out_indices: Buffer,
     /// The wide collapse's words (a stand-in for binary targets).
     wide: Buffer,
-    geometry: Vec<(u32, Buffer)>,
+    /// The scene's geometry in the render's layout, kept for the trace.
+    geometry: Vec<(u32, Arc<Buffer>)>,
 }
 
 impl GpuBuilder {
@@ -301,24 +303,20 @@ impl GpuBuilder {
             header[(BUILD_HDR_CMIN + k) as usize] = u32::MAX;
         }
         let mut geometry = Vec::new();
+        // The render's layout (shading normals, texture coordinates, materials), which
+        // the build ignores: the trace binds these buffers as they are.
+        let mut upload = |binding: u32, name: &str, bytes: &[u8]| -> Result<()> {
+            geometry.push((binding, Arc::new(ctx.upload_storage(name, bytes)?)));
+            Ok(())
+        };
         if !scene.triangles.is_empty() {
-            let v: Vec<GpuVertex> = scene
-                .positions
-                .iter()
-                .map(|p| GpuVertex { position: [p.x, p.y, p.z, 0.0], normal: [0.0; 4] })
-                .collect();
-            let t: Vec<GpuTriangle> =
-                scene.triangles.iter().map(|t| GpuTriangle { v: [t[0], t[1], t[2], 0] }).collect();
-            geometry.push((BINDING_VERTICES, ctx.upload_storage("vertices", bytemuck::cast_slice(&v))?));
-            geometry.push((BINDING_TRIANGLES, ctx.upload_storage("triangles", bytemuck::cast_slice(&t))?));
+            let v: Vec<GpuVertex> = gpu_vertices(scene).collect();
+            let t: Vec<GpuTriangle> = gpu_triangles(scene, 0).collect();
+            upload(BINDING_VERTICES, "vertices", bytemuck::cast_slice(&v))?;
+            upload(BINDING_TRIANGLES, "triangles", bytemuck::cast_slice(&t))?;
         }
         if !scene.spheres.is_empty() {
-            let s: Vec<GpuSphere> = scene
-                .spheres
-                .iter()
-                .map(|s| GpuSphere { center_radius: [s.center.x, s.center.y, s.center.z, s.radius], material: [0; 4] })
-                .collect();
-            geometry.push((BINDING_SPHERES, ctx.upload_storage("spheres", bytemuck::cast_slice(&s))?));
+            upload(BINDING_SPHERES, "spheres", bytemuck::cast_slice(&gpu_spheres(scene)))?;
         }
         let storage = |name: &str, bytes: u64| ctx.create_buffer(name, bytes, crate::gpu::BufferKind::Storage);
         Ok(Buffers {
@@ -489,14 +487,14 @@ impl GpuBuilder {
         let header: Vec<u32> = ctx.read_storage_pod(&b.header, 0, BUILD_HDR_WORDS as usize)?;
         check_header(&header, n)?;
         let binary_nodes = u64::from(header[BUILD_HDR_NODES as usize]);
-        let Buffers { out_nodes, out_indices, wide, .. } = b;
+        let Buffers { out_nodes, out_indices, wide, geometry, .. } = b;
         if width == 2 {
             super::lap(&mut phases, "read header", &mut t);
             let depth = header[BUILD_HDR_DEPTH as usize];
             return Ok(DeviceTree::new(
                 target.kind(),
                 builder,
-                (out_nodes, out_indices),
+                (out_nodes, out_indices, geometry),
                 binary_nodes,
                 depth,
                 n,
@@ -534,7 +532,7 @@ impl GpuBuilder {
         Ok(DeviceTree::new(
             target.kind(),
             builder,
-            (wide_nodes, out_indices),
+            (wide_nodes, out_indices, geometry),
             count,
             depth,
             n,
@@ -654,7 +652,7 @@ fn empty_tree(ctx: &Context, scene: &Scene, target: Target, tp: &TreeletParams) 
     Ok(DeviceTree::new(
         target.kind(),
         target.source(),
-        (nodes, indices),
+        (nodes, indices, Vec::new()),
         count,
         depth,
         0,

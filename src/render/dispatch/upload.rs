@@ -29,28 +29,10 @@ impl GpuScene {
         let protos = scene.instancing.iter().flat_map(|i| i.prototypes.iter().map(|p| &p.geometry));
         for g in protos.chain(std::iter::once(scene)) {
             let base = vertices.len() as u32;
-            let uv = |k: usize| g.uvs.get(k).copied().unwrap_or(glam::Vec2::ZERO);
-            vertices.extend(
-                g.positions.iter().zip(&g.normals).enumerate().map(|(k, (p, n))| GpuVertex {
-                    position: [p.x, p.y, p.z, uv(k).x],
-                    normal: [n.x, n.y, n.z, uv(k).y],
-                }),
-            );
-            triangles.extend(
-                g.triangles
-                    .iter()
-                    .zip(&g.tri_material)
-                    .map(|(t, m)| GpuTriangle { v: [t[0] + base, t[1] + base, t[2] + base, *m] }),
-            );
+            vertices.extend(gpu_vertices(g));
+            triangles.extend(gpu_triangles(g, base));
         }
-        let spheres = scene
-            .spheres
-            .iter()
-            .map(|s| GpuSphere {
-                center_radius: [s.center.x, s.center.y, s.center.z, s.radius],
-                material: [s.material, 0, 0, 0],
-            })
-            .collect();
+        let spheres = gpu_spheres(scene);
         GpuScene { vertices, triangles, spheres, shading: shading_rows(scene) }
     }
 }
@@ -152,9 +134,15 @@ pub fn bind_all(
             names.push(b.name.to_string());
             continue;
         }
+        if let Some(kept) = built_geometry(b.binding, scene, image) {
+            ctx.bind(kernel, b.binding, &kept)?;
+            names.push(format!("{} (the build's)", b.name));
+            storage.push(kept);
+            continue;
+        }
         let buf = match (b.binding, &image.buffers) {
-            (BINDING_ACCEL_NODES, Some(AccelBuffers::Device(nodes, _))) => Arc::clone(nodes),
-            (BINDING_ACCEL_INDICES, Some(AccelBuffers::Device(_, indices))) => Arc::clone(indices),
+            (BINDING_ACCEL_NODES, Some(AccelBuffers::Device { nodes, .. })) => Arc::clone(nodes),
+            (BINDING_ACCEL_INDICES, Some(AccelBuffers::Device { indices, .. })) => Arc::clone(indices),
             _ => Arc::new(upload_one(
                 ctx,
                 b.binding,
@@ -171,6 +159,21 @@ pub fn bind_all(
     }
     let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
     Ok(Bound { uniform, storage, names, pixels, rays })
+}
+
+/// The geometry buffer at `binding` that a structure built on the device uploaded, if
+/// it holds the words `scene` would upload (the same layout, written by the same
+/// functions; a scene with instances, whose prototypes come first, never matches).
+fn built_geometry(binding: u32, scene: &GpuScene, image: &GpuImage) -> Option<Arc<Buffer>> {
+    let Some(AccelBuffers::Device { geometry, .. }) = &image.buffers else { return None };
+    let (_, buf) = geometry.iter().find(|(b, _)| *b == binding)?;
+    let bytes = match binding {
+        BINDING_VERTICES => std::mem::size_of_val(scene.vertices.as_slice()),
+        BINDING_TRIANGLES => std::mem::size_of_val(scene.triangles.as_slice()),
+        BINDING_SPHERES => std::mem::size_of_val(scene.spheres.as_slice()),
+        _ => return None,
+    };
+    (buf.size() == bytes as u64).then(|| Arc::clone(buf))
 }
 
 /// Creates the buffer of one binding of [`bind_all`] (uploading what the host has),
