@@ -11,7 +11,11 @@
 // output nodes and primitives. An output inner node (not collapsed, no collapsed
 // ancestor) writes itself; a canonical leaf child gets its primitive's index entry.
 // A root that is a leaf or collapsed becomes one node with an empty right child.
-// Push: n, a = mode, c = height.
+// With b = UNFINALIZED (the LBVH, which collapses nothing and so needs no finalize
+// pass) no node is collapsed and a subtree of k primitives has k - 1 inner nodes; aux.z
+// still holds the fit's cost. The deepest output node has no inner output child, so
+// only such a node bids for the depth, and only when it beats the depth seen so far
+// (one word every node would hit). Push: n, a = mode, b, c = height.
 #define USE_HEADER 1
 #define USE_NODES 1
 #define USE_LEVELS 1
@@ -28,8 +32,13 @@ const uint LEAF_REF = 0x80000000u;
 const uint EMPTY_REF = 0xffffffffu;
 const uint HIDDEN = 0x80000000u;
 
-bool collapsed(uint i) { return !is_leaf(i) && aux[i].z == COLLAPSED; }
-uint inner_nodes(uint i) { return (is_leaf(i) || collapsed(i)) ? 0u : aux[i].z; }
+const uint UNFINALIZED = BUILD_EMIT_UNFINALIZED;
+
+bool collapsed(uint i) { return pc.b != UNFINALIZED && !is_leaf(i) && aux[i].z == COLLAPSED; }
+uint inner_nodes(uint i) {
+    if (is_leaf(i) || collapsed(i)) return 0u;
+    return pc.b == UNFINALIZED ? aux[i].y - 1u : aux[i].z;
+}
 
 uint child_ref(uint c, uint pre, uint first) {
     if (is_leaf(c) || collapsed(c)) return LEAF_REF | (first << 3u) | (aux[c].y - 1u);
@@ -68,7 +77,7 @@ void main() {
             hdr[BUILD_HDR_DEPTH] = 1u;
             hdr[BUILD_HDR_NODES] = 1u;
         } else {
-            hdr[BUILD_HDR_NODES] = aux[0].z;
+            hdr[BUILD_HDR_NODES] = inner_nodes(0u);
         }
         seed(0u, 0u, 0u, 1u);
         return;
@@ -90,5 +99,5 @@ void main() {
     seed(r, pre_r, first_r, below);
     if (hidden || collapsed(p)) return;
     write_node(pre, child_ref(l, pre + 1u, first), l, child_ref(r, pre_r, first_r), r);
-    atomicMax(hdr[BUILD_HDR_DEPTH], depth);
+    if (inner_nodes(l) + inner_nodes(r) == 0u && depth > hdr[BUILD_HDR_DEPTH]) atomicMax(hdr[BUILD_HDR_DEPTH], depth);
 }

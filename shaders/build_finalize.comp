@@ -4,7 +4,8 @@
 // are final (treelet::Restructure::collapse_flags and the flattener's counts).
 // With COLLAPSE, a node whose subtree is cheaper as one leaf (at most MAX_LEAF
 // primitives) gets aux.z = COLLAPSED; any other node the number of output inner nodes
-// in its subtree. Push: n, a = COLLAPSE (trbvh) or 0 (the LBVH), c = height, ci.
+// in its subtree. Push: n, a = COLLAPSE (trbvh; the LBVH has no finalize pass, see
+// build_emit.comp) or 0 (counts only), c = height, ci.
 #define USE_HEADER 1
 #define USE_NODES 1
 #define USE_LEVELS 1

@@ -65,9 +65,12 @@ void main() {
     uint lo = j;
     uint hi = j;
     bool left = climbing && is_left_child(j, j);
-    // Every lane runs the atomic at every step, idle lanes on the spare entry 2n-1:
-    // llvmpipe returned wrong old values from an atomic that only some lanes ran.
-    uint spare = 2u * n - 1u;
+    // Every lane runs the atomic at every step, idle lanes on a spare word: llvmpipe
+    // returned wrong old values from an atomic that only some lanes ran. The spare is
+    // the lane's own leaf's arrival word (no split uses it; reset below), so idle lanes
+    // do not all hit one word, which serialises them on a big GPU; lanes past the last
+    // leaf share entry 2n-1.
+    uint spare = j < n ? n - 1u + j : 2u * n - 1u;
     bool done = false;
     for (uint g = 0u; g < BUILD_MAX_WALK; ++g) {
         uint s = left ? hi : lo - 1u;
@@ -110,6 +113,7 @@ void main() {
         barrier();
         if (done) break;
     }
+    if (j < n) aux[spare].w = 0u;
     if (!done && gl_LocalInvocationID.x == 0u) atomicOr(hdr[BUILD_HDR_ERRORS], BUILD_ERR_WALK);
 }
 

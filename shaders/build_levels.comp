@@ -22,6 +22,7 @@ const uint SCAN = BUILD_LEVELS_SCAN;
 const uint SCATTER = BUILD_LEVELS_SCATTER;
 
 shared uint s_scan[BUILD_GROUP];
+shared uint s_base[LV_SLOTS];
 
 void main() {
     uint lid = gl_LocalInvocationID.x;
@@ -49,6 +50,11 @@ void main() {
         }
         return;
     }
+    // Counted and placed per workgroup in shared memory first, then one global atomic
+    // per height and workgroup: most nodes sit at the lowest heights, and one global
+    // counter per height that every node hit would serialise a big GPU.
+    if (lid < LV_SLOTS) s_scan[lid] = 0u;
+    barrier();
     uint i = group_index() * BUILD_GROUP + lid;
     bool root = i + 1u < pc.n && aux[i].y >= pc.b;
     uint h = root ? levels[lv_height(i)] : BUILD_MAX_LEVELS;
@@ -57,10 +63,18 @@ void main() {
         root = false;
         h = BUILD_MAX_LEVELS;
     }
+    uint k = atomicAdd(s_scan[h], 1u);
+    barrier();
+    // Lane s (< LV_SLOTS) adds the workgroup's count at height s; the other lanes add 0
+    // to the spare slot.
+    uint slot = min(lid, LV_SLOTS - 1u);
+    uint here = lid < LV_SLOTS ? s_scan[slot] : 0u;
+    barrier();
     if (pc.a == COUNT) {
-        atomicAdd(levels[LV_COUNT + h], 1u);
-    } else {
-        uint k = atomicAdd(levels[LV_CURSOR + h], 1u);
-        if (root) levels[LV_LIST + levels[LV_OFFSET + h] + k] = i;
+        if (here > 0u) atomicAdd(levels[LV_COUNT + slot], here);
+        return;
     }
+    s_base[slot] = atomicAdd(levels[LV_CURSOR + slot], here);
+    barrier();
+    if (root) levels[LV_LIST + levels[LV_OFFSET + h] + s_base[h] + k] = i;
 }

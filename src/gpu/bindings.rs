@@ -116,6 +116,8 @@ pub const BUILD_FINALIZE_COLLAPSE: u32 = 1;
 /// Modes of `build_emit.comp`: seed the root, then one height from the top.
 pub const BUILD_EMIT_ROOT: u32 = 0;
 pub const BUILD_EMIT_TOP: u32 = 1;
+/// build_emit.comp push b: the tree had no finalize pass (the LBVH: nothing collapsed).
+pub const BUILD_EMIT_UNFINALIZED: u32 = 1;
 /// Modes of `build_wide.comp`: seed the root, mark wide nodes (one height from the
 /// top), count them per block, scan the counts, number them, write them.
 pub const BUILD_WIDE_SEED: u32 = 0;
@@ -336,6 +338,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_FINALIZE_COLLAPSE", BUILD_FINALIZE_COLLAPSE),
     ("BUILD_EMIT_ROOT", BUILD_EMIT_ROOT),
     ("BUILD_EMIT_TOP", BUILD_EMIT_TOP),
+    ("BUILD_EMIT_UNFINALIZED", BUILD_EMIT_UNFINALIZED),
     ("BUILD_WIDE_SEED", BUILD_WIDE_SEED),
     ("BUILD_WIDE_MARK", BUILD_WIDE_MARK),
     ("BUILD_WIDE_COUNT", BUILD_WIDE_COUNT),

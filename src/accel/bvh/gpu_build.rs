@@ -12,7 +12,8 @@
 //! | sort | `build_sort_{hist,scan,scatter}` x 4 | stable LSD radix sort, 8-bit digits |
 //! | hierarchy + fit | `build_fit` | the radix tree with boxes, counts, costs and node heights, bottom-up with atomic arrival words |
 //! | restructure round r | `build_levels`, `build_treelet` per height | 7-leaf treelets, lowest first (trbvh) |
-//! | collapse (finalize for lbvh) | `build_levels`, `build_finalize` per height | collapse decisions, output-node counts |
+//! | collapse (trbvh) | `build_levels`, `build_finalize` per height | collapse decisions, output-node counts |
+//! | schedule (lbvh) | `build_levels` | every inner node listed by height (an LBVH collapses nothing: a subtree of k primitives has k - 1 inner nodes) |
 //! | emit | `build_emit`, per height from the top | nodes and indices in the traversal layout |
 //! | collapse to W-wide (bvh4, bvh8) | `build_wide`: mark per height from the top, count, scan, number; then write | the wide nodes, numbered in preorder |
 //!
@@ -193,18 +194,22 @@ fn by_height<'a>(
     gamma: u32,
     p: Push,
 ) -> Vec<Step<'a>> {
-    let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
-    let mut steps: Vec<Step<'a>> =
-        [(BUILD_LEVELS_COUNT, inner), (BUILD_LEVELS_SCAN, [1, 1, 1]), (BUILD_LEVELS_SCATTER, inner)]
-            .into_iter()
-            .map(|(mode, groups)| Step::Dispatch {
-                kernel: levels,
-                push: bytes(Push { a: mode, b: gamma, ..p }),
-                groups,
-            })
-            .collect();
+    let mut steps = self::schedule(levels, inner, gamma, p);
     steps.extend(per_height(kernel, schedule, p, false));
     steps
+}
+
+/// The three dispatches of `levels` (count, scan, scatter) that list the inner nodes
+/// with at least `gamma` primitives by height.
+fn schedule(levels: &Kernel, inner: [u32; 3], gamma: u32, p: Push) -> Vec<Step<'_>> {
+    [(BUILD_LEVELS_COUNT, inner), (BUILD_LEVELS_SCAN, [1, 1, 1]), (BUILD_LEVELS_SCATTER, inner)]
+        .into_iter()
+        .map(|(mode, groups)| Step::Dispatch {
+            kernel: levels,
+            push: bytemuck::bytes_of(&Push { a: mode, b: gamma, ..p }).to_vec(),
+            groups,
+        })
+        .collect()
 }
 
 /// Geometry of the bounds kernel: only the buffers the scene has.
@@ -435,12 +440,21 @@ impl GpuBuilder {
         } else {
             0
         };
-        // Output-node counts (and trbvh's collapse) bottom-up; this leaves every inner
-        // node listed by height for the emit pass.
-        steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
-        steps.push(Step::Mark(if collapse != 0 { "gpu collapse" } else { "gpu finalize" }));
-        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(push(BUILD_EMIT_ROOT, 0)), groups: [1, 1, 1] });
-        steps.extend(per_height(&self.emit, &b.levels, push(BUILD_EMIT_TOP, 0), true));
+        // trbvh: the collapse and output-node counts bottom-up; this leaves every inner
+        // node listed by height for the emit pass. The LBVH collapses nothing, so a
+        // subtree of k primitives has k - 1 inner nodes: it only lists the nodes.
+        let unfinalized = if collapse != 0 {
+            steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
+            steps.push(Step::Mark("gpu collapse"));
+            0
+        } else {
+            steps.extend(schedule(&self.levels, inner, 0, push(0, 0)));
+            steps.push(Step::Mark("gpu schedule"));
+            BUILD_EMIT_UNFINALIZED
+        };
+        let emit = |mode: u32| push(mode, unfinalized);
+        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(emit(BUILD_EMIT_ROOT)), groups: [1, 1, 1] });
+        steps.extend(per_height(&self.emit, &b.levels, emit(BUILD_EMIT_TOP), true));
         steps.push(Step::Mark("gpu emit"));
         // The wide collapse's plan: mark the wide nodes from the top, then number them.
         let wide_blocks = (n as u64).div_ceil(WIDE_BLOCK);
