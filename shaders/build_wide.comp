@@ -138,22 +138,37 @@ void main() {
     if (pc.a == MARK) {
         uint t = thread_index();
         uint l = pc.c;
-        if (t >= wide[level_count(l)]) return;
+        bool live = t < wide[level_count(l)];
         if (t == 0u) atomicMax(hdr[BUILD_HDR_WIDE_DEPTH], l + 1u);
-        uint b = wide[lists() + (l % 2u) * half_list() + t];
-        open_kids(b);
         uint m = 0u;
-        [[unroll]] for (uint k = 0u; k < W; k++) m += (kref[k] & LEAF_REF) == 0u ? 1u : 0u;
+        if (live) {
+            open_kids(wide[lists() + (l % 2u) * half_list() + t]);
+            [[unroll]] for (uint k = 0u; k < W; k++) m += (kref[k] & LEAF_REF) == 0u ? 1u : 0u;
+        }
+        // The workgroup reserves its places on level l + 1's list with one global
+        // atomic (one per wide node would serialise a big GPU on that counter), then
+        // counts the next level's workgroups that its reservation begins.
+        if (lid == 0u) s_scan[0] = 0u;
+        barrier();
+        uint local = atomicAdd(s_scan[0], m);
+        barrier();
+        if (lid == 0u) {
+            uint total = s_scan[0];
+            uint at = total > 0u ? atomicAdd(wide[level_count(l + 1u)], total) : 0u;
+            uint groups = (at + total + BUILD_GROUP - 1u) / BUILD_GROUP - (at + BUILD_GROUP - 1u) / BUILD_GROUP;
+            if (groups > 0u) atomicAdd(wide[level_args(l + 1u)], groups);
+            s_scan[1] = at;
+        }
+        barrier();
+        uint at = s_scan[1] + local;
         uint next = lists() + ((l + 1u) % 2u) * half_list();
-        uint at = m > 0u ? atomicAdd(wide[level_count(l + 1u)], m) : 0u;
-        // Workgroups of the next level: each reservation adds those it begins.
-        uint groups = (at + m + BUILD_GROUP - 1u) / BUILD_GROUP - (at + BUILD_GROUP - 1u) / BUILD_GROUP;
-        if (groups > 0u) atomicAdd(wide[level_args(l + 1u)], groups);
-        [[unroll]] for (uint k = 0u; k < W; k++) {
-            if ((kref[k] & LEAF_REF) == 0u) {
-                wide[kref[k]] = 1u;
-                wide[next + at] = kref[k];
-                at++;
+        if (live) {
+            [[unroll]] for (uint k = 0u; k < W; k++) {
+                if ((kref[k] & LEAF_REF) == 0u) {
+                    wide[kref[k]] = 1u;
+                    wide[next + at] = kref[k];
+                    at++;
+                }
             }
         }
         return;
