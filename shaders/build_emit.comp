@@ -14,8 +14,8 @@
 // With b = UNFINALIZED (the LBVH, which collapses nothing and so needs no finalize
 // pass) no node is collapsed and a subtree of k primitives has k - 1 inner nodes; aux.z
 // still holds the fit's cost. The deepest output node has no inner output child, so
-// only such a node bids for the depth, and only when it beats the depth seen so far
-// (one word every node would hit). Push: n, a = mode, b, c = height.
+// only such a node bids for the depth (one word every node would hit; reading it first
+// to skip the bid made llvmpipe slower). Push: n, a = mode, b, c = height.
 #define USE_HEADER 1
 #define USE_NODES 1
 #define USE_LEVELS 1
@@ -99,5 +99,5 @@ void main() {
     seed(r, pre_r, first_r, below);
     if (hidden || collapsed(p)) return;
     write_node(pre, child_ref(l, pre + 1u, first), l, child_ref(r, pre_r, first_r), r);
-    if (inner_nodes(l) + inner_nodes(r) == 0u && depth > hdr[BUILD_HDR_DEPTH]) atomicMax(hdr[BUILD_HDR_DEPTH], depth);
+    if (pre_r == pre + 1u && inner_nodes(r) == 0u) atomicMax(hdr[BUILD_HDR_DEPTH], depth);
 }
