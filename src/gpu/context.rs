@@ -136,6 +136,8 @@ pub struct Context {
     pub(crate) scratch_align: u64,
     /// VK_EXT_calibrated_timestamps where the device has it (timeline placement).
     pub(crate) calibration: Option<ash::ext::calibrated_timestamps::Device>,
+    /// Pipelines compiled on this device, reused by `create_kernel`.
+    pub(crate) kernel_cache: Mutex<super::kernel::KernelCache>,
     info: DeviceInfo,
 }
 
@@ -486,6 +488,7 @@ impl Context {
             max_workgroups: props.limits.max_compute_work_group_count,
             scratch_align,
             calibration,
+            kernel_cache: Mutex::default(),
             info,
         })
     }
@@ -522,6 +525,16 @@ impl Context {
         match list.first() {
             None => Ok(()),
             Some(first) => Err(Error::Validation { count: list.len(), first: first.clone() }),
+        }
+    }
+
+    /// Takes the validation errors collected so far, leaving none: for a caller that
+    /// reuses one context for independent pieces of work (a test suite) and wants each
+    /// piece judged by its own messages.
+    pub fn take_validation_errors(&self) -> Vec<String> {
+        match self.shared.messages.lock() {
+            Ok(mut list) => std::mem::take(&mut *list),
+            Err(poisoned) => std::mem::take(&mut *poisoned.into_inner()),
         }
     }
 

@@ -11,7 +11,7 @@ use super::context::{vk_err, Context, Shared, Work};
 use crate::error::{Error, Result};
 
 /// The kind of one descriptor binding.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum BindingKind {
     Uniform,
     Storage,
@@ -45,15 +45,149 @@ pub struct BindingDesc {
     pub name: &'static str,
 }
 
-/// A compute pipeline, its layouts and one descriptor set; all destroyed on drop.
-pub struct Kernel {
+/// The compiled part of a kernel: its shader module, layouts and pipeline. Every
+/// [`Kernel`] made on one context from the same SPIR-V, bindings, specialization
+/// constants and push-constant size shares one (see [`KernelCache`]); destroyed when
+/// the last of them and the cache let go.
+pub(crate) struct Pipeline {
     shared: Arc<Shared>,
-    name: String,
-    bindings: Vec<BindingDesc>,
     module: vk::ShaderModule,
     set_layout: vk::DescriptorSetLayout,
     layout: vk::PipelineLayout,
     pipeline: vk::Pipeline,
+}
+
+impl Drop for Pipeline {
+    fn drop(&mut self) {
+        // SAFETY: every kernel using these objects holds this Arc, and submissions
+        // complete before their kernels can drop, so nothing uses them now. Null
+        // handles (an error part way through creation) are ignored by Vulkan.
+        unsafe {
+            let d = &self.shared.device;
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+            d.destroy_shader_module(self.module, None);
+        }
+    }
+}
+
+/// What makes two pipelines the same: the SPIR-V (hashed, with its length), the
+/// kinds and numbers of the bindings, the specialization constants and the
+/// push-constant size. The name is only a label and does not count.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+struct PipelineKey {
+    spirv_hash: u64,
+    spirv_len: usize,
+    bindings: Vec<(u32, BindingKind)>,
+    spec: Vec<(u32, u32)>,
+    push_size: u32,
+}
+
+impl PipelineKey {
+    fn new(spirv: &[u8], bindings: &[BindingDesc], spec: &[(u32, u32)], push_size: u32) -> PipelineKey {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        spirv.hash(&mut h);
+        PipelineKey {
+            spirv_hash: h.finish(),
+            spirv_len: spirv.len(),
+            bindings: bindings.iter().map(|b| (b.binding, b.kind)).collect(),
+            spec: spec.to_vec(),
+            push_size,
+        }
+    }
+}
+
+/// Pipelines a context has compiled, so that a kernel created again (the same render
+/// twice, a bench's repeats, a test suite's renders) skips the driver's compile: on
+/// lavapipe that compile is most of a small render's time. At most
+/// [`KernelCache::CAPACITY`] are kept; the least recently used goes first.
+#[derive(Default)]
+pub(crate) struct KernelCache {
+    entries: Vec<(PipelineKey, Arc<Pipeline>, u64)>,
+    clock: u64,
+    hits: u64,
+    misses: u64,
+}
+
+impl KernelCache {
+    /// Pipelines kept at most (each trace variant is a few hundred kilobytes of
+    /// driver code on lavapipe).
+    pub const CAPACITY: usize = 48;
+
+    fn get(&mut self, key: &PipelineKey) -> Option<Arc<Pipeline>> {
+        self.clock += 1;
+        let now = self.clock;
+        match self.entries.iter_mut().find(|(k, _, _)| k == key) {
+            Some((_, p, used)) => {
+                *used = now;
+                self.hits += 1;
+                Some(Arc::clone(p))
+            }
+            None => {
+                self.misses += 1;
+                None
+            }
+        }
+    }
+
+    fn insert(&mut self, key: PipelineKey, pipeline: Arc<Pipeline>) {
+        if self.entries.len() >= Self::CAPACITY {
+            if let Some(oldest) = self.entries.iter().enumerate().min_by_key(|(_, e)| e.2).map(|(i, _)| i) {
+                self.entries.swap_remove(oldest);
+            }
+        }
+        self.entries.push((key, pipeline, self.clock));
+    }
+}
+
+/// The specialization-constant ids a SPIR-V module declares: the `SpecId` decorations
+/// (`OpDecorate %target SpecId N`: opcode 71, decoration 1). Empty for bytes that are
+/// not SPIR-V (the pipeline's creation reports those).
+fn declared_spec_ids(spirv: &[u8]) -> Vec<u32> {
+    const OP_DECORATE: u32 = 71;
+    const SPEC_ID: u32 = 1;
+    if spirv.len() % 4 != 0 || spirv.len() < 20 {
+        return Vec::new();
+    }
+    let words: Vec<u32> = spirv.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    if words[0] != 0x0723_0203 {
+        return Vec::new();
+    }
+    let mut ids = Vec::new();
+    let mut i = 5; // past the header: magic, version, generator, bound, schema
+    while i < words.len() {
+        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        if count == 0 {
+            break;
+        }
+        if op == OP_DECORATE && count == 4 && i + 3 < words.len() && words[i + 2] == SPEC_ID {
+            ids.push(words[i + 3]);
+        }
+        i += count;
+    }
+    ids
+}
+
+/// How often [`Context::create_kernel`] found its pipeline already compiled.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct KernelCacheStats {
+    /// Kernels whose pipeline came from the cache.
+    pub hits: u64,
+    /// Kernels whose pipeline was compiled.
+    pub misses: u64,
+    /// Pipelines held now.
+    pub held: usize,
+}
+
+/// A compute pipeline (shared, see [`Pipeline`]) with its own descriptor set; the set
+/// and its pool are destroyed on drop.
+pub struct Kernel {
+    shared: Arc<Shared>,
+    name: String,
+    bindings: Vec<BindingDesc>,
+    pipe: Arc<Pipeline>,
     pool: vk::DescriptorPool,
     set: vk::DescriptorSet,
     push_size: u32,
@@ -116,7 +250,8 @@ impl std::fmt::Debug for Kernel {
 
 impl Drop for Kernel {
     fn drop(&mut self) {
-        // SAFETY: submissions complete before returning, so nothing uses these objects.
+        // SAFETY: submissions complete before returning, so nothing uses these objects;
+        // the pipeline goes with the last Arc (Pipeline's drop).
         unsafe {
             let d = &self.shared.device;
             for v in &self.views {
@@ -125,10 +260,6 @@ impl Drop for Kernel {
                 }
             }
             d.destroy_descriptor_pool(self.pool, None);
-            d.destroy_pipeline(self.pipeline, None);
-            d.destroy_pipeline_layout(self.layout, None);
-            d.destroy_descriptor_set_layout(self.set_layout, None);
-            d.destroy_shader_module(self.module, None);
         }
     }
 }
@@ -144,32 +275,100 @@ impl Context {
         spec: &[(u32, u32)],
         push_size: u32,
     ) -> Result<Kernel> {
-        let _span = crate::timeline::span("kernel", || format!("create kernel {name}"));
         Kernel::check_storage_limit(name, bindings)?;
-        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
-            .map_err(|e| Error::Vulkan { what: format!("read SPIR-V of '{name}'"), result: e.to_string() })?;
+        // Constants the module does not declare change nothing (Vulkan ignores them);
+        // left in, they would part pipelines that are the same.
+        let declared = declared_spec_ids(spirv);
+        let spec: Vec<(u32, u32)> = spec.iter().copied().filter(|(id, _)| declared.contains(id)).collect();
+        let spec = spec.as_slice();
+        let key = PipelineKey::new(spirv, bindings, spec, push_size);
+        let cached = self.kernel_cache.lock().ok().and_then(|mut c| c.get(&key));
+        let pipe = match cached {
+            Some(p) => {
+                let _span = crate::timeline::span("kernel", || format!("create kernel {name} (cached)"));
+                p
+            }
+            None => {
+                let _span = crate::timeline::span("kernel", || format!("create kernel {name}"));
+                let p = Arc::new(self.compile_pipeline(name, spirv, bindings, spec, push_size)?);
+                if let Ok(mut c) = self.kernel_cache.lock() {
+                    c.insert(key, Arc::clone(&p));
+                }
+                p
+            }
+        };
         let dev = &self.shared.device;
-        let shared = Arc::clone(&self.shared);
-        // Objects are created in order and wrapped immediately so that an error part
-        // way through destroys what exists.
+        // Wrapped at once, so that an error below destroys what exists.
         let mut k = Kernel {
-            shared,
+            shared: Arc::clone(&self.shared),
             name: name.to_string(),
             bindings: bindings.to_vec(),
-            module: vk::ShaderModule::null(),
-            set_layout: vk::DescriptorSetLayout::null(),
-            layout: vk::PipelineLayout::null(),
-            pipeline: vk::Pipeline::null(),
+            pipe,
             pool: vk::DescriptorPool::null(),
             set: vk::DescriptorSet::null(),
             push_size,
             bound: vec![None; bindings.len()],
             views: vec![vk::BufferView::null(); bindings.len()],
         };
+        let mut sizes = Vec::new();
+        for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel, BindingKind::RayStructure] {
+            let count = bindings.iter().filter(|b| b.kind == kind).count() as u32;
+            if count > 0 {
+                sizes.push(vk::DescriptorPoolSize { ty: kind.descriptor_type(), descriptor_count: count });
+            }
+        }
+        // SAFETY: valid create info on a live device.
+        k.pool = unsafe {
+            dev.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
+        }
+        .map_err(vk_err("vkCreateDescriptorPool"))?;
+        self.shared.set_name(k.pool, name);
+        let set_layouts = [k.pipe.set_layout];
+        // SAFETY: the pool was made for one set of this layout.
+        k.set = unsafe {
+            dev.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default().descriptor_pool(k.pool).set_layouts(&set_layouts),
+            )
+        }
+        .map_err(vk_err("vkAllocateDescriptorSets"))?[0];
+        self.shared.set_name(k.set, name);
+        self.check_validation()?;
+        Ok(k)
+    }
+
+    /// How often [`Context::create_kernel`] reused a compiled pipeline.
+    pub fn kernel_cache_stats(&self) -> KernelCacheStats {
+        match self.kernel_cache.lock() {
+            Ok(c) => KernelCacheStats { hits: c.hits, misses: c.misses, held: c.entries.len() },
+            Err(_) => KernelCacheStats::default(),
+        }
+    }
+
+    /// Compiles the shader module, layouts and pipeline of kernel `name`.
+    fn compile_pipeline(
+        &self,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[BindingDesc],
+        spec: &[(u32, u32)],
+        push_size: u32,
+    ) -> Result<Pipeline> {
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
+            .map_err(|e| Error::Vulkan { what: format!("read SPIR-V of '{name}'"), result: e.to_string() })?;
+        let dev = &self.shared.device;
+        // Objects are created in order and wrapped immediately so that an error part
+        // way through destroys what exists.
+        let mut p = Pipeline {
+            shared: Arc::clone(&self.shared),
+            module: vk::ShaderModule::null(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+        };
         // SAFETY: `words` is SPIR-V produced by shaderc at build time.
-        k.module = unsafe { dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
+        p.module = unsafe { dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
             .map_err(vk_err("vkCreateShaderModule"))?;
-        self.shared.set_name(k.module, name);
+        self.shared.set_name(p.module, name);
         let vk_bindings: Vec<vk::DescriptorSetLayoutBinding> = bindings
             .iter()
             .map(|b| {
@@ -181,12 +380,12 @@ impl Context {
             })
             .collect();
         // SAFETY: valid create infos on a live device (same for the calls below).
-        k.set_layout = unsafe {
+        p.set_layout = unsafe {
             dev.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&vk_bindings), None)
         }
         .map_err(vk_err("vkCreateDescriptorSetLayout"))?;
-        self.shared.set_name(k.set_layout, name);
-        let set_layouts = [k.set_layout];
+        self.shared.set_name(p.set_layout, name);
+        let set_layouts = [p.set_layout];
         let ranges =
             [vk::PushConstantRange::default().stage_flags(vk::ShaderStageFlags::COMPUTE).offset(0).size(push_size)];
         let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
@@ -194,9 +393,9 @@ impl Context {
             layout_info = layout_info.push_constant_ranges(&ranges);
         }
         // SAFETY: as above.
-        k.layout =
+        p.layout =
             unsafe { dev.create_pipeline_layout(&layout_info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
-        self.shared.set_name(k.layout, name);
+        self.shared.set_name(p.layout, name);
         let entries: Vec<vk::SpecializationMapEntry> = spec
             .iter()
             .enumerate()
@@ -207,42 +406,20 @@ impl Context {
         let entry = CString::new("main").unwrap_or_default();
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
-            .module(k.module)
+            .module(p.module)
             .name(&entry)
             .specialization_info(&spec_info);
-        let pinfo = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(k.layout)];
+        let pinfo = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(p.layout)];
         // SAFETY: as above.
         let created = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &pinfo, None) };
-        if let Ok(p) = &created {
-            k.pipeline = p[0];
+        if let Ok(c) = &created {
+            p.pipeline = c[0];
         }
         // A pipeline the validation layer rejected was never created: report its message.
         self.check_validation()?;
         created.map_err(|(_, e)| vk_err("vkCreateComputePipelines")(e))?;
-        self.shared.set_name(k.pipeline, name);
-        let mut sizes = Vec::new();
-        for kind in [BindingKind::Storage, BindingKind::Uniform, BindingKind::Texel, BindingKind::RayStructure] {
-            let count = bindings.iter().filter(|b| b.kind == kind).count() as u32;
-            if count > 0 {
-                sizes.push(vk::DescriptorPoolSize { ty: kind.descriptor_type(), descriptor_count: count });
-            }
-        }
-        // SAFETY: as above.
-        k.pool = unsafe {
-            dev.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
-        }
-        .map_err(vk_err("vkCreateDescriptorPool"))?;
-        self.shared.set_name(k.pool, name);
-        // SAFETY: as above.
-        k.set = unsafe {
-            dev.allocate_descriptor_sets(
-                &vk::DescriptorSetAllocateInfo::default().descriptor_pool(k.pool).set_layouts(&set_layouts),
-            )
-        }
-        .map_err(vk_err("vkAllocateDescriptorSets"))?[0];
-        self.shared.set_name(k.set, name);
-        self.check_validation()?;
-        Ok(k)
+        self.shared.set_name(p.pipeline, name);
+        Ok(p)
     }
 
     /// Points `binding` of `kernel` at the whole of `buffer`, checking the device's
@@ -556,10 +733,10 @@ pub(super) fn barrier_all(dev: &ash::Device, cb: vk::CommandBuffer) {
 fn record_bind(dev: &ash::Device, cb: vk::CommandBuffer, kernel: &Kernel, push: &[u8]) {
     // SAFETY: recording scope; all handles belong to this device and are live.
     unsafe {
-        dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipeline);
-        dev.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, kernel.layout, 0, &[kernel.set], &[]);
+        dev.cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipe.pipeline);
+        dev.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::COMPUTE, kernel.pipe.layout, 0, &[kernel.set], &[]);
         if !push.is_empty() {
-            dev.cmd_push_constants(cb, kernel.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            dev.cmd_push_constants(cb, kernel.pipe.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
         }
     }
 }
@@ -590,4 +767,24 @@ fn record_dispatch_indirect(
     record_bind(dev, cb, kernel, push);
     // SAFETY: recording scope; `args` is a live buffer with INDIRECT_BUFFER usage.
     unsafe { dev.cmd_dispatch_indirect(cb, args, offset) };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::declared_spec_ids;
+
+    #[test]
+    fn spec_ids_are_read_from_the_module() {
+        let spv = crate::gpu::spirv::get("sample_probe").expect("sample_probe is compiled");
+        let ids = declared_spec_ids(spv);
+        assert!(!ids.is_empty(), "sample_probe declares specialization constants");
+        let trace = crate::gpu::spirv::get("trace_bvh_tris").expect("trace_bvh_tris is compiled");
+        let ids = declared_spec_ids(trace);
+        use crate::gpu::bindings::{SPEC_STACK_SIZE, SPEC_TRIANGLE_COUNT};
+        assert!(ids.contains(&SPEC_STACK_SIZE), "a BVH kernel has a stack: {ids:?}");
+        assert!(!ids.contains(&SPEC_TRIANGLE_COUNT), "only brute force counts triangles: {ids:?}");
+        let brute = crate::gpu::spirv::get("trace_none_tris").expect("trace_none_tris is compiled");
+        assert!(declared_spec_ids(brute).contains(&SPEC_TRIANGLE_COUNT));
+        assert!(declared_spec_ids(b"not spir-v at all!!!").is_empty());
+    }
 }

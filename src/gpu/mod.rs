@@ -6,7 +6,9 @@
 //! - [`Buffer`]: a named buffer with its allocation, freed on drop.
 //! - [`Kernel`]: a compute pipeline with an explicit descriptor-set layout, at most
 //!   [`bindings::MAX_STORAGE_BUFFERS_PER_STAGE`] storage buffers, every bound range
-//!   checked against `maxStorageBufferRange`.
+//!   checked against `maxStorageBufferRange`. The context keeps the pipelines it
+//!   compiled: a kernel created again with the same SPIR-V, bindings and
+//!   specialization constants gets its own descriptor set over the same pipeline.
 //! - Every dispatch is bracketed by timestamp queries and reports its GPU time; while
 //!   a timeline records, each submission is a GPU span on the CPU clock (timing.rs).
 
@@ -24,7 +26,7 @@ mod timing;
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};
 pub use flight::{DispatchRing, Landed, MAX_DEPTH as MAX_IN_FLIGHT};
-pub use kernel::{BindingDesc, BindingKind, Kernel, Step};
+pub use kernel::{BindingDesc, BindingKind, Kernel, KernelCacheStats, Step};
 pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 
 /// Embedded SPIR-V of every kernel, by name (`trace_none_all`, `layout_probe`, ...).

@@ -3,7 +3,7 @@
 //! acne, no black rings in glass, no NaN anywhere, and the robustness helpers agreeing
 //! bit for bit between Rust and GLSL.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{Accel, AccelKind, Prims, Traverse};
 use arbor::gpu::bindings::*;

@@ -2,7 +2,7 @@
 //! image, sample ranges add up to the whole render, a resumed render equals an
 //! uninterrupted one bit for bit, and merging parts gives the single render back.
 
-mod common;
+use crate::common;
 
 use arbor::accel::AccelKind;
 use arbor::gpu::Context;
@@ -184,7 +184,7 @@ fn render_part(out: &Path, extra: &[&str], env: &[(&str, &str)]) {
 
 #[test]
 fn merged_tiles_equal_the_single_render_bit_for_bit() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
@@ -227,7 +227,7 @@ fn merged_tiles_equal_the_single_render_bit_for_bit() {
 
 #[test]
 fn merged_sample_shards_equal_the_single_render_to_rounding() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
@@ -262,7 +262,7 @@ fn merged_sample_shards_equal_the_single_render_to_rounding() {
 
 #[test]
 fn shard_auto_follows_the_scheduler_variables() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
@@ -285,7 +285,7 @@ fn shard_auto_follows_the_scheduler_variables() {
 
 #[test]
 fn resumed_render_writes_the_bytes_of_an_uninterrupted_one() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
@@ -314,7 +314,7 @@ fn resumed_render_writes_the_bytes_of_an_uninterrupted_one() {
 
 #[test]
 fn bad_or_foreign_parts_give_one_line_and_no_output() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");

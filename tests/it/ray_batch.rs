@@ -3,7 +3,7 @@
 //! with misses, tmin/tmax limits and axis-parallel directions; resumed traces; batches
 //! over several dispatches and chunks; the empty batch; bad rays as typed errors.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{Accel, AccelKind};
 use arbor::gpu::bindings::MIN_FORCED_TRACE_STEPS;

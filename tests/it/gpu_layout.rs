@@ -2,7 +2,7 @@
 //! agree: a probe kernel reads every struct through its GLSL declaration and writes
 //! the words back in Rust declaration order.
 
-mod common;
+use crate::common;
 
 use arbor::accel::gpu_layout::*;
 use arbor::gpu::bindings::*;

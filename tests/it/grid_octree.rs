@@ -2,7 +2,7 @@
 //! on random and adversarial rays (axis-parallel with +0 and -0, along cell boundaries,
 //! starting inside), identical builds for any thread count, GPU against the CPU.
 
-mod common;
+use crate::common;
 
 use arbor::accel::grid::{Grid, GridParams};
 use arbor::accel::octree::{self, Octree, OctreeParams};

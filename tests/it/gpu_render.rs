@@ -1,7 +1,7 @@
 //! GPU against the CPU reference, kernel specialisation and dispatch splitting, on
 //! whatever Vulkan device is present (lavapipe in CI) with validation on.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{AccelKind, Geometry, KernelFamily};
 use arbor::gpu::bindings::MAX_STORAGE_BUFFERS_PER_STAGE;
@@ -228,7 +228,9 @@ fn trace_kernels_take_no_push_constants() {
 
 #[test]
 fn storage_range_limit_names_the_buffer() {
-    let Some(_) = common::gpu() else { return };
+    if !common::has_gpu() {
+        return;
+    }
     let ctx =
         Context::new(&arbor::gpu::ContextOptions { max_storage_range: Some(4096), ..Default::default() }).expect("ctx");
     let scene = Scene::load("builtin:blob:2000").expect("blob");
@@ -278,4 +280,51 @@ fn validation_errors_fail_the_operation() {
     let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 0).expect_err("validation must fail this");
     let msg = err.to_string();
     assert!(msg.contains("validation") && msg.contains("missing_pixels"), "{msg}");
+}
+
+/// The context's kernel cache: the same SPIR-V, bindings and declared constants reuse
+/// one pipeline (each kernel still has its own bindings, and both run); another value
+/// of a declared constant compiles again; a constant the module does not declare
+/// changes nothing.
+#[test]
+fn kernels_created_again_reuse_the_compiled_pipeline() {
+    use arbor::gpu::bindings::{
+        BINDING_ACCEL_INDICES, BINDING_ACCEL_NODES, BINDING_PARAMS, BINDING_SHADING, SPEC_ENV_WIDTH,
+        SPEC_TRIANGLE_COUNT,
+    };
+    use arbor::gpu::BufferKind;
+    let Some(ctx) = common::private_gpu() else { return };
+    let bindings = [
+        BindingDesc { binding: BINDING_PARAMS, kind: BindingKind::Uniform, name: "params" },
+        BindingDesc { binding: BINDING_SHADING, kind: BindingKind::Texel, name: "shading" },
+        BindingDesc { binding: BINDING_ACCEL_NODES, kind: BindingKind::Storage, name: "probe_in" },
+        BindingDesc { binding: BINDING_ACCEL_INDICES, kind: BindingKind::Storage, name: "probe_out" },
+    ];
+    let spv = arbor::gpu::spirv::get("sample_probe").expect("probe kernel compiled");
+    let before = ctx.kernel_cache_stats();
+    let a = ctx.create_kernel("probe_a", spv, &bindings, &[(SPEC_ENV_WIDTH, 1)], 32).expect("kernel a");
+    let b = ctx
+        .create_kernel("probe_b", spv, &bindings, &[(SPEC_ENV_WIDTH, 1), (SPEC_TRIANGLE_COUNT, 77)], 32)
+        .expect("kernel b");
+    let st = ctx.kernel_cache_stats();
+    assert_eq!((st.misses - before.misses, st.hits - before.hits), (1, 1), "b reuses a's pipeline: {st:?}");
+    let _c = ctx.create_kernel("probe_c", spv, &bindings, &[(SPEC_ENV_WIDTH, 2)], 32).expect("kernel c");
+    let st = ctx.kernel_cache_stats();
+    assert_eq!((st.misses - before.misses, st.hits - before.hits), (2, 1), "another width compiles: {st:?}");
+    assert_eq!(st.held, 2);
+    // Both kernels of the shared pipeline bind and run on their own descriptor sets.
+    let params = ctx
+        .upload_uniform("params", &vec![0u8; std::mem::size_of::<arbor::accel::gpu_layout::GpuParams>()])
+        .expect("uniform");
+    let shading = ctx.upload_storage("shading", &[0u8; 64]).expect("shading");
+    for (mut k, label) in [(a, "a"), (b, "b")] {
+        let input = ctx.upload_storage("probe_in", &[0u8; 64]).expect("in");
+        let out = ctx.create_buffer("probe_out", 96, BufferKind::Storage).expect("out");
+        ctx.bind(&mut k, BINDING_PARAMS, &params).expect("bind");
+        ctx.bind(&mut k, BINDING_SHADING, &shading).expect("bind");
+        ctx.bind(&mut k, BINDING_ACCEL_NODES, &input).expect("bind");
+        ctx.bind(&mut k, BINDING_ACCEL_INDICES, &out).expect("bind");
+        ctx.dispatch(&k, &[0u8; 32], [1, 1, 1], label).expect("dispatch");
+    }
+    ctx.check_validation().expect("no validation errors");
 }

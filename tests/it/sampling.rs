@@ -5,7 +5,7 @@
 //! evaluation integrates to, reflectance is at most 1, and exactly 1 for the mirror
 //! and lossless glass; glass reflects with the Fresnel probability. Seeded.
 
-mod common;
+use crate::common;
 
 use arbor::gpu::bindings::*;
 use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind, Context};

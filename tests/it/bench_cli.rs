@@ -3,7 +3,7 @@
 //! `--accel auto` choosing brute force for a handful of triangles and a tree for many;
 //! plots in the built-in font, and a bad `ARBOR_FONT` refused before any work.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;
@@ -30,7 +30,9 @@ fn run(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn quick_bench_writes_documented_csv_json_and_plots() {
-    let Some(_ctx) = common::gpu() else { return };
+    if !common::has_gpu() {
+        return;
+    }
     let dir = std::env::temp_dir().join(format!("arbor-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let d = dir.to_string_lossy().to_string();
@@ -193,7 +195,9 @@ fn docs_list_the_csv_columns() {
 /// 0, no panic) instead of failing on the broken pipe.
 #[test]
 fn bench_ends_quietly_when_stdout_closes() {
-    let Some(_ctx) = common::gpu() else { return };
+    if !common::has_gpu() {
+        return;
+    }
     let mut child = Command::new(env!("CARGO_BIN_EXE_arbor"))
         .args(["bench", "--quick", "--tris", "1000", "--size", "16x16", "--accel", "none,kdtree"])
         .stdout(std::process::Stdio::piped())
@@ -246,7 +250,9 @@ fn auto_picks_brute_force_for_ten_triangles_and_a_tree_for_100k() {
 
 #[test]
 fn bench_compares_cpu_and_gpu_builds() {
-    let Some(_ctx) = common::gpu() else { return };
+    if !common::has_gpu() {
+        return;
+    }
     let json = std::env::temp_dir().join(format!("arbor-bench-build-{}.json", std::process::id()));
     let j = json.to_string_lossy().to_string();
     let out = run(&[
@@ -294,7 +300,9 @@ fn bench_compares_cpu_and_gpu_builds() {
 /// reference falling as samples grow, and convergence.csv with the plot.
 #[test]
 fn reference_ladder_reports_error_against_time() {
-    let Some(_ctx) = common::gpu() else { return };
+    if !common::has_gpu() {
+        return;
+    }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = dir.path().join("s.toml");
     std::fs::write(
@@ -336,7 +344,7 @@ fn reference_ladder_reports_error_against_time() {
 
 #[test]
 fn shard_bench_prints_a_row_per_shard_count() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let out = run(&["bench", "--shards", "1,3", "--scene", "builtin:cornell", "--size", "24x16", "--spp", "2"]);

@@ -4,7 +4,7 @@
 //! documented linear caps (docs/limits.md, "Builders on degenerate input") and trace as brute force does.
 //! Build times are printed, never asserted.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{bvh, grid, kdtree, octree, Accel, AccelKind};
 use arbor::scene::Scene;

@@ -2,7 +2,7 @@
 //! raising the SAH cost, CPU traversal against brute force, identical builds for any
 //! thread count, GPU against the CPU reference.
 
-mod common;
+use crate::common;
 
 use arbor::accel::bvh::{lbvh, treelet, Binary, Bvh, BvhBuilder, PrimRefs, EMPTY_REF, LEAF_REF, MAX_BVH_DEPTH};
 use arbor::accel::sah::SahCosts;

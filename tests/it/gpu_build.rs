@@ -4,7 +4,7 @@
 //! wide kinds (bvh4, bvh8) built there equal the CPU's collapse of the same binary tree,
 //! and a GPU-built tree is traced from the buffers the build wrote, never read back.
 
-mod common;
+use crate::common;
 
 use arbor::accel::bvh::device::DeviceTree;
 use arbor::accel::bvh::gpu_build::{GpuBuilder, Target};

@@ -1,7 +1,7 @@
 //! kd-tree: validate() on every preset and edge case, CPU traversal against brute
 //! force on random and adversarial rays, GPU against CPU.
 
-mod common;
+use crate::common;
 
 use common::scenes::{self, edge_cases, gpu_cases, gpu_matches_reference, gpu_views, scene_from, tris};
 

@@ -5,7 +5,7 @@
 //! same images as bvh-sah, instancing, crops, stats that say what is not visible. On a
 //! device without them, the one-line error naming the missing extension.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{Accel, AccelKind, AccelParams};
 use arbor::gpu::Context;
@@ -17,7 +17,7 @@ use common::scenes::mixed_scene;
 
 /// A validated device with ray queries, or None (skipped) where it has none, unless
 /// ARBOR_REQUIRE_RAY_QUERY=1, where that is a failure.
-fn rq_gpu() -> Option<Context> {
+fn rq_gpu() -> Option<common::Gpu> {
     let ctx = common::gpu()?;
     if ctx.has_ray_query() {
         return Some(ctx);

@@ -4,7 +4,7 @@
 //! shade like them (no self-intersection from the transform), and scenes without
 //! instances must not change.
 
-mod common;
+use crate::common;
 
 use arbor::accel::{Accel, AccelKind, Geometry, KernelFamily, Traverse};
 use arbor::math::{Hit, Ray};

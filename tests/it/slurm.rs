@@ -4,7 +4,7 @@
 //! single-process render. In CI (ARBOR_REQUIRE_GPU=1) it never skips: a cluster that
 //! cannot start fails the test with the daemons' logs.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -40,7 +40,7 @@ fn logs(dir: &Path) -> String {
 
 #[test]
 fn slurm_job_array_and_merge_equal_a_single_render() {
-    if common::gpu().is_none() {
+    if !common::has_gpu() {
         return;
     }
     let have_slurm = Command::new("sh").args(["-c", "command -v slurmctld && command -v munged"]).output();

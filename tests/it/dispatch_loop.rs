@@ -3,7 +3,7 @@
 //! pixels left behind by them; dispatch lengths follow the target they are sized to;
 //! the stats say how busy the loop kept the device.
 
-mod common;
+use crate::common;
 
 use arbor::accel::AccelKind;
 use arbor::render::dispatch::PacingChoice;
