@@ -1,6 +1,6 @@
 #version 460
 // Copies every field of every struct in common/layout.glsl back out as raw words,
-// in Rust declaration order, so tests/gpu_layout.rs can prove Rust and GLSL agree.
+// in Rust declaration order, so tests/it/gpu_layout.rs can prove Rust and GLSL agree.
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 1) in;
 #define HAS_TRIANGLES 1

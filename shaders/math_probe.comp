@@ -1,6 +1,6 @@
 #version 460
 // Runs the robustness helpers of common/ray.glsl on records written by
-// tests/robustness.rs, which checks the results against src/math bit for bit.
+// tests/it/robustness.rs, which checks the results against src/math bit for bit.
 // Input record (5 vec4): p0 + u, p1 + v, p2 + unused, n + unused, w + unused.
 // Output record (12 floats): triangle_point p and err, offset_ray_origin(p, err, n, w),
 // edge_function(p0.x, p1.y, p1.x, p0.y), next_float_up(u), next_float_down(v).

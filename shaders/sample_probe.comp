@@ -1,5 +1,5 @@
 #version 460
-// Runs the path integrator's samplers on records written by tests/sampling.rs, which
+// Runs the path integrator's samplers on records written by tests/it/sampling.rs, which
 // checks that each sampler's pdf is the pdf its evaluation reports, that pdfs
 // integrate to 1, that no material reflects more than it receives, and that the
 // environment sampler follows the map (chi-square).

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A single-node Slurm cluster on this machine, for trying the examples and for the
-# test suite (tests/slurm.rs): its own munged, slurmctld and slurmd, as root, with
+# test suite (tests/it/slurm.rs): its own munged, slurmctld and slurmd, as root, with
 # every file under DIR and a slurm.conf for this host's name and CPUs.
 #
 #   examples/slurm/local-cluster.sh start DIR   # prints: export SLURM_CONF=DIR/slurm.conf

@@ -77,7 +77,7 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
 // the lanes' majority. The node sequence, the stack and the step count are the same
 // in every lane. A lane whose ray missed the scene box, or (any-hit) already found a
 // hit, rides along without testing. Mirrors nothing on the CPU: it changes the work,
-// not the result (tests/gpu_render.rs compares it with single-ray traversal).
+// not the result (tests/it/gpu_render.rs compares it with single-ray traversal).
 bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;

@@ -1,5 +1,5 @@
 // std430 / std140 mirror of src/accel/gpu_layout.rs. Byte offsets in comments must
-// match the Rust side; tests/gpu_layout.rs checks it on the device.
+// match the Rust side; tests/it/gpu_layout.rs checks it on the device.
 #ifndef ARBOR_LAYOUT_GLSL
 #define ARBOR_LAYOUT_GLSL
 

@@ -1,6 +1,6 @@
 //! Every struct the shaders read, declared once in Rust. Each has a twin in
 //! `shaders/common/layout.glsl` (std430 for storage, std140 for the uniform block)
-//! with byte offsets in comments; `tests/gpu_layout.rs` proves on the device that
+//! with byte offsets in comments; `tests/it/gpu_layout.rs` proves on the device that
 //! the two agree by copying every field back through a probe kernel.
 //!
 //! Rules: 4-byte scalars in 16-byte groups, no bool, no `Vec3A`, sizes asserted at

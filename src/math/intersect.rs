@@ -304,7 +304,7 @@ mod tests {
 
     #[test]
     fn watertight_misses_a_tiny_triangle_far_from_the_ray() {
-        // From tests/kdtree.rs's deep tree: edge functions cancel in float.
+        // From tests/it/kdtree.rs's deep tree: edge functions cancel in float.
         let x = 0.5f32.powi(22);
         let s = x * 0.1;
         let y = 2.0 * s;
