@@ -60,7 +60,9 @@ use super::device::DeviceTree;
 use super::treelet::{TreeletParams, KEEP_FACTOR};
 use super::wide::{Bvh4, Bvh8};
 use super::{Bvh, BvhBuilder, MAX_BVH_DEPTH, MAX_BVH_PRIMS};
-use crate::accel::gpu_layout::{gpu_spheres, gpu_triangles, gpu_vertices, GpuBuildPush as Push, GpuTriangle, GpuVertex};
+use crate::accel::gpu_layout::{
+    gpu_spheres, gpu_triangles, gpu_vertices, GpuBuildPush as Push, GpuTriangle, GpuVertex,
+};
 use crate::accel::sah::SahCosts;
 use crate::accel::{AccelKind, Geometry, Phase};
 use crate::error::{Error, Result};
