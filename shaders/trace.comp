@@ -16,7 +16,9 @@ layout(constant_id = SPEC_LIGHTS) const uint LIGHT_COUNT = 0u;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
 layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
-layout(constant_id = SPEC_BRUTE_UNROLL) const uint BRUTE_UNROLL = 1u;
+#ifndef BRUTE_UNROLL
+#define BRUTE_UNROLL 1 // build.rs compiles brute force at each of BRUTE_UNROLL_FACTORS
+#endif
 layout(constant_id = SPEC_INTERSECT) const uint INTERSECT_MODE = 0u;
 layout(constant_id = SPEC_DIFFUSE_PROBE) const bool DIFFUSE_PROBE = false;
 layout(constant_id = SPEC_INTEGRATOR) const uint INTEGRATOR = 0u;

@@ -6,11 +6,12 @@
 //
 // llvmpipe (lavapipe) allows each shader invocation 65535 loop iterations in total,
 // over all loops, and silently breaks the invocation beyond that. For scenes whose
-// plain loops would cross that, the host sets BRUTE_UNROLL to 8 or 32 and the
-// primitive loops run unrolled by hand that many times (no loop in the IR for the
-// inner step); plain loops (BRUTE_UNROLL = 1) are the fastest, unrolled code is
-// several times slower on llvmpipe, so the host picks the smallest factor that fits. The host bounds the iterations per dispatch
-// (src/render/gpu.rs, `brute_iterations`).
+// plain loops would cross that, the host picks the kernel compiled with BRUTE_UNROLL
+// 8 or 32 (build.rs: trace_none_tris_x8, ...), whose primitive loops run unrolled by
+// hand that many times (no loop in the IR for the inner step); plain loops
+// (BRUTE_UNROLL = 1) are the fastest, unrolled code is several times slower on
+// llvmpipe, so the host picks the smallest factor that fits
+// (src/render/dispatch/kernel.rs, `LoopBounds`).
 
 #define TEST_TRI(k) if (b + k < n) { if (intersect_triangle(b + k, r, h)) { found = true; ANY_EXIT } }
 #define TEST_SPH(k) if (b + k < n) { if (intersect_sphere(b + k, r, h)) { found = true; ANY_EXIT } }
@@ -27,18 +28,27 @@ bool scene_box(Ray r) {
 }
 
 // Tests primitives [0, n) with TEST (TEST_TRI or TEST_SPH), unrolled BRUTE_UNROLL times.
+// Only the chosen loop is compiled: the module carries no code the kernel cannot run.
+#if BRUTE_UNROLL == 32
 #define BRUTE_LOOP(n_expr, TEST) \
     { \
         uint n = n_expr; \
-        if (BRUTE_UNROLL == 32u) { \
-            for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST) } \
-        } else if (BRUTE_UNROLL == 8u) { \
-            for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST) } \
-        } else { \
-            uint b = 0u; \
-            for (uint k = 0u; k < n; k++) { TEST(k) } \
-        } \
+        for (uint b = 0u; b < n; b += 32u) { UNROLLED(TEST) } \
     }
+#elif BRUTE_UNROLL == 8
+#define BRUTE_LOOP(n_expr, TEST) \
+    { \
+        uint n = n_expr; \
+        for (uint b = 0u; b < n; b += 8u) { UNROLLED_8(TEST) } \
+    }
+#else
+#define BRUTE_LOOP(n_expr, TEST) \
+    { \
+        uint n = n_expr; \
+        uint b = 0u; \
+        for (uint k = 0u; k < n; k++) { TEST(k) } \
+    }
+#endif
 
 // Every primitive of the scene; ANY_EXIT decides what a hit does besides recording it.
 // The counts are specialization constants, not `params.dims`: lavapipe compiles a

@@ -219,6 +219,13 @@ mod tests {
                 assert_eq!(crate::gpu::spirv::get(&trace).is_some(), compiled, "{trace}");
                 let rays = format!("rays_{family}_{geometry}");
                 assert_eq!(crate::gpu::spirv::get(&rays).is_some(), !family.is_instanced(), "{rays}");
+                // Brute force once more per unrolled loop; no other family.
+                for unroll in crate::gpu::bindings::BRUTE_UNROLL_FACTORS.into_iter().filter(|&u| u > 1) {
+                    for prefix in ["trace", "rays"] {
+                        let name = format!("{prefix}_{family}_{geometry}_x{unroll}");
+                        assert_eq!(crate::gpu::spirv::get(&name).is_some(), family == KernelFamily::None, "{name}");
+                    }
+                }
             }
             assert_eq!(family.is_instanced(), family.name().starts_with("inst_"), "{family}");
             if let Some(inst) = family.instanced() {

@@ -368,7 +368,8 @@ pub trait Structure: Traverse + Send + Sync {
 /// every loop bounded; see docs/kernels.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TraceLoop {
-    /// Loops over primitive lists of these lengths, unrolled by `SPEC_BRUTE_UNROLL`.
+    /// Loops over primitive lists of these lengths, unrolled as the kernel was compiled
+    /// (`BRUTE_UNROLL`, one kernel per factor).
     Unrolled {
         /// The lengths of the (at most two) primitive lists.
         lengths: [u64; 2],

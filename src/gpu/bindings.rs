@@ -135,7 +135,10 @@ pub const WORKGROUP_SIZE: u32 = 64;
 /// Upper bound on path depth (camera ray + bounces) the kernel will ever follow.
 pub const MAX_PATH_DEPTH: u32 = 16;
 /// Unroll factors the brute-force kernel offers (shaders/accel/none.glsl: plain
-/// loop, UNROLLED_8, UNROLLED), smallest first.
+/// loop, UNROLLED_8, UNROLLED), smallest first. Each is its own kernel, compiled by
+/// build.rs with `BRUTE_UNROLL` defined (`trace_none_tris`, `trace_none_tris_x8`, ...):
+/// as one module specialised at run time, the unrolled loops the render does not use
+/// made every brute-force pipeline compile about 15 times longer on lavapipe.
 pub const BRUTE_UNROLL_FACTORS: [u32; 3] = [1, 8, 32];
 /// Loop iterations one invocation may run in total on llvmpipe (its hard limit is
 /// 65535; beyond it the invocation silently stops); the host keeps dispatches under it.
@@ -154,8 +157,7 @@ pub const SPEC_STACK_SIZE: u32 = 2;
 /// Traversal steps (nodes + primitive tests) one trace may take before the pixel is
 /// flagged as overflowed.
 pub const SPEC_TREE_STEPS: u32 = 3;
-/// Unroll factor of the brute-force loops (one of BRUTE_UNROLL_FACTORS).
-pub const SPEC_BRUTE_UNROLL: u32 = 4;
+// 4 was SPEC_BRUTE_UNROLL, now a define per kernel (BRUTE_UNROLL_FACTORS).
 /// Ray/triangle test: 0 watertight (Woop et al. 2013), 1 fast (Moller-Trumbore).
 pub const SPEC_INTERSECT: u32 = 5;
 /// Trace one cosine-distributed ray from each camera hit instead of shading.
@@ -261,7 +263,6 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
     ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
     ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
-    ("SPEC_BRUTE_UNROLL", SPEC_BRUTE_UNROLL),
     ("SPEC_INTERSECT", SPEC_INTERSECT),
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("SPEC_FIT_GROUP", SPEC_FIT_GROUP),

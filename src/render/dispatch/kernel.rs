@@ -82,7 +82,8 @@ pub fn loop_iterations_per_sample(traces: u64, per_trace: u64) -> u64 {
 /// The loop bounds of one kernel: what each trace may iterate and how.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LoopBounds {
-    /// Unroll factor of unrolled primitive loops (`SPEC_BRUTE_UNROLL`; 1 otherwise).
+    /// Unroll factor of unrolled primitive loops (the kernel compiled with this
+    /// `BRUTE_UNROLL`, see [`Variant::new`]; 1 otherwise).
     pub unroll: u32,
     /// Iterations of one trace.
     pub per_trace: u64,
@@ -165,10 +166,18 @@ pub struct Variant {
 
 impl Variant {
     /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
-    /// geometry (or every buffer with [`KernelChoice::General`]).
-    pub fn new(prefix: &str, scene: &Scene, choice: KernelChoice, image: &GpuImage) -> Result<Variant> {
+    /// geometry (or every buffer with [`KernelChoice::General`]), with `_x8` or `_x32`
+    /// for brute force's unrolled loops (`bounds.unroll`).
+    pub fn new(
+        prefix: &str,
+        scene: &Scene,
+        choice: KernelChoice,
+        image: &GpuImage,
+        bounds: &LoopBounds,
+    ) -> Result<Variant> {
         let geometry = kernel_geometry(scene, choice);
-        let name = format!("{prefix}_{}_{geometry}", image.family);
+        let unrolled = if bounds.unroll > 1 { format!("_x{}", bounds.unroll) } else { String::new() };
+        let name = format!("{prefix}_{}_{geometry}{unrolled}", image.family);
         let spirv =
             crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
         let mut bindings = trace_bindings(image.family, geometry);

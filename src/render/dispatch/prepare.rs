@@ -128,7 +128,6 @@ fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage, bounds:
     vec![
         (SPEC_STACK_SIZE, image.stack_size),
         (SPEC_TREE_STEPS, bounds.steps as u32),
-        (SPEC_BRUTE_UNROLL, bounds.unroll),
         (SPEC_INTERSECT, settings.intersect.spec()),
         (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
         (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
@@ -148,10 +147,10 @@ impl<'a> Prepared<'a> {
     ) -> Result<Prepared<'a>> {
         kernel::check_subgroups(ctx)?;
         let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
-        let mut variant = Variant::new(request.prefix, scene, settings.kernel, &image)?;
-        variant.bindings.extend(request.extra_bindings);
         let traces = request.traces;
         let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
+        let mut variant = Variant::new(request.prefix, scene, settings.kernel, &image, &bounds)?;
+        variant.bindings.extend(request.extra_bindings);
         let most_samples = bounds.samples_within_limit(ctx, scene, traces)?;
         let mut spec = request.spec;
         spec.extend(shared_spec(scene, settings, &image, &bounds));

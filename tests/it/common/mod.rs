@@ -18,7 +18,7 @@
 use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::{Duration, Instant};
 
-use arbor::gpu::{Context, ContextOptions};
+use arbor::gpu::{Context, ContextOptions, KernelCacheStats};
 
 pub mod scenes;
 
@@ -50,7 +50,7 @@ fn open() -> Option<Context> {
 }
 
 /// The process's context, held by one test at a time, and since when.
-pub struct Gpu(MutexGuard<'static, Context>, Instant, Duration);
+pub struct Gpu(MutexGuard<'static, Context>, Instant, Duration, KernelCacheStats);
 
 impl std::ops::Deref for Gpu {
     type Target = Context;
@@ -60,12 +60,14 @@ impl std::ops::Deref for Gpu {
 }
 
 /// With ARBOR_TEST_TIMES=FILE, each test appends a line to FILE when it lets the
-/// context go: its name, then the milliseconds it waited for the context and held it
-/// (docs/testing.md: finding the slow tests).
-fn log_time(waited: Duration, held: Duration) {
+/// context go: its name, the milliseconds it waited for the context and held it, and
+/// the pipelines it compiled and found compiled (docs/testing.md: finding the slow
+/// tests).
+fn log_time(waited: Duration, held: Duration, compiled: u64, reused: u64) {
     let Some(path) = std::env::var_os("ARBOR_TEST_TIMES") else { return };
     let name = std::thread::current().name().unwrap_or("?").to_string();
-    let line = format!("{name}\t{:.0}\t{:.0}\n", waited.as_secs_f64() * 1e3, held.as_secs_f64() * 1e3);
+    let line =
+        format!("{name}\t{:.0}\t{:.0}\t{compiled}\t{reused}\n", waited.as_secs_f64() * 1e3, held.as_secs_f64() * 1e3);
     if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(path) {
         use std::io::Write;
         let _ = f.write_all(line.as_bytes());
@@ -74,7 +76,8 @@ fn log_time(waited: Duration, held: Duration) {
 
 impl Drop for Gpu {
     fn drop(&mut self) {
-        log_time(self.2, self.1.elapsed());
+        let now = self.0.kernel_cache_stats();
+        log_time(self.2, self.1.elapsed(), now.misses - self.3.misses, now.hits - self.3.hits);
         let left = self.0.take_validation_errors();
         if !left.is_empty() && !std::thread::panicking() {
             panic!("{} validation error(s) left by this test; the first: {}", left.len(), left[0]);
@@ -130,7 +133,8 @@ pub fn gpu() -> Option<Gpu> {
     if !earlier.is_empty() {
         eprintln!("note: dropped {} validation error(s) left by a failed test", earlier.len());
     }
-    Some(Gpu(guard, Instant::now(), asked.elapsed()))
+    let stats = guard.kernel_cache_stats();
+    Some(Gpu(guard, Instant::now(), asked.elapsed(), stats))
 }
 
 /// A context of the test's own (for tests that expect validation errors, or that
