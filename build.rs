@@ -4,7 +4,8 @@
 //! `trace.comp` is compiled once per (structure, geometry) variant, and once more per
 //! variant as the ray-batch kernel (`rays_*`, `RAY_BATCH`): a scene without
 //! spheres gets a kernel that declares no sphere buffer at all, one without triangles
-//! declares no mesh buffers; `build_bounds.comp` gets the same geometry variants. Every
+//! declares no mesh buffers; brute force is compiled once per unroll factor
+//! (`trace_none_tris_x8`, ...); `build_bounds.comp` gets the same geometry variants. Every
 //! other `.comp` is compiled once. Binding numbers and
 //! tunables come from `src/gpu/bindings.rs` as macros. On a shader error the build
 //! fails with `file:line: message` from the compiler. Variants compile on every core.
@@ -80,28 +81,36 @@ fn main() {
         let mut variants: Vec<(String, Vec<(String, String)>)> = Vec::new();
         if stem == "trace" {
             for accel in &accels {
-                for (geo, tris, spheres) in GEOMETRY {
-                    variants.push((
-                        format!("trace_{accel}_{geo}"),
-                        vec![
-                            (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
-                            ("HAS_TRIANGLES".into(), tris.to_string()),
-                            ("HAS_SPHERES".into(), spheres.to_string()),
-                        ],
-                    ));
-                }
-                // Ray batches (src/render/rays.rs): the same traversal, rays read from
-                // a buffer; flat scenes only.
-                for (geo, tris, spheres) in GEOMETRY {
-                    variants.push((
-                        format!("rays_{accel}_{geo}"),
-                        vec![
-                            (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
-                            ("HAS_TRIANGLES".into(), tris.to_string()),
-                            ("HAS_SPHERES".into(), spheres.to_string()),
-                            ("RAY_BATCH".into(), "1".into()),
-                        ],
-                    ));
+                // Brute force once per unroll factor (`_x8`, `_x32`; the plain loop has
+                // no suffix), each module holding only its own loop.
+                let unrolls: &[u32] = if accel == "none" { &bindings::BRUTE_UNROLL_FACTORS } else { &[1] };
+                for &unroll in unrolls {
+                    let suffix = if unroll == 1 { String::new() } else { format!("_x{unroll}") };
+                    for (geo, tris, spheres) in GEOMETRY {
+                        variants.push((
+                            format!("trace_{accel}_{geo}{suffix}"),
+                            vec![
+                                (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                                ("HAS_TRIANGLES".into(), tris.to_string()),
+                                ("HAS_SPHERES".into(), spheres.to_string()),
+                                ("BRUTE_UNROLL".into(), unroll.to_string()),
+                            ],
+                        ));
+                    }
+                    // Ray batches (src/render/rays.rs): the same traversal, rays read
+                    // from a buffer; flat scenes only.
+                    for (geo, tris, spheres) in GEOMETRY {
+                        variants.push((
+                            format!("rays_{accel}_{geo}{suffix}"),
+                            vec![
+                                (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                                ("HAS_TRIANGLES".into(), tris.to_string()),
+                                ("HAS_SPHERES".into(), spheres.to_string()),
+                                ("RAY_BATCH".into(), "1".into()),
+                                ("BRUTE_UNROLL".into(), unroll.to_string()),
+                            ],
+                        ));
+                    }
                 }
                 // Instanced scenes (src/accel/instance.rs): every structure but brute
                 // force as the bottom level; instances are meshes, so never spheres only.

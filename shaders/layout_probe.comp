@@ -21,7 +21,7 @@ void main() {
     f4(o, params.scene_min); f4(o, params.scene_max); w4(o, params.dims); w4(o, params.counts);
     f4(o, params.background); w4(o, params.tables); f4(o, params.env);
     // GpuDispatch (the pixel buffer's header)
-    w4(o, dispatch_range); w4(o, dispatch_chunk); w4(o, dispatch_window);
+    w4(o, dispatch_range); w4(o, dispatch_chunk); w4(o, dispatch_window); w4(o, dispatch_limits);
     // GpuVertex[0..2]
     for (uint k = 0u; k < 2u; k++) { f4(o, vertex_at(k).position); f4(o, vertex_at(k).normal); }
     // GpuTriangle[0..2]

@@ -15,7 +15,9 @@ layout(local_size_x = WORKGROUP_SIZE) in;
 layout(constant_id = SPEC_LIGHTS) const uint LIGHT_COUNT = 0u;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
-layout(constant_id = SPEC_TREE_STEPS) const uint TREE_STEPS = 4096u;
+// The steps one trace may take: the dispatch header's (dispatch_limits.x), read once
+// by main(). A specialization constant would make each budget a pipeline of its own.
+uint TREE_STEPS = 0u;
 #ifndef BRUTE_UNROLL
 #define BRUTE_UNROLL 1 // build.rs compiles brute force at each of BRUTE_UNROLL_FACTORS
 #endif
@@ -448,9 +450,13 @@ void batch_main() {
     pixels[slot] = q;
 }
 
-void main() { batch_main(); }
+void main() {
+    TREE_STEPS = dispatch_limits.x;
+    batch_main();
+}
 #else
 void main() {
+    TREE_STEPS = dispatch_limits.x;
     if (INTEGRATOR == 1u) path_main();
     else if (INTEGRATOR == 2u) probe_main();
     else whitted_main();

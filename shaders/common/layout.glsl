@@ -103,7 +103,8 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer, y: resumed part, z: pass,
                            //    w: samples stopped (common/resume.glsl)
     uvec4 dispatch_window; // 32 x, y: window origin, z: width, w: sample that starts from zero
-    Pixel pixels[];        // 48
+    uvec4 dispatch_limits; // 48 x: steps one trace may take (TREE_STEPS in trace.comp), y, z, w: 0
+    Pixel pixels[];        // 64
 };
 
 // The pixel of the full image that window-relative pixel `local` is (the random

@@ -165,22 +165,30 @@ pub struct GpuParams {
 }
 
 /// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,
-/// `dispatch_chunk` in shaders/common/layout.glsl), written by the host before each
-/// dispatch. Not push constants: lavapipe compiles the kernel again for every new value
-/// of a push constant its branches or loops depend on.
+/// `dispatch_chunk`, `dispatch_window`, `dispatch_limits` in
+/// shaders/common/layout.glsl), written by the host before each dispatch. Not push
+/// constants: lavapipe compiles the kernel again for every new value of a push
+/// constant its branches or loops depend on.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct GpuDispatch {
     /// first pixel (linear index, row-major from the top row) of this dispatch,
     /// pixel count, first sample, end sample (exclusive)
     pub range: [u32; 4],
-    /// first pixel held by the pixel buffer (the chunk base), rest unused
+    /// first pixel held by the pixel buffer (the chunk base); 1 for a resumed part
+    /// (its pixels continue uploaded sums); the pass (`PASS_TRACE`, or a resume pass,
+    /// shaders/common/resume.glsl); the samples stopped, counted by the kernel
     pub chunk: [u32; 4],
     /// the window of the image being rendered (`--crop`, a tile shard): left column,
     /// top row, width; then the sample at which the pixels start from zero
     /// (`u32::MAX`: never, a resumed render continues from uploaded sums). Pixel
     /// indices of `range` and `chunk` count row-major inside the window.
     pub window: [u32; 4],
+    /// the steps (nodes + primitive tests) one trace may take before it stops and is
+    /// resumed (`TREE_STEPS`; 0 for brute force, whose loops need no budget), then 0,
+    /// 0, 0. Not a specialization constant: every budget would be a pipeline of its
+    /// own (a render with `--trace-steps` next to one without compiled twice).
+    pub limits: [u32; 4],
 }
 
 /// Head of the grid's node buffer, before the cell starts. GLSL twin: the `GridCells`
@@ -236,7 +244,7 @@ pub struct GpuBuildPush {
 }
 
 const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
-const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 48);
+const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 64);
 
 /// Bytes before the first [`GpuPixel`] of the pixel buffer: one [`GpuDispatch`].
 pub const PIXEL_HEADER_BYTES: u64 = std::mem::size_of::<GpuDispatch>() as u64;

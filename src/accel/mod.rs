@@ -374,7 +374,8 @@ pub enum TraceLoop {
         /// The lengths of the (at most two) primitive lists.
         lengths: [u64; 2],
     },
-    /// A traversal loop the kernel stops after `SPEC_TREE_STEPS` steps: the trace is
+    /// A traversal loop the kernel stops after `TREE_STEPS` steps (the dispatch
+    /// header's `limits`): the trace is
     /// resumed in a following dispatch where the family can ([`GpuImage::resume_words`]),
     /// else the pixel is flagged.
     StepBudget,

@@ -154,9 +154,7 @@ pub const SPEC_LIGHTS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
 /// Traversal stack entries (tree depth + 1).
 pub const SPEC_STACK_SIZE: u32 = 2;
-/// Traversal steps (nodes + primitive tests) one trace may take before the pixel is
-/// flagged as overflowed.
-pub const SPEC_TREE_STEPS: u32 = 3;
+// 3 was SPEC_TREE_STEPS, now in the dispatch header (`GpuDispatch::limits`).
 // 4 was SPEC_BRUTE_UNROLL, now a define per kernel (BRUTE_UNROLL_FACTORS).
 /// Ray/triangle test: 0 watertight (Woop et al. 2013), 1 fast (Moller-Trumbore).
 pub const SPEC_INTERSECT: u32 = 5;
@@ -262,7 +260,6 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_LIGHTS", SPEC_LIGHTS),
     ("SPEC_MAX_DEPTH", SPEC_MAX_DEPTH),
     ("SPEC_STACK_SIZE", SPEC_STACK_SIZE),
-    ("SPEC_TREE_STEPS", SPEC_TREE_STEPS),
     ("SPEC_INTERSECT", SPEC_INTERSECT),
     ("SPEC_DIFFUSE_PROBE", SPEC_DIFFUSE_PROBE),
     ("SPEC_FIT_GROUP", SPEC_FIT_GROUP),

@@ -87,7 +87,8 @@ pub struct LoopBounds {
     pub unroll: u32,
     /// Iterations of one trace.
     pub per_trace: u64,
-    /// The step budget the kernel enforces per trace (`SPEC_TREE_STEPS`; 0 for
+    /// The step budget the kernel enforces per trace (`TREE_STEPS`, from the dispatch
+    /// header's `limits`; 0 for
     /// unrolled loops, which need none).
     pub steps: u64,
     /// Iterations kept out of the driver's budget for what the resume kernel does once

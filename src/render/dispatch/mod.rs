@@ -69,12 +69,13 @@ impl Waves {
         }
     }
 
-    fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32)) -> GpuDispatch {
+    fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32), tree_steps: u32) -> GpuDispatch {
         let [x0, y0, w] = self.window;
         GpuDispatch {
             range: [first as u32, n as u32, s, s_end],
             chunk: [chunk as u32, u32::from(self.resumed), 0, 0],
             window: [x0, y0, w, self.first_sample],
+            limits: [tree_steps, 0, 0, 0],
         }
     }
 }
@@ -121,6 +122,7 @@ pub struct Flight<'r, 'a> {
     total: u64,
     last_landed: Option<Instant>,
     totals: DispatchTotals,
+    tree_steps: u32,
 }
 
 impl std::fmt::Debug for Flight<'_, '_> {
@@ -236,6 +238,8 @@ pub struct LoopInput<'r, 'a> {
     pub in_flight: u32,
     pub target_ms: f64,
     pub resume: Option<&'r Frame>,
+    /// The steps one trace may take (`LoopBounds::steps`, the header's `limits`).
+    pub tree_steps: u32,
 }
 
 impl std::fmt::Debug for LoopInput<'_, '_> {
@@ -255,7 +259,7 @@ pub fn run(
     progress: &mut dyn FnMut(u64, u64),
     mut wave_done: impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
 ) -> Result<(DispatchTotals, bool)> {
-    let LoopInput { ctx, kernel, resumer, pixel_buf, waves, sizer, in_flight, target_ms, resume } = input;
+    let LoopInput { ctx, kernel, resumer, pixel_buf, waves, sizer, in_flight, target_ms, resume, tree_steps } = input;
     let span = crate::timeline::span("trace", || "trace");
     span.arg("pixels", waves.total_pixels);
     span.arg("samples", waves.spp);
@@ -275,6 +279,7 @@ pub fn run(
         total: waves.total_pixels * u64::from(waves.spp),
         last_landed: None,
         totals: DispatchTotals { gpu_ms: Some(0.0), target_ms, ..Default::default() },
+        tree_steps,
     };
     let stopped = run_chunks(&mut flight, &waves, resume, &mut wave_done)?;
     flight.settle()?;
@@ -309,7 +314,7 @@ fn run_chunks(
             while p < len {
                 flight.make_room()?;
                 let n = if m > 1 { len - p } else { flight.sizer.pixels(len - p) };
-                let header = waves.header((chunk_start, chunk_start + p, n), (s, s_end));
+                let header = waves.header((chunk_start, chunk_start + p, n), (s, s_end), flight.tree_steps);
                 flight.submit(header, n * u64::from(m))?;
                 p += n;
             }

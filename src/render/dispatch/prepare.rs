@@ -122,12 +122,11 @@ impl std::fmt::Debug for Prepared<'_> {
     }
 }
 
-/// The specialization constants every kernel shares: the structure's stack and loop
-/// bounds, the intersection test, the primitive counts, the material kinds, packets.
-fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage, bounds: &LoopBounds) -> Vec<(u32, u32)> {
+/// The specialization constants every kernel shares: the structure's stack,
+/// the intersection test, the primitive counts, the material kinds, packets.
+fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage) -> Vec<(u32, u32)> {
     vec![
         (SPEC_STACK_SIZE, image.stack_size),
-        (SPEC_TREE_STEPS, bounds.steps as u32),
         (SPEC_INTERSECT, settings.intersect.spec()),
         (SPEC_TRIANGLE_COUNT, scene.triangles.len() as u32),
         (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
@@ -153,7 +152,7 @@ impl<'a> Prepared<'a> {
         variant.bindings.extend(request.extra_bindings);
         let most_samples = bounds.samples_within_limit(ctx, scene, traces)?;
         let mut spec = request.spec;
-        spec.extend(shared_spec(scene, settings, &image, &bounds));
+        spec.extend(shared_spec(scene, settings, &image));
         let compile = Instant::now();
         let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
         let kernel_ms = compile.elapsed().as_secs_f64() * 1e3;
@@ -225,6 +224,7 @@ impl<'a> Prepared<'a> {
             in_flight: self.pacing.in_flight,
             target_ms: self.pacing.target_ms,
             resume,
+            tree_steps: self.bounds.steps as u32,
         };
         super::run(input, progress, wave_done)
     }
