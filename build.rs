@@ -163,8 +163,7 @@ fn main() {
         for _ in 0..threads {
             scope.spawn(|| {
                 let compiler = shaderc::Compiler::new().expect("shaderc compiler");
-                loop {
-                    let Some(&k) = order.get(next.fetch_add(1, std::sync::atomic::Ordering::Relaxed)) else { break };
+                while let Some(&k) = order.get(next.fetch_add(1, std::sync::atomic::Ordering::Relaxed)) {
                     let (_, file, source, defines) = &jobs[k];
                     let started = std::time::Instant::now();
                     let r = compile(&compiler, &shader_dir, file, source, defines, &opened, &dp_glsl);
