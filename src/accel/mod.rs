@@ -375,9 +375,8 @@ pub enum TraceLoop {
         lengths: [u64; 2],
     },
     /// A traversal loop the kernel stops after `TREE_STEPS` steps (the dispatch
-    /// header's `limits`): the trace is
-    /// resumed in a following dispatch where the family can ([`GpuImage::resume_words`]),
-    /// else the pixel is flagged.
+    /// header's `limits`): the trace is resumed in a following dispatch where the
+    /// family can ([`GpuImage::resume_words`]), else the pixel is flagged.
     StepBudget,
 }
 

@@ -88,8 +88,7 @@ pub struct LoopBounds {
     /// Iterations of one trace.
     pub per_trace: u64,
     /// The step budget the kernel enforces per trace (`TREE_STEPS`, from the dispatch
-    /// header's `limits`; 0 for
-    /// unrolled loops, which need none).
+    /// header's `limits`; 0 for unrolled loops, which need none).
     pub steps: u64,
     /// Iterations kept out of the driver's budget for what the resume kernel does once
     /// per invocation (restore and save a traversal's stacks, copy the log).
