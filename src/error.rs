@@ -50,9 +50,14 @@ pub enum Error {
         /// What is wrong.
         msg: String,
     },
-    /// A command-line value is out of range or malformed.
+    /// A command-line value (or its library twin, a setting) is out of range, malformed
+    /// or contradicts another: the `arbor` binary exits with status 2.
     #[error("{}", clean(.0))]
     Usage(String),
+    /// What was asked could not be done: a limit of the device or host, inputs that do
+    /// not fit together, drawing or encoding an output (exit status 1).
+    #[error("{}", clean(.0))]
+    Failed(String),
     /// No usable Vulkan device, or the requested one does not exist.
     #[error("no Vulkan device: {0}")]
     NoDevice(String),

@@ -20,7 +20,10 @@ pub struct Report {
     pub vertices: usize,
     pub spheres: usize,
     pub materials: usize,
+    /// Point and directional lights.
     pub lights: usize,
+    /// Emissive primitives (area lights: what the path tracer samples besides `lights`).
+    pub emitters: usize,
     /// The scene's film size.
     pub film: [u32; 2],
     pub bounds_min: [f32; 3],
@@ -59,6 +62,7 @@ impl Report {
             spheres: scene.spheres.len(),
             materials: scene.materials.len(),
             lights: scene.lights.len(),
+            emitters: crate::render::integrators::path::emitters(scene).len(),
             film: [scene.width, scene.height],
             bounds_min: bounds.min.to_array(),
             bounds_max: bounds.max.to_array(),
@@ -96,7 +100,11 @@ impl fmt::Display for Report {
         writeln!(f, "vertices        {}", self.vertices)?;
         writeln!(f, "spheres         {}", self.spheres)?;
         writeln!(f, "materials       {}", self.materials)?;
-        writeln!(f, "lights          {}", self.lights)?;
+        writeln!(
+            f,
+            "lights          {} point or directional, {} emissive primitives (area lights)",
+            self.lights, self.emitters
+        )?;
         writeln!(f, "film            {}x{}", self.film[0], self.film[1])?;
         writeln!(f, "bounds          {:?} .. {:?}", self.bounds_min, self.bounds_max)?;
         writeln!(f, "accel           {}", self.accel)?;

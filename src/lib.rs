@@ -20,7 +20,7 @@
 //!
 //! ```no_run
 //! use arbor::{Accel, AccelKind, Context, ContextOptions, Ray, RayTracer, Scene, TraceOptions};
-//! use glam::Vec3;
+//! use arbor::glam::Vec3; // arbor's glam, re-exported: no version of your own to match
 //!
 //! # fn main() -> arbor::Result<()> {
 //! let scene = Scene::load("builtin:cornell")?; // a mesh file, a scene TOML or builtin:NAME
@@ -71,6 +71,10 @@ pub mod math;
 pub mod render;
 pub mod scene;
 pub mod timeline;
+
+/// The vector library of arbor's public types (`Ray`, `Hit`, `Scene`), re-exported so
+/// that a caller uses the same version without naming it in its own Cargo.toml.
+pub use glam;
 
 pub use accel::{Accel, AccelKind, AccelParams, BuildStats};
 pub use error::{Error, Result};

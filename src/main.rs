@@ -29,7 +29,6 @@ mod progress;
 mod render;
 
 use args::{Cli, Command};
-use common::BadInput;
 
 // The kd-tree builder allocates many short-lived vectors; mimalloc builds the 75k
 // benchmark tree about 25% faster than glibc malloc here. It is built with `no_thp` (it
@@ -70,7 +69,7 @@ fn main() {
         Err(e) if is_broken_pipe(&e) => {}
         Err(e) => {
             eprintln!("arbor: error: {e:#}");
-            std::process::exit(if e.is::<BadInput>() { 2 } else { 1 });
+            std::process::exit(exit_status(&e));
         }
     }
 }
@@ -104,6 +103,19 @@ fn clap_error(e: clap::Error) -> ! {
     };
     eprintln!("arbor: error: {what} (see {command} --help)");
     std::process::exit(2);
+}
+
+/// The exit status of an error, one rule for every command: 2 for a mistake on the
+/// command line (a flag's value included: `arbor::Error::Usage` anywhere in the chain),
+/// 1 for a failure reading, building or rendering. An interruption exits with 130 where
+/// it is caught (cli/interrupt.rs); clap's own errors exit with 2 (`clap_error`).
+fn exit_status(e: &anyhow::Error) -> i32 {
+    let usage = e.chain().any(|c| matches!(c.downcast_ref::<arbor::Error>(), Some(arbor::Error::Usage(_))));
+    if usage {
+        2
+    } else {
+        1
+    }
 }
 
 /// Whether `e` comes from writing to a pipe whose reader has gone.

@@ -622,26 +622,15 @@ impl Accel {
         if let Some(s) = &span {
             s.arg("primitives", scene.prim_count());
         }
+        check_build(kind, scene, params.build)?;
         if kind == AccelKind::RayQuery {
-            if params.build == BuildOn::Gpu {
-                return Err(crate::error::Error::Usage(
-                    "--build gpu builds lbvh, trbvh, bvh4 and bvh8; rayquery is built by the device's driver (use --build cpu)"
-                        .into(),
-                ));
-            }
             return Ok(Accel::RayQuery(Box::new(rayquery::RayQuery::build(ctx, scene, params)?)));
         }
         match params.build {
             BuildOn::Cpu => Ok(Self::build_with(kind, scene, params)),
-            BuildOn::Gpu if scene.has_instances() => {
-                Err(crate::error::Error::Usage("--build gpu does not build instanced scenes; use --build cpu".into()))
-            }
             BuildOn::Gpu => {
-                let target = bvh::gpu_build::Target::of(kind).ok_or_else(|| {
-                    crate::error::Error::Usage(format!(
-                        "--build gpu builds lbvh, trbvh, bvh4 and bvh8; {kind} is built on the CPU (use --build cpu)"
-                    ))
-                })?;
+                let target = bvh::gpu_build::Target::of(kind)
+                    .ok_or_else(|| crate::error::Error::Usage(format!("--build gpu cannot build {kind}")))?;
                 let g = match pipelines {
                     Some(g) => g,
                     None => pipelines.insert(bvh::gpu_build::GpuBuilder::new(ctx)?),
@@ -734,4 +723,30 @@ impl Traverse for Accel {
     fn traverse(&self, prims: &Prims, ray: &crate::math::Ray, best: &mut crate::math::Hit, any: bool) -> bool {
         self.surface().traverse(prims, ray, best, any)
     }
+}
+
+/// Whether `kind` can be built on `build` for `scene`, checked before a device is
+/// opened (a usage error: the command line asked for what cannot be): the device
+/// builds lbvh, trbvh, bvh4 and bvh8 of scenes without instances; the driver builds
+/// rayquery.
+pub fn check_build(kind: AccelKind, scene: &crate::scene::Scene, build: BuildOn) -> crate::error::Result<()> {
+    use crate::error::Error::Usage;
+    if build != BuildOn::Gpu {
+        return Ok(());
+    }
+    if kind == AccelKind::RayQuery {
+        return Err(Usage(
+            "--build gpu builds lbvh, trbvh, bvh4 and bvh8; rayquery is built by the device's driver (use --build cpu)"
+                .into(),
+        ));
+    }
+    if bvh::gpu_build::Target::of(kind).is_none() {
+        return Err(Usage(format!(
+            "--build gpu builds lbvh, trbvh, bvh4 and bvh8; {kind} is built on the CPU (use --build cpu)"
+        )));
+    }
+    if scene.has_instances() {
+        return Err(Usage("--build gpu does not build instanced scenes; use --build cpu (or --flatten)".into()));
+    }
+    Ok(())
 }

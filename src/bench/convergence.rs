@@ -77,7 +77,7 @@ pub fn run(
 ) -> Result<Vec<Rung>> {
     let (w, h, reference) = read_linear(&ladder.reference)?;
     if (w, h) != (scene.width, scene.height) {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "{}: the reference is {w}x{h} but {} renders at {}x{}",
             ladder.reference.display(),
             scene.name,

@@ -59,7 +59,7 @@ pub(super) fn to_csv(rows: &[Row]) -> Result<String> {
     let mut out = CSV_COLUMNS.join(",");
     out.push('\n');
     for r in rows {
-        let v = serde_json::to_value(r).map_err(|e| Error::Usage(format!("bench CSV: {e}")))?;
+        let v = serde_json::to_value(r).map_err(|e| Error::Failed(format!("bench CSV: {e}")))?;
         let line: Vec<String> = CSV_COLUMNS.iter().map(|c| csv_field(&v[*c])).collect();
         out.push_str(&line.join(","));
         out.push('\n');
@@ -131,7 +131,7 @@ pub(super) fn write(
     progress: &dyn Progress,
 ) -> Result<()> {
     let json = serde_json::to_vec_pretty(&serde_json::json!({ "rows": rows, "time_to_image": tti }))
-        .map_err(|e| Error::Usage(format!("bench JSON: {e}")))?;
+        .map_err(|e| Error::Failed(format!("bench JSON: {e}")))?;
     // The JSON and CSV files appear together or not at all.
     let mut set = OutputSet::new();
     if let Some(p) = &opts.json {
@@ -144,7 +144,7 @@ pub(super) fn write(
     let mut spans = None;
     if let Some(p) = &opts.trace_events {
         let trace = crate::timeline::take()
-            .ok_or_else(|| Error::Usage(format!("{}: no timeline was recorded on this thread", p.display())))?;
+            .ok_or_else(|| Error::Failed(format!("{}: no timeline was recorded on this thread", p.display())))?;
         set.add(p, &crate::render::output::encode_trace(p, &trace)?)?;
         spans = Some((p, trace.events.len()));
     }

@@ -72,11 +72,14 @@ pub struct Options {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RayKind {
+    /// Camera rays.
     Primary,
+    /// Camera rays, and a shadow ray toward each light from every hit.
     Shadow,
+    /// Camera rays, and one cosine-distributed ray from every hit (incoherent).
     Diffuse,
-    /// Path tracing ([`crate::render::Integrator::Path`]) at [`PATH_SPP`] samples per
-    /// pixel: camera, bounce and shadow rays together.
+    /// The path tracer at 4 samples per pixel (`PATH_SPP`): camera, bounce and shadow
+    /// rays together.
     Path,
 }
 

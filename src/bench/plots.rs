@@ -21,7 +21,7 @@ pub const CHART_SIZE: (u32, u32) = (900, 560);
 use crate::render::heatmap::{font, Figure, Panel, Scale};
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Usage(format!("{}: drawing the plot failed: {e}", path.display()))
+    Error::Failed(format!("{}: drawing the plot failed: {e}", path.display()))
 }
 
 /// Draws `draw` into `stem.png` and `stem.svg`; returns both paths.
@@ -48,8 +48,10 @@ fn both(
     Ok(vec![png, svg])
 }
 
+/// Series colour `k`: Tableau's ten, then four more, so that every structure of a full
+/// bench (eleven, and the driver's) has its own.
 fn color(k: usize) -> RGBColor {
-    const C: [RGBColor; 10] = [
+    const C: [RGBColor; 14] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
         RGBColor(44, 160, 44),
@@ -60,6 +62,10 @@ fn color(k: usize) -> RGBColor {
         RGBColor(127, 127, 127),
         RGBColor(188, 189, 34),
         RGBColor(23, 190, 207),
+        RGBColor(0, 0, 0),
+        RGBColor(0, 0, 128),
+        RGBColor(128, 128, 0),
+        RGBColor(255, 215, 0),
     ];
     C[k % C.len()]
 }
@@ -78,7 +84,9 @@ pub fn mrays_bars(stem: &Path, title: &str, bars: &[(String, f64)]) -> Result<Ve
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(190)
-            .build_cartesian_2d(0.0..max, (0..n).into_segmented())
+            // A segmented range a..b has a segment for each of a..=b, so n bars need
+            // 0..n-1 (and one bar an empty slot above it: plotters draws 0..0 as nothing).
+            .build_cartesian_2d(0.0..max, (0..n.max(2) - 1).into_segmented())
             .map_err(|e| e.to_string())?;
         // Bar k is drawn in segment n - 1 - k, so the first bar is at the top.
         let label = |v: &SegmentValue<usize>| match v {

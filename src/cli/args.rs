@@ -1,7 +1,7 @@
 //! The `arbor` binary's command line, as clap reads it (included by main.rs only): the
 //! subcommands and their arguments, with the help texts.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use arbor::accel::{AccelKind, AccelParams};
 use arbor::bench::RayKind;
 
@@ -80,7 +80,7 @@ impl StructureArgs {
     /// The parameters of a command that builds once (render, info).
     pub(crate) fn single(&self) -> Result<AccelParams> {
         if self.build.len() > 1 {
-            bail!("--build takes one of cpu, gpu here (a list only in bench)");
+            return Err(crate::common::usage("--build takes one of cpu, gpu here (a list only in bench)"));
         }
         self.params()
     }
@@ -95,7 +95,7 @@ impl StructureArgs {
             ("trbvh", &self.trbvh),
             ("rayquery", &self.rayquery),
         ] {
-            p.set_flag(flag, spec).map_err(anyhow::Error::msg)?;
+            p.set_flag(flag, spec).map_err(crate::common::usage)?;
         }
         Ok(p)
     }
@@ -107,17 +107,17 @@ pub(crate) struct PacingArgs {
     /// Target GPU milliseconds of one dispatch: each is sized from the time the ones
     /// before it took. Default: 60 on a GPU, 1000 on lavapipe (where --dispatch-budget
     /// bounds dispatches first). The image is the same for any value.
-    #[arg(long, value_name = "MS")]
+    #[arg(long, allow_negative_numbers = true, value_name = "MS")]
     pub(crate) dispatch_ms: Option<f64>,
     /// Dispatches submitted ahead of the one the device is running (1: wait for each).
     /// Default: 3 on a GPU, 2 on lavapipe. The image is the same for any value.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
     pub(crate) in_flight: Option<u32>,
     /// Most primitive tests (estimated from the structure) one dispatch may run: a
     /// bound for devices with a watchdog. Default: 60000000 on lavapipe (dispatches of
     /// about 50 ms in the default render on 2 cores), none on a GPU. The image is the
     /// same.
-    #[arg(long, value_name = "TESTS", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, allow_negative_numbers = true, value_name = "TESTS", value_parser = clap::value_parser!(u64).range(1..))]
     pub(crate) dispatch_budget: Option<u64>,
 }
 
@@ -170,7 +170,7 @@ pub(crate) struct BenchArgs {
     pub(crate) size: String,
     /// Timed rounds, 1..=1000 (after one warm-up round); in each, every structure builds
     /// and traces once, in turn; medians are reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 5)]
     pub(crate) repeat: usize,
     /// Write all figures as JSON here.
     #[arg(long, value_name = "PATH")]
@@ -208,8 +208,9 @@ pub(crate) struct BenchArgs {
     pub(crate) shadow: bool,
     /// Write bench.csv, bench.json (every figure; columns in docs/bench.md) and plots/
     /// (PNG and SVG charts; per scene, cost_SCENE.png: the nodes each structure visits
-    /// per pixel of the camera rays, side by side) here; the directory is created if
-    /// missing.
+    /// per pixel of the camera rays, side by side) here; with --reference
+    /// convergence.csv and its plot, with --shards shards.csv and shards.json instead.
+    /// The directory is created if missing.
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
     /// Colour scale of the cost figures: linear, or log (colour follows log(1 + nodes):
@@ -230,7 +231,7 @@ pub(crate) struct BenchArgs {
     #[arg(long, value_name = "REF")]
     pub(crate) reference: Option<PathBuf>,
     /// Sample counts of the --reference ladder.
-    #[arg(long, value_delimiter = ',', default_values_t = arbor::bench::convergence::DEFAULT_LADDER.to_vec(), value_name = "SPP,...")]
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',', default_values_t = arbor::bench::convergence::DEFAULT_LADDER.to_vec(), value_name = "SPP,...")]
     pub(crate) ladder: Vec<u32>,
     /// Integrators of the --reference ladder (path, whitted).
     #[arg(long, value_delimiter = ',', default_value = "path", value_parser = ["path", "whitted"], value_name = "NAME,...")]
@@ -242,13 +243,13 @@ pub(crate) struct BenchArgs {
     /// shard its own `arbor render` process, one after the other, then `arbor merge`;
     /// print the machine time of all shards, the longest shard, the fixed cost per
     /// shard (process start, load, build, set-up) and the merge (docs/farm.md).
-    #[arg(long, value_delimiter = ',', value_name = "N,...")]
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',', value_name = "N,...")]
     pub(crate) shards: Vec<u32>,
     /// How --shards splits: tiles or samples.
     #[arg(long, default_value = "tiles", value_parser = ["tiles", "samples"])]
     pub(crate) shard_by: String,
     /// Samples per pixel of the --shards renders (default 64).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub(crate) spp: Option<u32>,
     #[command(flatten)]
     pub(crate) trace: TraceArgs,
@@ -276,19 +277,19 @@ pub(crate) struct RenderArgs {
     /// Samples per pixel, 1..=1048576 (default: 64 for path, 1 for whitted). Path:
     /// every sample jittered in the pixel; whitted: sample 0 through the pixel centre.
     /// Time grows with pixels x samples: long renders show progress on stderr.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub(crate) spp: Option<u32>,
     /// Path: stop after the first sample wave past this many seconds (the image holds
     /// the samples done so far, at most --spp; the stats say how many).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub(crate) time: Option<f64>,
     /// Path: write the image (and AOVs and stats) so far every SECONDS, atomically, to
     /// the output paths; the final image replaces it.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub(crate) checkpoint: Option<f64>,
     /// Longest path in segments (1: only what emits; 2: direct light; default: the
     /// scene's [render] max_depth, else 8), at most 16.
-    #[arg(long, value_name = "N")]
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub(crate) max_depth: Option<u32>,
     /// Path: direct-light estimators: both (multiple importance sampling), light
     /// (light sampling only) or bsdf (BSDF sampling only). The three converge to the
@@ -346,7 +347,7 @@ pub(crate) struct RenderArgs {
     #[command(flatten)]
     pub(crate) device: DeviceArgs,
     /// Random seed for sample jitter and glass.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     pub(crate) seed: u32,
     /// Kernel variant: `specialized` (only what the scene needs) or `general`.
     #[arg(long, default_value = "specialized", value_parser = ["specialized", "general"])]
@@ -355,7 +356,7 @@ pub(crate) struct RenderArgs {
     pub(crate) pacing: PacingArgs,
     /// For tests: lower the traversal step budget of a trace to N (at least 48), so
     /// that traces run out of steps and are resumed; the output is identical.
-    #[arg(long, hide = true, value_name = "N")]
+    #[arg(long, allow_negative_numbers = true, hide = true, value_name = "N")]
     pub(crate) trace_steps: Option<u32>,
     /// No progress (bar or lines), no summary line.
     #[arg(short, long)]
@@ -378,7 +379,7 @@ pub(crate) struct RenderArgs {
     /// Trace samples K..K+spp of every pixel instead of 0..spp (an explicit sample
     /// range; `arbor merge` adds ranges that meet). Sample K is the same whoever
     /// traces it.
-    #[arg(long, value_name = "K")]
+    #[arg(long, allow_negative_numbers = true, value_name = "K")]
     pub(crate) sample_offset: Option<u32>,
     /// Continue the render held by this EXR part (an interrupted or checkpointed
     /// render, or a shard) up to this command's sample range; the command must
@@ -390,8 +391,9 @@ pub(crate) struct RenderArgs {
 }
 
 #[derive(clap::Args)]
-#[command(after_help = "Exit status: 0 when merged; 2 when a part is unreadable, of another scene, settings or \
-image size, or the parts overlap or leave tiles or samples missing (one line naming the file; nothing is written).")]
+#[command(after_help = "Exit status: 0 when merged; 1 when a part is unreadable, of another scene, settings or \
+image size, or the parts overlap or leave tiles or samples missing (one line naming the file; nothing is written); \
+2 for a command-line mistake.")]
 pub(crate) struct MergeArgs {
     /// The parts: EXR files written by `arbor render` (--shard, --crop, --sample-offset,
     /// or any EXR output).
@@ -440,8 +442,9 @@ pub(crate) struct InfoArgs {
 }
 
 #[derive(clap::Args)]
-#[command(after_help = "Exit status: 0 when compared; 2 when an image is missing, unreadable, of an unknown \
-format or of another size, or --diff cannot be written (one line naming the file; nothing is written).")]
+#[command(after_help = "Exit status: 0 when compared; 1 when an image is missing, unreadable, of an unknown \
+format or of another size, or --diff cannot be written (one line naming the file; nothing is written); 2 for a \
+command-line mistake (--diff not a .png).")]
 pub(crate) struct CompareArgs {
     /// The image to measure: .exr, .pfm, .hdr (linear) or .png, .jpg (sRGB, decoded to linear).
     pub(crate) test: PathBuf,

@@ -1,14 +1,14 @@
 //! `arbor bench` (included by main.rs only): the structures' figures, or with
 //! `--reference` error against time, or with `--shards` the cost of splitting a render.
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 use arbor::accel::AccelKind;
 use arbor::bench;
 use arbor::render::{self, output};
 use arbor::scene::Scene;
 
 use crate::args::BenchArgs;
-use crate::common::{context, parse_size, print_out, start_trace, trace_device, DEFAULT_PATH_SPP};
+use crate::common::{context, parse_size, print_out, start_trace, trace_device, usage, DEFAULT_PATH_SPP};
 use crate::farm_bench;
 use crate::progress::{BenchProgress, Reporter};
 
@@ -16,7 +16,7 @@ use crate::progress::{BenchProgress, Reporter};
 /// before a device is opened and anything is printed.
 pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     if args.trace.trace_events.is_some() && (args.reference.is_some() || !args.shards.is_empty()) {
-        bail!("--trace-events traces the structure table; it is not taken with --reference or --shards");
+        return Err(usage("--trace-events traces the structure table; it is not taken with --reference or --shards"));
     }
     // `--out` draws plots at the end: a bad ARBOR_FONT is refused before any work.
     if args.out.is_some() && args.shards.is_empty() {
@@ -39,7 +39,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         rays: args.rays.clone(),
         shadow: args.shadow,
         intersect: args.intersect.clone(),
-        traversal: args.traversal.parse().map_err(anyhow::Error::msg)?,
+        traversal: args.traversal.parse().map_err(usage)?,
         pacing: args.pacing.choice(),
         size,
         repeat: args.repeat,
@@ -47,7 +47,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         out: args.out.clone(),
         json: args.json.clone(),
         trace_events: args.trace.trace_events.clone(),
-        heatmap_scale: args.heatmap_scale.parse().map_err(anyhow::Error::msg)?,
+        heatmap_scale: args.heatmap_scale.parse().map_err(usage)?,
     }
     .options()?;
     for p in args.json.iter().chain(&args.trace.trace_events) {
@@ -56,7 +56,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     let _recording = start_trace(&args.trace, "bench")?;
     if let Some(d) = &args.out {
         if d.exists() && !d.is_dir() {
-            bail!("{}: --out is not a directory", d.display());
+            anyhow::bail!("{}: --out is not a directory", d.display());
         }
     }
     let scenes = bench::load_scenes(&opts)?;
@@ -88,18 +88,23 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
 /// `bench --shards`: the one --scene path traced as N shards, each its own process.
 fn shards(args: &BenchArgs) -> Result<()> {
     let [scene] = args.scene.as_slice() else {
-        bail!("--shards needs exactly one --scene");
+        return Err(usage("--shards needs exactly one --scene"));
     };
     if let Some(bad) = args.shards.iter().find(|&&n| n == 0 || n > 4096) {
-        bail!("--shards {bad}: each shard count must be 1..=4096");
+        return Err(usage(format!("--shards {bad}: each shard count must be 1..=4096")));
     }
     // The default list (every structure) means render's default here.
     let accel = if args.accel == AccelKind::ALL.to_vec() { AccelKind::Kdtree } else { args.accel[0] };
     if args.accel.len() > 1 && args.accel != AccelKind::ALL.to_vec() {
-        bail!("--shards renders with one structure: give one --accel");
+        return Err(usage("--shards renders with one structure: give one --accel"));
     }
     let (w, h) = parse_size(&args.size)?;
     let spp = args.spp.unwrap_or(DEFAULT_PATH_SPP);
+    let files = args.out.as_ref().map(|d| [d.join("shards.csv"), d.join("shards.json")]);
+    if let (Some(d), Some(files)) = (&args.out, &files) {
+        std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
+        output::check_outputs(files.iter().map(|p| p.as_path()))?;
+    }
     let base: Vec<String> = vec![
         scene.clone(),
         "--size".into(),
@@ -110,17 +115,29 @@ fn shards(args: &BenchArgs) -> Result<()> {
         accel.name().into(),
     ];
     eprintln!("bench --shards: {scene} at {w}x{h}, path tracing, {spp} spp, accel {}", accel.name());
-    let text = farm_bench::run(&base, &args.shards, &args.shard_by, false)?;
-    Ok(print_out(&text)?)
+    let (text, rows) = farm_bench::run(&base, &args.shards, &args.shard_by, false)?;
+    print_out(&text)?;
+    if let Some([csv, json]) = &files {
+        let mut table = format!("{}\n", farm_bench::CSV_HEADER);
+        for r in &rows {
+            table += &format!("{}\n", r.csv());
+        }
+        output::write_atomic(csv, table.as_bytes())?;
+        let doc =
+            serde_json::json!({ "scene": scene, "size": [w, h], "spp": spp, "accel": accel.name(), "rows": rows });
+        output::write_atomic(json, format!("{doc:#}\n").as_bytes())?;
+        eprintln!("bench --shards: wrote {} and {}", csv.display(), json.display());
+    }
+    Ok(())
 }
 
 /// `bench --reference`: error against time over a ladder of sample counts.
 fn convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()> {
     let [scene_arg] = args.scene.as_slice() else {
-        bail!("--reference needs exactly one --scene (the scene the reference image shows)");
+        return Err(usage("--reference needs exactly one --scene (the scene the reference image shows)"));
     };
     if let Some(bad) = args.ladder.iter().find(|&&n| n == 0 || n > 1 << 20) {
-        bail!("--ladder {bad}: each sample count must be 1..=1048576");
+        return Err(usage(format!("--ladder {bad}: each sample count must be 1..=1048576")));
     }
     if let Some(d) = &args.out {
         std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
@@ -148,7 +165,7 @@ fn convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()> {
     print_out(&format!("{}\n", bench::convergence::HEADER))?;
     let progress = BenchProgress(Reporter::new("bench", false, true));
     let rows = bench::convergence::run(&ctx, &scene, &ladder, &progress, |l| {
-        print_out(&format!("{l}\n")).map_err(|e| arbor::error::Error::Usage(e.to_string()))
+        print_out(&format!("{l}\n")).map_err(|e| arbor::error::Error::Failed(e.to_string()))
     });
     progress.0.finish();
     let rows = rows?;

@@ -1,22 +1,23 @@
 //! What several commands share (included by main.rs only): opening the device, the
-//! `--accel`, `--size` and `--aov-scale` values, flattening instances, writing to stdout, and the
-//! error type of bad input files (exit status 2).
+//! `--accel`, `--size` and `--aov-scale` values, flattening instances, writing to stdout, and
+//! [`usage`], the error of a command-line mistake (exit status 2).
 
 use std::io::Write;
 use std::time::Instant;
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 use arbor::accel::AccelKind;
 use arbor::gpu::{Context, ContextOptions};
 use arbor::scene::Scene;
 
 use crate::args::{DeviceArgs, TraceArgs};
 
-/// An error in the files a command was given (`arbor compare`): exit status 2, like a
-/// command-line error.
-#[derive(Debug, thiserror::Error)]
-#[error(transparent)]
-pub(crate) struct BadInput(pub(crate) arbor::Error);
+/// A mistake on the command line (a flag's value, or flags that contradict each other):
+/// `arbor::Error::Usage`, which main.rs turns into exit status 2. Failures reading,
+/// building or rendering exit with 1.
+pub(crate) fn usage(what: impl std::fmt::Display) -> anyhow::Error {
+    arbor::Error::Usage(what.to_string()).into()
+}
 
 /// Writes `text` to stdout (an error, not a panic, when the reader has gone).
 pub(crate) fn print_out(text: &str) -> std::io::Result<()> {
@@ -42,18 +43,18 @@ pub(crate) fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Re
         let (k, why) = arbor::accel::auto::choose(scene, pixels, spp);
         return Ok((k, Some(why)));
     }
-    let k: AccelKind = s.parse().map_err(|e: String| anyhow::anyhow!("--accel {s}: {e}, or auto"))?;
+    let k: AccelKind = s.parse().map_err(|e: String| usage(format!("--accel {s}: {e}, or auto")))?;
     Ok((k, None))
 }
 
 /// `--size WIDTHxHEIGHT`, each side within the film limit.
 pub(crate) fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) =
-        s.split_once(['x', 'X']).with_context(|| format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480"))?;
-    let w: u32 = w.trim().parse().with_context(|| format!("--size {s:?}: bad width"))?;
-    let h: u32 = h.trim().parse().with_context(|| format!("--size {s:?}: bad height"))?;
+        s.split_once(['x', 'X']).ok_or_else(|| usage(format!("--size {s:?}: expected WIDTHxHEIGHT, e.g. 640x480")))?;
+    let w: u32 = w.trim().parse().map_err(|e| usage(format!("--size {s:?}: bad width: {e}")))?;
+    let h: u32 = h.trim().parse().map_err(|e| usage(format!("--size {s:?}: bad height: {e}")))?;
     if w == 0 || h == 0 || w > arbor::scene::MAX_FILM_SIDE || h > arbor::scene::MAX_FILM_SIDE {
-        bail!("--size {s}: each side must be 1..={}", arbor::scene::MAX_FILM_SIDE);
+        return Err(usage(format!("--size {s}: each side must be 1..={}", arbor::scene::MAX_FILM_SIDE)));
     }
     Ok((w, h))
 }
@@ -112,10 +113,10 @@ pub(crate) fn aov_scale(
     if arbor::render::output::has_heatmap(aovs) {
         arbor::render::heatmap::font()?;
     } else if let Some(s) = arg {
-        bail!(
+        return Err(usage(format!(
             "--aov-scale {s}: it sets the colour scale of the heatmap AOVs written as .png ({}), and no --aov is one",
             arbor::render::output::HEATMAP_AOVS.join(", ")
-        );
+        )));
     }
-    Ok(arg.map(str::parse).transpose().map_err(anyhow::Error::msg)?.unwrap_or_default())
+    Ok(arg.map(str::parse).transpose().map_err(usage)?.unwrap_or_default())
 }

@@ -66,11 +66,63 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// One row of the table: the figures of one shard count, in seconds.
+#[derive(Debug, Clone, serde::Serialize)]
+pub(crate) struct Row {
+    pub(crate) shards: u32,
+    pub(crate) by: String,
+    pub(crate) wall_sum_s: f64,
+    pub(crate) wall_max_s: f64,
+    pub(crate) loop_max_s: f64,
+    pub(crate) fixed_s: f64,
+    pub(crate) load_s: f64,
+    pub(crate) device_s: f64,
+    pub(crate) kernel_s: f64,
+    pub(crate) build_s: f64,
+    pub(crate) merge_s: f64,
+    /// Wall sum against the first row's, in percent.
+    pub(crate) overhead_pct: f64,
+}
+
+/// The CSV columns of [`Row`], in order.
+pub(crate) const CSV_HEADER: &str =
+    "shards,by,wall_sum_s,wall_max_s,loop_max_s,fixed_s,load_s,device_s,kernel_s,build_s,merge_s,overhead_pct";
+
+impl Row {
+    pub(crate) fn csv(&self) -> String {
+        format!(
+            "{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.2}",
+            self.shards,
+            self.by,
+            self.wall_sum_s,
+            self.wall_max_s,
+            self.loop_max_s,
+            self.fixed_s,
+            self.load_s,
+            self.device_s,
+            self.kernel_s,
+            self.build_s,
+            self.merge_s,
+            self.overhead_pct
+        )
+    }
+}
+
+/// Removes the shards' scratch directory however the run ends.
+struct Scratch(std::path::PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 /// Runs the benchmark: `base` is the render command line after `render` (scene, size,
-/// spp, structure); prints one row per shard count.
-pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Result<String> {
+/// spp, structure); returns the table (one row per shard count) and its rows.
+pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Result<(String, Vec<Row>)> {
     let exe = std::env::current_exe().context("cannot find the arbor binary")?;
-    let dir = tempfile_dir()?;
+    let scratch = Scratch(tempfile_dir()?);
+    let dir = &scratch.0;
     let mut text = format!(
         "# arbor bench --shards: every shard its own process, one after the other; times in seconds\n\
          # fixed = process wall - render loop, of which load, device, kernel, build (medians); the rest is\n\
@@ -90,6 +142,7 @@ pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Res
         "overhead"
     );
     let mut single = None;
+    let mut rows = Vec::new();
     for &n in counts {
         let sub = dir.join(format!("n{n}"));
         std::fs::create_dir_all(&sub)?;
@@ -108,26 +161,44 @@ pub(crate) fn run(base: &[String], counts: &[u32], by: &str, quiet: bool) -> Res
             bail!("merge of {n} shards: {}", String::from_utf8_lossy(&out.stderr).trim());
         }
         let wall_sum: f64 = runs.iter().map(|r| r.wall_s).sum();
-        let wall_max = runs.iter().map(|r| r.wall_s).fold(0.0, f64::max);
-        let loop_max = runs.iter().map(|r| r.trace_s).fold(0.0, f64::max);
-        let fixed = median(runs.iter().map(|r| r.wall_s - r.trace_s).collect());
-        let build = median(runs.iter().map(|r| r.build_s).collect());
-        let load = median(runs.iter().map(|r| r.load_s).collect());
-        let device = median(runs.iter().map(|r| r.device_s).collect());
-        let kernel = median(runs.iter().map(|r| r.kernel_s).collect());
         let base_sum = *single.get_or_insert(wall_sum);
+        let row = Row {
+            shards: n,
+            by: by.to_string(),
+            wall_sum_s: wall_sum,
+            wall_max_s: runs.iter().map(|r| r.wall_s).fold(0.0, f64::max),
+            loop_max_s: runs.iter().map(|r| r.trace_s).fold(0.0, f64::max),
+            fixed_s: median(runs.iter().map(|r| r.wall_s - r.trace_s).collect()),
+            load_s: median(runs.iter().map(|r| r.load_s).collect()),
+            device_s: median(runs.iter().map(|r| r.device_s).collect()),
+            kernel_s: median(runs.iter().map(|r| r.kernel_s).collect()),
+            build_s: median(runs.iter().map(|r| r.build_s).collect()),
+            merge_s,
+            overhead_pct: 100.0 * (wall_sum / base_sum - 1.0),
+        };
         text += &format!(
-            "{n:>6} {by:>8} {wall_sum:>10.3} {wall_max:>10.3} {loop_max:>10.3} {fixed:>8.3} {load:>7.3} {device:>7.3} {kernel:>7.3} {build:>7.3} {merge_s:>8.3} {:>8.1}%\n",
-            100.0 * (wall_sum / base_sum - 1.0)
+            "{:>6} {:>8} {:>10.3} {:>10.3} {:>10.3} {:>8.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>8.3} {:>8.1}%\n",
+            row.shards,
+            row.by,
+            row.wall_sum_s,
+            row.wall_max_s,
+            row.loop_max_s,
+            row.fixed_s,
+            row.load_s,
+            row.device_s,
+            row.kernel_s,
+            row.build_s,
+            row.merge_s,
+            row.overhead_pct
         );
+        rows.push(row);
     }
     if !quiet {
         eprintln!();
     }
-    let _ = std::fs::remove_dir_all(&dir);
     text += "# wall sum: the machine time of all shards; wall max: the longest shard (a farm's time to image,\n\
              # one shard per node); loop max: its render loop; overhead: wall sum against the first row's\n";
-    Ok(text)
+    Ok((text, rows))
 }
 
 fn tempfile_dir() -> Result<std::path::PathBuf> {

@@ -6,7 +6,7 @@ use anyhow::Result;
 use arbor::render::{self, output};
 
 use crate::args::MergeArgs;
-use crate::common::{ms, BadInput};
+use crate::common::ms;
 
 /// `arbor merge`: parts into one image (and AOVs), written together or not at all.
 pub(crate) fn run(a: &MergeArgs) -> Result<()> {
@@ -22,11 +22,11 @@ pub(crate) fn run(a: &MergeArgs) -> Result<()> {
     use rayon::prelude::*;
     let read: Vec<_> = a.parts.par_iter().map(|path| render::part::read(path).map(|(i, f)| (path, i, f))).collect();
     for r in read {
-        let (path, info, frame) = r.map_err(BadInput)?;
+        let (path, info, frame) = r?;
         parts.push(render::merge::Part { path: path.clone(), info, frame });
     }
     let n = parts.len();
-    let (info, frame) = render::merge::merge(parts, a.allow_partial).map_err(BadInput)?;
+    let (info, frame) = render::merge::merge(parts, a.allow_partial)?;
     let mut set = output::OutputSet::new();
     output::write_frame(&mut set, &a.output, &info, &frame)?;
     let heat = output::HeatmapInfo { subject: format!("{}, merged from {n} parts", info.scene), scale };

@@ -11,7 +11,7 @@ use arbor::scene::Scene;
 
 use crate::args::RenderArgs;
 use crate::common::{
-    aov_scale, context, flatten_if, ms, parse_size, resolve_accel, start_trace, trace_device, DEFAULT_PATH_SPP,
+    aov_scale, context, flatten_if, ms, parse_size, resolve_accel, start_trace, trace_device, usage, DEFAULT_PATH_SPP,
 };
 use crate::interrupt;
 use crate::progress::Reporter;
@@ -30,14 +30,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let integrator = render::Integrator::parse(&a.integrator).unwrap_or_default();
     let spp = a.spp.unwrap_or(if integrator == render::Integrator::Path { DEFAULT_PATH_SPP } else { 1 });
     if spp == 0 || spp > 1 << 20 {
-        bail!("--spp must be 1..=1048576, got {spp}");
+        return Err(usage(format!("--spp must be 1..=1048576, got {spp}")));
     }
     if integrator == render::Integrator::Whitted && (a.time.is_some() || a.checkpoint.is_some()) {
-        bail!("--time and --checkpoint need --integrator path");
+        return Err(usage("--time and --checkpoint need --integrator path"));
     }
     if let Some(c) = a.checkpoint {
         if !(c.is_finite() && c > 0.0) {
-            bail!("--checkpoint must be a positive number of seconds, got {c}");
+            return Err(usage(format!("--checkpoint must be a positive number of seconds, got {c}")));
         }
     }
     let size = a.size.as_deref().map(parse_size).transpose()?;
@@ -52,23 +52,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let stored = scene.stored_triangles() as usize + scene.spheres.len();
     memory::check_render(&format!("--size {w}x{h}"), w, h, stored, &encoded)?;
     let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp)?;
-    if let (Some(why), false) = (&why, a.quiet) {
-        eprintln!("accel auto: {why}");
-    }
     if let Some((n, _)) = aovs.iter().find(|(n, _)| output::HEATMAP_AOVS.contains(&n.as_str())) {
         if accel.driver_built() {
-            bail!("--aov {n}: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested");
+            return Err(usage(format!("--aov {n}: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested")));
         }
     }
     let heat = output::HeatmapInfo { subject: format!("{}, {accel}", scene.name), scale };
     let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
-    let opened = Instant::now();
-    let ctx = {
-        let _span = arbor::timeline::span("device", || "open device");
-        context(&a.device)?
-    };
-    trace_device(&ctx);
-    let device_ms = ms(opened);
+    arbor::accel::check_build(accel, &scene, params.build)?;
     let mut settings = RenderSettings::for_size(w, h);
     settings.spp = spp;
     settings.integrator = integrator;
@@ -81,7 +72,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     };
     settings.seed = a.seed;
     settings.intersect = a.intersect;
-    settings.traversal = a.traversal.parse().map_err(anyhow::Error::msg)?;
+    settings.traversal = a.traversal.parse().map_err(crate::common::usage)?;
     settings.accel = accel;
     settings.params = params;
     a.pacing.apply(&mut settings);
@@ -101,6 +92,17 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     if let Some(path) = &a.resume {
         settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
     }
+    // Every check of the command line and its inputs above; the device only now.
+    if let (Some(why), false) = (&why, a.quiet) {
+        eprintln!("accel auto: {why}");
+    }
+    let opened = Instant::now();
+    let ctx = {
+        let _span = arbor::timeline::span("device", || "open device");
+        context(&a.device)?
+    };
+    trace_device(&ctx);
+    let device_ms = ms(opened);
     let spp = settings.spp;
     let mut part_note = String::new();
     if let Some(c) = settings.crop {
@@ -157,6 +159,9 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             },
             ms(start)
         );
+        if let Some(p) = &a.trace.trace_events {
+            eprintln!("wrote {} (the timeline of this render)", p.display());
+        }
     }
     Ok(())
 }
@@ -205,11 +210,11 @@ fn write_outputs(
 fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32, String)> {
     let mut window = render::Crop::full(settings.width, settings.height);
     if let Some(c) = &a.crop {
-        window = render::Crop::parse(c).map_err(anyhow::Error::msg)?;
+        window = render::Crop::parse(c).map_err(usage)?;
         window.check(settings.width, settings.height)?;
     }
     let first = a.sample_offset.unwrap_or(0);
-    let by: render::shard::ShardBy = a.shard_by.parse().map_err(anyhow::Error::msg)?;
+    let by: render::shard::ShardBy = a.shard_by.parse().map_err(usage)?;
     let shard = a.shard.as_deref().map(|s| render::shard::Shard::parse(s, |v| std::env::var(v).ok())).transpose()?;
     let (window, first, count) = match &shard {
         Some(s) => s.plan(by, window, first, settings.spp)?,
@@ -294,7 +299,7 @@ fn trace(
     let checkpoint = a.checkpoint.map(|every| {
         let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
             write_outputs(a, aovs, frame, None, part)
-                .map_err(|e| arbor::error::Error::Usage(format!("checkpoint: {e:#}")))
+                .map_err(|e| arbor::error::Error::Failed(format!("checkpoint: {e:#}")))
         };
         (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
     });

@@ -634,7 +634,7 @@ impl Context {
             }
             .map_err(vk_err("vkGetQueryPoolResults"))?;
             if ts[1] < ts[0] {
-                return Err(Error::Usage(format!("GPU timestamps out of order: {} then {}", ts[0], ts[1])));
+                return Err(Error::Failed(format!("GPU timestamps out of order: {} then {}", ts[0], ts[1])));
             }
             Ok(Some(ts))
         })();
@@ -675,7 +675,7 @@ impl Work {
 /// `timestampPeriod` (nanoseconds per tick); an error if they are out of order.
 pub fn timestamp_ms(begin: u64, end: u64, period_ns: f32) -> Result<f64> {
     if end < begin {
-        return Err(Error::Usage(format!("GPU timestamps out of order: {begin} then {end}")));
+        return Err(Error::Failed(format!("GPU timestamps out of order: {begin} then {end}")));
     }
     Ok((end - begin) as f64 * f64::from(period_ns) * 1e-6)
 }

@@ -141,7 +141,7 @@ impl DispatchRing<'_> {
             });
         }
         let Some(index) = self.free.pop() else {
-            return Err(Error::Usage(format!("{} dispatches already in flight", self.depth)));
+            return Err(Error::Failed(format!("{} dispatches already in flight", self.depth)));
         };
         let _span = crate::timeline::span("submit", || label);
         let ctx = self.ctx;

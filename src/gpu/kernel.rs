@@ -567,7 +567,7 @@ impl Context {
         let x = u64::from(self.max_workgroups[0].min(65_535));
         let y = groups.div_ceil(x).max(1);
         if y > u64::from(self.max_workgroups[1]) {
-            return Err(Error::Usage(format!(
+            return Err(Error::Failed(format!(
                 "{groups} workgroups exceed the device limits {:?}",
                 self.max_workgroups
             )));

@@ -137,7 +137,7 @@ impl Context {
 
     /// The error `--accel rayquery` gives on a device without ray queries.
     pub fn ray_query_error(&self) -> Error {
-        Error::Usage(format!(
+        Error::Failed(format!(
             "--accel rayquery needs VK_KHR_acceleration_structure and VK_KHR_ray_query; {} lacks {} (`arbor devices` lists support; Mesa 24.1+ lavapipe has them: scripts/setup.sh --mesa-backports)",
             self.info().name,
             self.info().ray_query_missing.as_deref().unwrap_or("them")
@@ -195,7 +195,7 @@ impl Context {
         let start = std::time::Instant::now();
         let ext = self.shared.accel_ext.as_ref().ok_or_else(|| self.ray_query_error())?;
         if inputs.blases.len() > 1 << 24 {
-            return Err(Error::Usage(format!(
+            return Err(Error::Failed(format!(
                 "{label}: {} bottom-level structures, more than 2^24",
                 inputs.blases.len()
             )));
@@ -225,7 +225,7 @@ impl Context {
         let mut box_offset = 0u64;
         for (k, b) in inputs.blases.iter().enumerate() {
             if b.triangles > 0 && !b.aabbs.is_empty() {
-                return Err(Error::Usage(format!("{label}: bottom-level structure {k} mixes triangles and boxes")));
+                return Err(Error::Failed(format!("{label}: bottom-level structure {k} mixes triangles and boxes")));
             }
             let mut g = Vec::new();
             let mut r = Vec::new();
@@ -278,7 +278,7 @@ impl Context {
         let mut scratch_total = 0u64;
         for (k, g) in geometries.iter().enumerate() {
             if g.is_empty() {
-                return Err(Error::Usage(format!("{label}: bottom-level structure {k} has no primitives")));
+                return Err(Error::Failed(format!("{label}: bottom-level structure {k} has no primitives")));
             }
             let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
                 .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
@@ -342,7 +342,7 @@ impl Context {
         let mut inst_bytes = Vec::with_capacity(inputs.instances.len() * 64);
         for i in inputs.instances {
             let h = blases.get(i.blas).ok_or_else(|| {
-                Error::Usage(format!(
+                Error::Failed(format!(
                     "{label}: an instance names bottom-level structure {}, of {}",
                     i.blas,
                     blases.len()

@@ -290,7 +290,7 @@ impl RenderSettings {
         if let Some(f) = &self.resume {
             let win = self.window();
             if (f.width, f.height) != (win.width(), win.height()) {
-                return Err(Error::Usage(format!(
+                return Err(Error::Failed(format!(
                     "the resumed part is {}x{}, the window {}x{}",
                     f.width,
                     f.height,

@@ -10,10 +10,12 @@
 //! - `blob:N`: one blob of about N triangles, auto-framed (benchmarks).
 //! - `spheres`: spheres only, no triangles (tests the sphere-only kernel).
 //! - `inside:N`: the camera at the centre of a closed blob of about N triangles,
-//!   looking out: every camera ray must hit it, so a miss is a crack (robustness).
+//!   looking out: every camera ray must hit it, so a miss is a crack (robustness). A
+//!   point light inside lights the walls.
 //! - `stadium:N`: "the teapot in a stadium": a blob of about N triangles and radius 1
 //!   inside a coarse blob of 2000 triangles and radius 500, seen from close to the
-//!   small one; uniform grids are known to fail here.
+//!   small one, lit by a point light inside the stadium; uniform grids are known to
+//!   fail here.
 
 use glam::Vec3;
 
@@ -232,7 +234,10 @@ fn stadium_scene(n: usize) -> Result<Scene> {
     b.mesh(&teapot, 1.0, Vec3::ZERO, None);
     b.mesh(&blob(2000, 0.05, 7), 500.0, Vec3::ZERO, None);
     b.scene.camera = framed_camera(&bounds, 45.0);
-    b.scene.lights.push(super::default_light());
+    // The stadium closes the scene: a light from outside (the default one) would leave
+    // everything in its shadow. A point light inside, above and beside the camera.
+    let eye = b.scene.camera.eye;
+    b.scene.lights.push(Light::Point { position: eye + Vec3::new(-2.0, 3.0, 0.0), intensity: Vec3::splat(40.0) });
     b.finish()
 }
 
@@ -242,7 +247,8 @@ fn inside_scene(n: usize) -> Result<Scene> {
     // Off-centre and looking at a slant, so rays meet edges at every angle.
     b.scene.camera =
         Camera { eye: Vec3::new(0.05, 0.03, -0.02), look_at: Vec3::new(1.0, 0.7, 0.4), up: Vec3::Y, vfov: 100.0 };
-    b.scene.lights.push(super::default_light());
+    // Closed around the camera: a point light inside (one outside would light nothing).
+    b.scene.lights.push(Light::Point { position: Vec3::new(-0.2, 0.3, 0.1), intensity: Vec3::splat(0.3) });
     b.finish()
 }
 

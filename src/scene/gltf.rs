@@ -125,9 +125,32 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
             return Err(format!("glTF: the file requires the extension {ext}, which arbor does not read"));
         }
     }
+    if !bytes.starts_with(b"glTF") && bytes.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
+        return Err(format!("glTF: neither binary glTF (a .glb starts with \"glTF\") nor glTF JSON: {}", sniff(bytes)));
+    }
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| format!("glTF: {e}"))?;
-    let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| format!("glTF buffers: {e}"))?;
-    let images = gltf::import_images(&document, Some(base), &buffers).map_err(|e| format!("glTF images: {e}"))?;
+    let buffers = gltf::import_buffers(&document, Some(base), blob).map_err(|e| {
+        missing_uri(
+            document.buffers().map(|b| b.source()).filter_map(|s| match s {
+                gltf::buffer::Source::Uri(u) => Some(u),
+                gltf::buffer::Source::Bin => None,
+            }),
+            base,
+            "buffer",
+        )
+        .unwrap_or_else(|| format!("glTF buffers: {e}"))
+    })?;
+    let images = gltf::import_images(&document, Some(base), &buffers).map_err(|e| {
+        missing_uri(
+            document.images().filter_map(|i| match i.source() {
+                gltf::image::Source::Uri { uri, .. } => Some(uri),
+                gltf::image::Source::View { .. } => None,
+            }),
+            base,
+            "image",
+        )
+        .unwrap_or_else(|| format!("glTF images: {e}"))
+    })?;
     let mut out = GltfScene::default();
     // Materials and textures: one arbor material per glTF material, then the default.
     let mut textures: Vec<Option<u32>> = vec![None; images.len()];
@@ -401,4 +424,50 @@ fn texture(d: &gltf::image::Data, name: &str) -> std::result::Result<Texture, St
         return Err(format!("{name}: the image has {} texels for {}x{}", texels.len(), d.width, d.height));
     }
     Ok(Texture { name: name.to_string(), width: d.width, height: d.height, texels })
+}
+
+/// What a file that is not glTF looks like, from its first bytes.
+fn sniff(bytes: &[u8]) -> String {
+    let what = if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        "a JPEG image"
+    } else if bytes.starts_with(b"\x89PNG") {
+        "a PNG image"
+    } else if bytes.starts_with(b"PK") {
+        "a ZIP archive"
+    } else if bytes.is_empty() {
+        return "the file is empty".into();
+    } else {
+        "something else"
+    };
+    let head: Vec<String> = bytes.iter().take(4).map(|b| format!("{b:02X}")).collect();
+    format!("it starts with the bytes {} ({what}?)", head.join(" "))
+}
+
+/// The first external file (`uris` relative to `base`, `data:` URIs skipped) that
+/// cannot be read, as a message naming it: the glTF reader's own error does not.
+fn missing_uri<'a>(uris: impl Iterator<Item = &'a str>, base: &Path, what: &str) -> Option<String> {
+    uris.filter(|u| !u.starts_with("data:")).find_map(|u| {
+        let path = base.join(percent_decode(u));
+        std::fs::metadata(&path).err().map(|e| format!("glTF {what} {}: cannot read it: {e}", path.display()))
+    })
+}
+
+/// `%XX` escapes of a relative URI decoded (file names with spaces are written `%20`).
+fn percent_decode(u: &str) -> String {
+    let b = u.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%' && i + 2 < b.len() {
+            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }

@@ -93,7 +93,7 @@ struct MeshDef {
     translate: Option<[f32; 3]>,
     /// 16 numbers, row-major, last row 0 0 0 1; instead of scale, rotate and translate.
     matrix: Option<Vec<f32>>,
-    material: Option<String>,
+    material: Option<Spanned<String>>,
     /// The name `[[instance]]` tables draw it by.
     name: Option<String>,
     /// Stored once and drawn only by `[[instance]]` tables (needs `name`).
@@ -190,7 +190,7 @@ fn check_transform(t: glam::Affine3A) -> std::result::Result<glam::Affine3A, Str
 struct SphereDef {
     center: [f32; 3],
     radius: f32,
-    material: Option<String>,
+    material: Option<Spanned<String>>,
     /// Uniform scale of centre and radius (about the origin), before `translate`.
     scale: Option<f32>,
     translate: Option<[f32; 3]>,
@@ -328,14 +328,13 @@ pub fn load(path: &Path) -> Result<Scene> {
         let index = b.material(mat);
         names.insert(d.name.clone(), index);
     }
-    let lookup = |name: &Option<String>, span: std::ops::Range<usize>| -> Result<Option<u32>> {
+    // An unknown name is reported at its own line, not its table's.
+    let lookup = |name: &Option<Spanned<String>>| -> Result<Option<u32>> {
         match name {
             None => Ok(None),
-            Some(n) => names
-                .get(n)
-                .copied()
-                .map(Some)
-                .ok_or_else(|| at(span, format!("unknown material '{n}' (define it in a [[material]] table)"))),
+            Some(n) => names.get(n.get_ref()).copied().map(Some).ok_or_else(|| {
+                at(n.span(), format!("unknown material '{}' (define it in a [[material]] table)", n.get_ref()))
+            }),
         }
     };
 
@@ -345,7 +344,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     let (mut triangles, mut vertices, mut materials) = (0u64, 0u64, b.scene.materials.len() as u64);
     for m in &file.mesh {
         let d = m.get_ref();
-        let mat = lookup(&d.material, m.span())?;
+        let mat = lookup(&d.material)?;
         let transform = mesh_transform(d).map_err(|e| at(m.span(), format!("mesh '{}': {e}", d.file)))?;
         let mesh_path = dir.join(&d.file);
         let mesh = match loaded.get(&mesh_path) {
@@ -443,7 +442,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     }
     for s in &file.sphere {
         let d = s.get_ref();
-        let mat = lookup(&d.material, s.span())?.unwrap_or(0);
+        let mat = lookup(&d.material)?.unwrap_or(0);
         let k = d.scale.unwrap_or(1.0);
         if !(k.is_finite() && k != 0.0) {
             return Err(at(s.span(), "sphere scale must be a finite, non-zero number (uniform)".into()));

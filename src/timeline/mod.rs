@@ -163,7 +163,7 @@ pub fn start(opts: Options) -> Result<Recording> {
     CURRENT.with(|c| {
         let mut c = c.borrow_mut();
         if c.is_some() {
-            return Err(Error::Usage("a timeline is already being recorded on this thread".into()));
+            return Err(Error::Failed("a timeline is already being recorded on this thread".into()));
         }
         *c = Some(Recorder {
             epoch: Instant::now(),

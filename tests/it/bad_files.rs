@@ -177,7 +177,7 @@ fn messages_are_one_clean_short_line() {
     let dir = tempfile::tempdir().unwrap();
     let dir = dir.path();
     std::fs::write(d(dir, "nl.toml"), "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"x\\ny\"\n").unwrap();
-    let m = rejects(&d(dir, "nl.toml"), &format!("{}:1:", s(&d(dir, "nl.toml"))), "unknown material 'x\\ny'");
+    let m = rejects(&d(dir, "nl.toml"), &format!("{}:4:", s(&d(dir, "nl.toml"))), "unknown material 'x\\ny'");
     eprintln!("{m}");
     std::fs::write(d(dir, "nlfile.toml"), "[[mesh]]\nfile = \"a\\nb.obj\"\n").unwrap();
     rejects(&d(dir, "nlfile.toml"), &s(&d(dir, "nlfile.toml")), "mesh file 'a\\nb.obj' not found");

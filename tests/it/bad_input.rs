@@ -350,9 +350,10 @@ fn toml_unknown_material() {
     let header = "# scene\n[[material]]\nname = \"red\"\ntype = \"lambert\"\n\n";
     let toml =
         fx.write("sphere.toml", format!("{header}[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"gold\"\n"));
-    scene_fails(&fx, &toml, &[&at(&toml, 6), "unknown material", "gold"]);
+    // At the line of the name, not of its table.
+    scene_fails(&fx, &toml, &[&at(&toml, 9), "unknown material", "gold"]);
     let toml = fx.write("mesh.toml", format!("{header}[[mesh]]\nfile = \"tri.obj\"\nmaterial = \"gold\"\n"));
-    scene_fails(&fx, &toml, &[&at(&toml, 6), "unknown material", "gold"]);
+    scene_fails(&fx, &toml, &[&at(&toml, 8), "unknown material", "gold"]);
 }
 
 #[test]
@@ -734,7 +735,7 @@ fn info_fails_the_same_way() {
     let obj = fx.write("oor.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
     info_fails(&obj, &[&at(&obj, 4), "references vertex 4"]);
     let toml = fx.write("s.toml", format!("{SPHERE}material = \"gold\"\n"));
-    info_fails(&toml, &[&at(&toml, 1), "unknown material"]);
+    info_fails(&toml, &[&at(&toml, 4), "unknown material"]);
     let toml = fx.write("e.toml", "");
     info_fails(&toml, &[&toml, "empty"]);
     let off = fx.write("bad.off", "OFF\n3 x\n");

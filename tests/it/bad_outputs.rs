@@ -79,7 +79,12 @@ fn arbor(args: &[&str], env: &[(&str, &str)], device: bool) -> Outcome {
 /// Asserts a failed run: exit code 1, one stderr line `arbor: error: ...` containing
 /// every part of `expect`, nothing on stdout.
 fn assert_one_line_error(o: &Outcome, expect: &[&str]) {
-    assert_eq!(o.code, Some(1), "`{}`: exit code {:?}; stderr:\n{}", o.cmd, o.code, o.stderr);
+    assert_failed_with(1, o, expect);
+}
+
+/// [`assert_one_line_error`] with exit code `code` (2: a mistake on the command line).
+fn assert_failed_with(code: i32, o: &Outcome, expect: &[&str]) {
+    assert_eq!(o.code, Some(code), "`{}`: exit code {:?}; stderr:\n{}", o.cmd, o.code, o.stderr);
     let lines: Vec<&str> = o.stderr.lines().collect();
     assert_eq!(lines.len(), 1, "`{}`: expected one stderr line, got:\n{}", o.cmd, o.stderr);
     assert!(lines[0].starts_with("arbor: error: "), "`{}`: {}", o.cmd, lines[0]);
@@ -160,7 +165,7 @@ fn unwritable_output_leaves_nothing_behind() {
     }
     let exr = p(d, "x.exr");
     let o = arbor(&["render", &obj, "-o", &exr, "--aov", &aov_same, "--size", "8x8", "--quiet"], &[], false);
-    assert_one_line_error(&o, &["x.exr", "two outputs"]);
+    assert_failed_with(2, &o, &["x.exr", "two outputs"]);
     assert_eq!(entries(d), before);
 }
 
@@ -229,7 +234,7 @@ fn frame_larger_than_memory_is_refused() {
 fn repeat_out_of_range_is_refused() {
     for r in ["18446744073709551615", "0", "1001"] {
         let o = arbor(&["bench", "--scene", "builtin:default", "--size", "8x8", "--repeat", r], &[], false);
-        assert_one_line_error(&o, &[&format!("--repeat {r}: must be 1..=1000")]);
+        assert_failed_with(2, &o, &[&format!("--repeat {r}: must be 1..=1000")]);
     }
 }
 
@@ -282,15 +287,15 @@ fn bench_checks_inputs_before_the_device_line() {
     let missing = p(d, "missing.obj");
     let json_slash = format!("{}/", p(d, "b.json"));
     let out_file = p(d, "file");
-    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
-        (vec!["--scene", &missing], vec!["missing.obj"]),
-        (vec!["--size", "0x8"], vec!["--size"]),
-        (vec!["--lambda=-1"], vec!["--lambda"]),
-        (vec!["--repeat", "5000"], vec!["--repeat 5000"]),
-        (vec!["--json", &json_slash], vec!["b.json/"]),
-        (vec!["--out", &out_file], vec!["file", "not a directory"]),
+    let cases: Vec<(Vec<&str>, i32, Vec<&str>)> = vec![
+        (vec!["--scene", &missing], 1, vec!["missing.obj"]),
+        (vec!["--size", "0x8"], 2, vec!["--size"]),
+        (vec!["--lambda=-1"], 2, vec!["--lambda"]),
+        (vec!["--repeat", "5000"], 2, vec!["--repeat 5000"]),
+        (vec!["--json", &json_slash], 1, vec!["b.json/"]),
+        (vec!["--out", &out_file], 1, vec!["file", "not a directory"]),
     ];
-    for (extra, expect) in cases {
+    for (extra, code, expect) in cases {
         let mut args = vec!["bench", "--tris", "100", "--accel", "kdtree"];
         for (flag, value) in [("--size", "8x8"), ("--repeat", "1")] {
             if !extra.contains(&flag) {
@@ -301,7 +306,45 @@ fn bench_checks_inputs_before_the_device_line() {
         // With the environment's device: the error must still come before the device line.
         let o = arbor(&args, &[], true);
         assert!(!o.stderr.contains("device:"), "`{}` printed the device line:\n{}", o.cmd, o.stderr);
-        assert_one_line_error(&o, &expect);
+        assert_failed_with(code, &o, &expect);
     }
     assert_eq!(entries(d), BTreeSet::from(["file".to_string(), "tri.obj".to_string()]));
+}
+
+/// Exit codes, one rule for every command: 2 for a mistake on the command line (a flag's
+/// value, flags that contradict each other), 1 for a failure reading, building or
+/// rendering. Every case fails before a device is opened, with one line and no file.
+#[test]
+fn exit_codes_follow_one_rule() {
+    let (dir, obj) = fixture();
+    let d = dir.path();
+    let before = entries(d);
+    let png = p(d, "out.png");
+    let missing = p(d, "missing.obj");
+    let missing_exr = p(d, "missing.exr");
+    let (jpg, merged) = (p(d, "out.jpg"), p(d, "m.exr"));
+    let cases: Vec<(Vec<&str>, i32, Vec<&str>)> = vec![
+        (vec!["render", &obj, "-o", &png, "--size", "0x0"], 2, vec!["--size 0x0"]),
+        (vec!["render", &obj, "-o", &png, "--size", "64"], 2, vec!["--size", "WIDTHxHEIGHT"]),
+        (vec!["render", &obj, "-o", &png, "--spp", "0"], 2, vec!["--spp"]),
+        (vec!["render", &obj, "-o", &png, "--spp", "-1"], 2, vec!["'-1'", "--spp"]),
+        (vec!["render", &obj, "-o", &png, "--max-depth", "-3"], 2, vec!["--max-depth"]),
+        (vec!["render", &obj, "-o", &png, "--accel", "bvh2"], 2, vec!["--accel bvh2"]),
+        (vec!["render", &obj, "-o", &png, "--size", "8x8", "--crop", "6,2,0,8"], 2, vec!["--crop"]),
+        (vec!["render", &obj, "-o", &jpg], 2, vec!["out.jpg", ".png or .exr"]),
+        (vec!["render", &obj, "-o", &png, "--accel", "kdtree", "--build", "gpu"], 2, vec!["--build gpu"]),
+        (vec!["render", &obj, "-o", &png, "--shard", "3/2"], 2, vec!["--shard"]),
+        (vec!["render", &obj, "-o", &png, "--no-such-flag"], 2, vec!["--no-such-flag"]),
+        (vec!["bench", "--accel", "kdtree,foo", "--size", "8x8"], 2, vec!["foo"]),
+        (vec!["bench", "--repeat", "0"], 2, vec!["--repeat 0"]),
+        (vec!["render", &missing, "-o", &png], 1, vec!["missing.obj"]),
+        (vec!["info", &missing], 1, vec!["missing.obj"]),
+        (vec!["merge", "-o", &merged, &missing_exr], 1, vec!["missing.exr"]),
+        (vec!["compare", &missing_exr, &obj], 1, vec!["missing.exr"]),
+    ];
+    for (args, code, expect) in cases {
+        let o = arbor(&args, &[], false);
+        assert_failed_with(code, &o, &expect);
+        assert_eq!(entries(d), before, "`{}` left files behind", o.cmd);
+    }
 }

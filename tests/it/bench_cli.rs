@@ -289,7 +289,7 @@ fn bench_compares_cpu_and_gpu_builds() {
         .args(["info", "builtin:blob:500", "--accel", "kdtree", "--build", "gpu"])
         .output()
         .expect("run");
-    assert_eq!(bad.status.code(), Some(1));
+    assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--build gpu builds lbvh, trbvh, bvh4 and bvh8"));
     let ok = run(&["info", "builtin:blob:500", "--accel", "trbvh", "--build", "gpu"]);
     let text = String::from_utf8_lossy(&ok.stdout);
@@ -347,8 +347,32 @@ fn shard_bench_prints_a_row_per_shard_count() {
     if !common::has_gpu() {
         return;
     }
-    let out = run(&["bench", "--shards", "1,3", "--scene", "builtin:cornell", "--size", "24x16", "--spp", "2"]);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path().join("out");
+    let d_s = d.display().to_string();
+    let out = run(&[
+        "bench",
+        "--shards",
+        "1,3",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "24x16",
+        "--spp",
+        "2",
+        "--out",
+        &d_s,
+    ]);
     let text = String::from_utf8_lossy(&out.stdout);
+    // --out: the same rows as CSV and JSON.
+    let csv = std::fs::read_to_string(d.join("shards.csv")).expect("shards.csv");
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3, "{csv}");
+    assert!(lines[0].starts_with("shards,by,wall_sum_s") && lines[2].starts_with("3,tiles,"), "{csv}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("shards.json")).expect("shards.json")).expect("JSON");
+    assert_eq!(json["rows"].as_array().map(Vec::len), Some(2), "{json}");
+    assert_eq!(json["rows"][1]["shards"], 3);
     let rows: Vec<Vec<&str>> =
         text.lines().filter(|l| !l.starts_with('#')).map(|l| l.split_whitespace().collect()).collect();
     assert_eq!(rows.len(), 3, "a header and two rows:\n{text}");

@@ -96,11 +96,16 @@ fn png_is_srgb_decoded_to_linear() {
     assert!(max < 4e-3, "8-bit sRGB round trip error {max}");
 }
 
-/// The stderr of a failed compare: exit status 2, one line naming `file`, no --diff file.
+/// The stderr of a failed compare: exit status 1 (2 for a command-line mistake, `code`),
+/// one line naming `file`, no --diff file.
 fn fails_naming(args: &[&str], file: &Path, diff: &Path) -> String {
+    fails_with(1, args, file, diff)
+}
+
+fn fails_with(code: i32, args: &[&str], file: &Path, diff: &Path) -> String {
     let out = arbor(args);
     let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(2), "arbor {args:?}: {err}");
+    assert_eq!(out.status.code(), Some(code), "arbor {args:?}: {err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.starts_with("arbor: error: ") && err.contains(&s(file)), "{err} does not name {}", file.display());
     assert!(out.stdout.is_empty());
@@ -115,7 +120,7 @@ fn fails_naming(args: &[&str], file: &Path, diff: &Path) -> String {
 }
 
 #[test]
-fn bad_inputs_exit_2_with_one_line_naming_the_file() {
+fn bad_inputs_exit_1_with_one_line_naming_the_file() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     let diff = d.join("d.png");
@@ -138,7 +143,7 @@ fn bad_inputs_exit_2_with_one_line_naming_the_file() {
     let e = fails_naming(&["compare", &s(&unknown), &s(&a), "--diff", &diff_s], &unknown, &diff);
     assert!(e.contains("unknown image format"), "{e}");
     let jpg_diff = d.join("d.jpg");
-    fails_naming(&["compare", &s(&a), &s(&a), "--diff", &s(&jpg_diff)], &jpg_diff, &jpg_diff);
+    fails_with(2, &["compare", &s(&a), &s(&a), "--diff", &s(&jpg_diff)], &jpg_diff, &jpg_diff);
     let nan = write(d, "nan.pfm", 2, 1, &[[0.0, f32::NAN, 0.0], [0.0; 3]]);
     let e = fails_naming(&["compare", &s(&nan), &s(&a), "--diff", &diff_s], &nan, &diff);
     assert!(e.contains("pixel (0, 0) is not finite"), "{e}");

@@ -171,8 +171,16 @@ fn malformed_files_give_one_error_naming_the_file() {
         assert!(err.contains(file), "{rel}: {err}");
         assert_eq!(err.lines().count(), 1, "{rel}: {err}");
     }
-    // Through the command line: exit status, one line, no image.
+    // The messages name what is wrong: the missing buffer file, a .glb that is a JPEG.
+    let err =
+        Scene::load(model("MissingBin/BoxTextured.gltf").to_str().expect("utf-8")).expect_err("no bin").to_string();
+    assert!(err.contains("BoxTextured0.bin") && err.contains("cannot read it"), "{err}");
     let dir = tempfile::tempdir().expect("tempdir");
+    let jpeg = dir.path().join("photo.glb");
+    std::fs::write(&jpeg, [0xFF, 0xD8, 0xFF, 0xE0, 0, 0x10, b'J', b'F', b'I', b'F']).expect("write");
+    let err = Scene::load(jpeg.to_str().expect("utf-8")).expect_err("a JPEG").to_string();
+    assert!(err.contains("photo.glb") && err.contains("a JPEG image") && !err.contains("column"), "{err}");
+    // Through the command line: exit status, one line, no image.
     let out = dir.path().join("x.png");
     let p = model("BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb");
     let run =

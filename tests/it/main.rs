@@ -28,6 +28,7 @@ mod heatmaps;
 mod instances;
 mod kdtree;
 mod kubernetes;
+mod manual;
 mod mesh_files;
 mod path;
 mod ray_batch;

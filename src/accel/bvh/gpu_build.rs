@@ -376,7 +376,7 @@ impl GpuBuilder {
             return empty_tree(ctx, scene, target, tp);
         }
         if n > MAX_BVH_PRIMS || 2 * n as u64 - 1 > u64::from(u32::MAX / 2) {
-            return Err(Error::Usage(format!("{n} primitives: the GPU build handles at most {MAX_BVH_PRIMS}")));
+            return Err(Error::Failed(format!("{n} primitives: the GPU build handles at most {MAX_BVH_PRIMS}")));
         }
         let width = match target {
             Target::Wide { width, .. } => width,
@@ -465,7 +465,7 @@ impl GpuBuilder {
         let plan_name = format!("gpu {width}-wide: number");
         if width > 2 {
             if n as u64 / 2 > 65_535 * u64::from(BUILD_GROUP) {
-                return Err(Error::Usage(format!("{n} primitives: the GPU's wide collapse handles at most 33M")));
+                return Err(Error::Failed(format!("{n} primitives: the GPU's wide collapse handles at most 33M")));
             }
             let wb = wide_blocks as u32;
             steps.push(Step::Dispatch {
@@ -559,7 +559,7 @@ impl GpuBuilder {
 
     fn bind(&mut self, ctx: &Context, scene: &Scene, b: &Buffers) -> Result<()> {
         let geo = geometry(scene);
-        let bounds_k = self.bounds.get_mut(&geo).ok_or_else(|| Error::Usage("no bounds kernel".into()))?;
+        let bounds_k = self.bounds.get_mut(&geo).ok_or_else(|| Error::Failed("no bounds kernel".into()))?;
         ctx.bind(bounds_k, BINDING_BUILD_HEADER, &b.header)?;
         ctx.bind(bounds_k, BINDING_BUILD_PRIM_BOUNDS, &b.prim_bounds)?;
         for (binding, buf) in &b.geometry {
@@ -619,21 +619,21 @@ fn wide_words(n: u64) -> u64 {
 /// Checks the header of a build of `n` primitives: error bits, depth, node count.
 fn check_header(header: &[u32], n: usize) -> Result<()> {
     if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_LEVELS != 0 {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "GPU build: the tree is more than {} levels deep, deeper than the traversal kernel's limit \
              {MAX_BVH_DEPTH} (use --build cpu to see the final depth)",
             BUILD_MAX_LEVELS - 1
         )));
     }
     if header[BUILD_HDR_ERRORS as usize] & BUILD_ERR_WALK != 0 {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "GPU build: a walk between a node and the root took over {BUILD_MAX_WALK} steps (use --build cpu)"
         )));
     }
     let depth = header[BUILD_HDR_DEPTH as usize];
     let count = u64::from(header[BUILD_HDR_NODES as usize]);
     if depth > MAX_BVH_DEPTH {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "GPU build: the tree is {depth} deep, deeper than the traversal kernel's limit {MAX_BVH_DEPTH}"
         )));
     }

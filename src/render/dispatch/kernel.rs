@@ -57,7 +57,7 @@ pub fn check_subgroups(ctx: &Context) -> Result<()> {
     if ctx.info().subgroup_vote {
         return Ok(());
     }
-    Err(Error::Usage(format!(
+    Err(Error::Failed(format!(
         "{} lacks subgroup vote and arithmetic operations in compute shaders, which the trace kernels use",
         ctx.info().name
     )))
@@ -127,7 +127,7 @@ impl LoopBounds {
                     None => TREE_STEPS_UNLIMITED,
                 };
                 if steps < MIN_TREE_STEPS {
-                    return Err(Error::Usage(format!(
+                    return Err(Error::Failed(format!(
                         "{}: {traces} traces per sample leave only {steps} traversal steps each within {}'s loop limit; lower [render] max_depth",
                         scene.name,
                         ctx.info().name
@@ -146,7 +146,7 @@ impl LoopBounds {
         let budget = budget.saturating_sub(self.reserve);
         let per_sample = loop_iterations_per_sample(traces, self.per_trace);
         if per_sample > budget {
-            return Err(Error::Usage(format!(
+            return Err(Error::Failed(format!(
                 "{}: one sample needs up to {per_sample} loop iterations per pixel, more than the {budget} that {} runs per invocation; use fewer primitives, a lower [render] max_depth, or an acceleration structure",
                 scene.name,
                 ctx.info().name
@@ -179,7 +179,7 @@ impl Variant {
         let unrolled = if bounds.unroll > 1 { format!("_x{}", bounds.unroll) } else { String::new() };
         let name = format!("{prefix}_{}_{geometry}{unrolled}", image.family);
         let spirv =
-            crate::gpu::spirv::get(&name).ok_or_else(|| Error::Usage(format!("no kernel '{name}' was compiled")))?;
+            crate::gpu::spirv::get(&name).ok_or_else(|| Error::Failed(format!("no kernel '{name}' was compiled")))?;
         let mut bindings = trace_bindings(image.family, geometry);
         if image.resume_words > 0 {
             // A stand-in for the trace kernel, the pool for the resume kernel (resume.rs).

@@ -13,7 +13,7 @@ impl Frame {
     pub fn new(width: u32, height: u32) -> Result<Frame> {
         let n = width as usize * height as usize;
         let too_big = || {
-            Error::Usage(format!(
+            Error::Failed(format!(
                 "--size {width}x{height}: cannot allocate the frame (about {} MiB); use a smaller --size",
                 (n as u64 * crate::render::memory::FRAME_BYTES_PER_PIXEL) >> 20
             ))

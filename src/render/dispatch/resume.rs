@@ -61,7 +61,7 @@ impl PoolShape {
         let records = jobs.min(room / (2 * 4 * u64::from(record_words)));
         let records = most.map_or(records, |m| records.min(u64::from(m.max(1))));
         if records == 0 || jobs > u64::from(u32::MAX) {
-            return Err(Error::Usage(format!(
+            return Err(Error::Failed(format!(
                 "the device's storage buffers ({max_range} bytes) cannot hold the jobs of {jobs} pixels and one trace record of {} bytes; use a smaller --dispatch-budget",
                 4 * record_words
             )));
@@ -163,7 +163,7 @@ impl<'a> Resumer<'a> {
         }
         match &self.kernel {
             Some((k, _)) => Ok(k),
-            None => Err(Error::Usage("no resume kernel".into())),
+            None => Err(Error::Failed("no resume kernel".into())),
         }
     }
 

@@ -128,7 +128,7 @@ pub fn bind_all(
         }
         if b.kind == BindingKind::RayStructure {
             let tlas = image.ray_structure.ok_or_else(|| {
-                Error::Usage(format!("the {} kernel traces the driver's structure, which was not built", image.family))
+                Error::Failed(format!("the {} kernel traces the driver's structure, which was not built", image.family))
             })?;
             ctx.bind_ray_structure(kernel, b.binding, tlas)?;
             names.push(b.name.to_string());
@@ -157,7 +157,7 @@ pub fn bind_all(
         names.push(b.name.to_string());
         storage.push(buf);
     }
-    let pixels = pixels.ok_or_else(|| Error::Usage("no pixel buffer".into()))?;
+    let pixels = pixels.ok_or_else(|| Error::Failed("no pixel buffer".into()))?;
     Ok(Bound { uniform, storage, names, pixels, rays })
 }
 
@@ -194,13 +194,13 @@ fn upload_one(
         BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&scene.shading))?,
         BINDING_ACCEL_NODES => match &image.buffers {
             Some(AccelBuffers::Host(nodes, _)) => upload_checked(ctx, "accel_nodes", nodes)?,
-            _ => return Err(Error::Usage(format!("the {} structure has no nodes", image.family))),
+            _ => return Err(Error::Failed(format!("the {} structure has no nodes", image.family))),
         },
         BINDING_ACCEL_INDICES => match &image.buffers {
             Some(AccelBuffers::Host(_, indices)) => {
                 upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?
             }
-            _ => return Err(Error::Usage(format!("the {} structure has no indices", image.family))),
+            _ => return Err(Error::Failed(format!("the {} structure has no indices", image.family))),
         },
         // Resumable families: the trace kernel never touches the pool (resume.rs).
         BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
@@ -220,7 +220,7 @@ fn upload_one(
             *rays = Some(at);
             ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
         }
-        other => return Err(Error::Usage(format!("trace kernel has unexpected binding {other}"))),
+        other => return Err(Error::Failed(format!("trace kernel has unexpected binding {other}"))),
     })
 }
 
@@ -239,7 +239,7 @@ pub fn bind_again(
             ctx.bind(kernel, b.binding, &bound.uniform)?;
             continue;
         }
-        let buf = storage.next().ok_or_else(|| Error::Usage(format!("binding {} has no buffer", b.binding)))?;
+        let buf = storage.next().ok_or_else(|| Error::Failed(format!("binding {} has no buffer", b.binding)))?;
         ctx.bind(kernel, b.binding, if b.binding == replace.0 { replace.1 } else { buf })?;
     }
     Ok(())

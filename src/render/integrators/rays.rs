@@ -210,7 +210,8 @@ impl<'a> RayTracer<'a> {
             return Ok((hits, stats));
         }
         let prep = &self.prep;
-        let ray_buf = prep.bound.rays().ok_or_else(|| Error::Usage("the ray-batch kernel has no ray buffer".into()))?;
+        let ray_buf =
+            prep.bound.rays().ok_or_else(|| Error::Failed("the ray-batch kernel has no ray buffer".into()))?;
         let mut resumer = prep.resumer()?;
         let mut sizer = self.sizer.borrow_mut();
         let mut overflow = 0u64;

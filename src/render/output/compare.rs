@@ -114,9 +114,9 @@ pub fn error_image(test: &[[f32; 3]], reference: &[[f32; 3]]) -> Vec<[u8; 3]> {
 pub fn error_png(width: u32, height: u32, test: &[[f32; 3]], reference: &[[f32; 3]]) -> Result<Vec<u8>> {
     let data: Vec<u8> = error_image(test, reference).into_iter().flatten().collect();
     let img = image::RgbImage::from_raw(width, height, data)
-        .ok_or_else(|| Error::Usage("error image buffer size mismatch".into()))?;
+        .ok_or_else(|| Error::Failed("error image buffer size mismatch".into()))?;
     let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Usage(format!("encoding PNG failed: {e}")))?;
+    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Failed(format!("encoding PNG failed: {e}")))?;
     Ok(out.into_inner())
 }
 

@@ -59,7 +59,7 @@ pub fn font() -> Result<()> {
             .map_err(|_| format!("{what}: not a TrueType/OpenType font"))
     })
     .clone()
-    .map_err(Error::Usage)
+    .map_err(Error::Failed)
 }
 
 /// Viridis control points: (index in the published 256-entry table, sRGB in [0, 1]),
@@ -217,7 +217,7 @@ fn text_width(text: &str, size: f64) -> Result<u32> {
     let (w, _) = ("sans-serif", size)
         .into_font()
         .box_size(text)
-        .map_err(|e| Error::Usage(format!("heatmap: measuring text failed: {e:?}")))?;
+        .map_err(|e| Error::Failed(format!("heatmap: measuring text failed: {e:?}")))?;
     Ok(w)
 }
 
@@ -300,17 +300,17 @@ impl Figure<'_> {
     /// Checks the panels: at least one, every one the same non-zero size, with as many
     /// values as pixels. Returns that size.
     fn panel_size(&self) -> Result<(u32, u32)> {
-        let first = self.panels.first().ok_or_else(|| Error::Usage("heatmap: no panel to draw".into()))?;
+        let first = self.panels.first().ok_or_else(|| Error::Failed("heatmap: no panel to draw".into()))?;
         let (w, h) = (first.width, first.height);
         for p in &self.panels {
             if (p.width, p.height) != (w, h) || w == 0 || h == 0 {
-                return Err(Error::Usage(format!(
+                return Err(Error::Failed(format!(
                     "heatmap: panel '{}' is {}x{}; every panel must be the same non-empty size ({w}x{h})",
                     p.title, p.width, p.height
                 )));
             }
             if p.values.len() as u64 != u64::from(w) * u64::from(h) {
-                return Err(Error::Usage(format!(
+                return Err(Error::Failed(format!(
                     "heatmap: panel '{}' holds {} values for {w}x{h} pixels",
                     p.title,
                     p.values.len()
@@ -384,10 +384,10 @@ impl Figure<'_> {
         let stride = l.width as usize * 3;
         let bytes = stride
             .checked_mul(l.height as usize)
-            .ok_or_else(|| Error::Usage(format!("heatmap: {}x{} pixels is too large", l.width, l.height)))?;
+            .ok_or_else(|| Error::Failed(format!("heatmap: {}x{} pixels is too large", l.width, l.height)))?;
         let mut buf = Vec::new();
         buf.try_reserve_exact(bytes)
-            .map_err(|_| Error::Usage(format!("heatmap: no memory for a {}x{} picture", l.width, l.height)))?;
+            .map_err(|_| Error::Failed(format!("heatmap: no memory for a {}x{} picture", l.width, l.height)))?;
         buf.resize(bytes, 255u8);
         let put = |buf: &mut [u8], x: u32, y: u32, c: [u8; 3]| {
             let i = y as usize * stride + x as usize * 3;
@@ -415,7 +415,7 @@ impl Figure<'_> {
 
     /// The title, panel titles, bar outline, ticks and footer, drawn over `buf`.
     fn draw_text(&self, l: &Layout, buf: &mut [u8]) -> Result<()> {
-        let err = |e: &dyn std::fmt::Debug| Error::Usage(format!("heatmap: drawing failed: {e:?}"));
+        let err = |e: &dyn std::fmt::Debug| Error::Failed(format!("heatmap: drawing failed: {e:?}"));
         let root = BitMapBackend::with_buffer(buf, (l.width, l.height)).into_drawing_area();
         let i = |v: u32| v as i32;
         root.draw(&Text::new(self.title.clone(), (i(MARGIN), i(MARGIN)), style(TITLE_FONT))).map_err(|e| err(&e))?;
@@ -453,9 +453,9 @@ impl Figure<'_> {
 /// An RGB8 picture (row-major, 3 bytes a pixel) as PNG bytes; `what` names it in errors.
 pub fn encode_png(what: &str, width: u32, height: u32, rgb: Vec<u8>) -> Result<Vec<u8>> {
     let img = image::RgbImage::from_raw(width, height, rgb)
-        .ok_or_else(|| Error::Usage(format!("{what}: image buffer size mismatch")))?;
+        .ok_or_else(|| Error::Failed(format!("{what}: image buffer size mismatch")))?;
     let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Usage(format!("{what}: PNG: {e}")))?;
+    img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| Error::Failed(format!("{what}: PNG: {e}")))?;
     Ok(out.into_inner())
 }
 

@@ -58,7 +58,7 @@ pub fn available() -> Result<Option<u64>> {
         let bytes = v
             .trim()
             .parse::<u64>()
-            .map_err(|_| Error::Usage(format!("ARBOR_MEMORY_LIMIT={v:?} is not a byte count")))?;
+            .map_err(|_| Error::Failed(format!("ARBOR_MEMORY_LIMIT={v:?} is not a byte count")))?;
         take(bytes);
     }
     if let Some(kib) = proc_field(Path::new("/proc/meminfo"), "MemAvailable:") {
@@ -97,7 +97,7 @@ fn gib(bytes: u64) -> String {
 pub fn check_render(what: &str, width: u32, height: u32, prims: usize, outputs: &[(Format, u64)]) -> Result<()> {
     let need = render_bytes(width, height, prims, outputs);
     match available()? {
-        Some(have) if need > have => Err(Error::Usage(format!(
+        Some(have) if need > have => Err(Error::Failed(format!(
             "{what}: the frame needs about {} GiB but only {} GiB are available; use a smaller --size",
             gib(need),
             gib(have)

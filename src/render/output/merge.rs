@@ -124,7 +124,7 @@ pub fn merge(parts: Vec<Part>, allow_partial: bool) -> Result<(PartInfo, Frame)>
     let covered: u64 = windows.iter().map(|(c, _)| c.pixels()).sum();
     let all = u64::from(base.width) * u64::from(base.height);
     if covered < all && !allow_partial {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "merge: the parts cover {covered} of the {all} pixels of the {}x{} image: tiles are missing (or pass --allow-partial)",
             base.width, base.height
         )));
@@ -185,7 +185,7 @@ pub fn merge(parts: Vec<Part>, allow_partial: bool) -> Result<(PartInfo, Frame)>
     let (lo, hi, _) = union.expect("at least one part");
     let total = parts.iter().map(|p| p.info.spp_total).max().unwrap_or(0);
     if total != 0 && hi - lo != total && !allow_partial {
-        return Err(Error::Usage(format!(
+        return Err(Error::Failed(format!(
             "merge: the parts hold samples {lo}..{hi} of {total} per pixel: sample shards are missing (or pass --allow-partial)"
         )));
     }

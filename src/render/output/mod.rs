@@ -42,11 +42,14 @@ pub fn format_of(path: &Path, what: &str) -> Result<Format> {
         ("png", _) => Ok(Format::Png),
         ("exr", _) => Ok(Format::Exr),
         ("pfm", "aov") => Ok(Format::Pfm),
-        (_, "image") => Err(Error::invalid(path, "the image output must end in .png or .exr")),
-        _ => Err(Error::invalid(
-            path,
-            format!("an AOV output must end in .pfm or .exr (or .png, a heatmap, for {})", HEATMAP_AOVS.join(", ")),
-        )),
+        // An output's name comes from the command line (or its library twin, a setting):
+        // a wrong extension is a usage mistake (exit status 2).
+        (_, "image") => Err(Error::Usage(format!("{}: the image output must end in .png or .exr", path.display()))),
+        _ => Err(Error::Usage(format!(
+            "{}: an AOV output must end in .pfm or .exr (or .png, a heatmap, for {})",
+            path.display(),
+            HEATMAP_AOVS.join(", ")
+        ))),
     }
 }
 
@@ -108,7 +111,7 @@ pub fn check_outputs<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Result<()
     for p in paths {
         check_writable(p)?;
         if seen.contains(&p) {
-            return Err(Error::invalid(p, "is given as two outputs"));
+            return Err(Error::Usage(format!("{}: is given as two outputs", p.display())));
         }
         seen.push(p);
     }
@@ -192,18 +195,18 @@ pub fn encode_image(format: Format, width: u32, height: u32, rgb: &[[f32; 3]]) -
         Format::Png => {
             let data: Vec<u8> = rgb.iter().flat_map(|p| p.map(srgb8)).collect();
             image::RgbImage::from_raw(width, height, data)
-                .ok_or_else(|| Error::Usage("image buffer size mismatch".into()))?
+                .ok_or_else(|| Error::Failed("image buffer size mismatch".into()))?
                 .write_to(&mut out, image::ImageFormat::Png)
         }
         Format::Exr => {
             let data: Vec<f32> = rgb.iter().flatten().copied().collect();
             image::Rgb32FImage::from_raw(width, height, data)
-                .ok_or_else(|| Error::Usage("image buffer size mismatch".into()))?
+                .ok_or_else(|| Error::Failed("image buffer size mismatch".into()))?
                 .write_to(&mut out, image::ImageFormat::OpenExr)
         }
         Format::Pfm => return Ok(encode_pfm(width, height, 3, &rgb.iter().flatten().copied().collect::<Vec<_>>())),
     };
-    res.map_err(|e| Error::Usage(format!("encoding failed: {e}")))?;
+    res.map_err(|e| Error::Failed(format!("encoding failed: {e}")))?;
     Ok(out.into_inner())
 }
 
@@ -454,7 +457,7 @@ pub struct Provenance {
 pub fn write_stats(set: &mut OutputSet, path: &Path, stats: &RenderStats, provenance: Provenance) -> Result<()> {
     let _span = encode_span(path);
     let json = serde_json::to_vec_pretty(&StatsFile { stats, provenance })
-        .map_err(|e| Error::Usage(format!("stats JSON: {e}")))?;
+        .map_err(|e| Error::Failed(format!("stats JSON: {e}")))?;
     set.add(path, &json)
 }
 

@@ -286,7 +286,7 @@ pub fn encode(info: &PartInfo, frame: &Frame) -> Result<Vec<u8>> {
     let mut image = Image::from_layer(layer);
     image.attributes.display_window = IntegerBounds::new(Vec2(0, 0), Vec2(info.width as usize, info.height as usize));
     let mut out = std::io::Cursor::new(Vec::new());
-    image.write().to_buffered(&mut out).map_err(|e| Error::Usage(format!("cannot encode the EXR part: {e}")))?;
+    image.write().to_buffered(&mut out).map_err(|e| Error::Failed(format!("cannot encode the EXR part: {e}")))?;
     Ok(out.into_inner())
 }
 

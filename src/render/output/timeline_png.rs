@@ -65,10 +65,15 @@ fn tick_step(span: f64, n: f64) -> f64 {
     [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * p).find(|s| *s >= raw).unwrap_or(10.0 * p)
 }
 
+/// Characters of a 12-point label that fit between `x0` and `x1` (about 7 pixels each).
+fn label_room(x0: i32, x1: i32) -> usize {
+    ((x1 - x0 - 6) / 7).max(0) as usize
+}
+
 /// The timeline of `trace` as PNG bytes.
 pub fn png(trace: &Trace) -> Result<Vec<u8>> {
     font()?;
-    let err = |e: &dyn std::fmt::Debug| Error::Usage(format!("timeline picture: drawing failed: {e:?}"));
+    let err = |e: &dyn std::fmt::Debug| Error::Failed(format!("timeline picture: drawing failed: {e:?}"));
     let cpu = levels(trace, Track::Cpu);
     let gpu = levels(trace, Track::Gpu);
     let rows = |l: &[(&Event, usize)]| l.iter().map(|x| x.1 + 1).max().unwrap_or(1).min(MAX_LEVELS) as u32;
@@ -105,7 +110,16 @@ pub fn png(trace: &Trace) -> Result<Vec<u8>> {
         }
         for (name, y0, spans) in [("CPU", top, &cpu), ("GPU queue", gpu_top, &gpu)] {
             root.draw(&Text::new(name, (MARGIN as i32, y0 as i32 + 3), text(15.0))).map_err(|e| err(&e))?;
-            for &(e, level) in spans.iter().filter(|x| x.1 < MAX_LEVELS) {
+            // Where the next span of the same row starts (a label may run on to there).
+            let mut next = vec![end_ns; spans.len()];
+            let mut seen = [end_ns; MAX_LEVELS];
+            for (k, &(e, level)) in spans.iter().enumerate().rev() {
+                if level < MAX_LEVELS {
+                    next[k] = seen[level];
+                    seen[level] = e.start_ns;
+                }
+            }
+            for (k, &(e, level)) in spans.iter().enumerate().filter(|x| x.1 .1 < MAX_LEVELS) {
                 let (x0, x1) = (x_of(e.start_ns), x_of(e.end_ns()).max(x_of(e.start_ns) + 1));
                 let y = (y0 + level as u32 * ROW) as i32;
                 let fill = Rectangle::new([(x0, y), (x1, y + ROW as i32 - 3)], colour(e.cat).filled());
@@ -116,14 +130,17 @@ pub fn png(trace: &Trace) -> Result<Vec<u8>> {
                     let edge = Rectangle::new([(x0, y), (x1, y + ROW as i32 - 3)], dark.stroke_width(1));
                     root.draw(&edge).map_err(|e| err(&e))?;
                 }
-                // A label where about 7 pixels a character fit.
-                let room = ((x1 - x0 - 6) / 7).max(0) as usize;
-                if room >= 4 {
-                    let label: String = if e.name.chars().count() > room {
-                        e.name.chars().take(room.saturating_sub(1)).chain(std::iter::once('…')).collect()
-                    } else {
-                        e.name.clone()
-                    };
+                // The label (about 7 pixels a character): inside the box where it fits,
+                // else after it where the row is free up to the next span, else cut.
+                let (room, free) = (label_room(x0, x1), label_room(x1, x_of(next[k]).min(x_of(end_ns) + 1)));
+                let n = e.name.chars().count();
+                if n <= room {
+                    root.draw(&Text::new(e.name.clone(), (x0 + 3, y + 3), text(12.0))).map_err(|e| err(&e))?;
+                } else if n <= free {
+                    let grey = ("sans-serif", 12.0).into_font().color(&RGBColor(90, 90, 90));
+                    root.draw(&Text::new(e.name.clone(), (x1 + 3, y + 3), grey)).map_err(|e| err(&e))?;
+                } else if room >= 4 {
+                    let label: String = e.name.chars().take(room - 1).chain(std::iter::once('…')).collect();
                     root.draw(&Text::new(label, (x0 + 3, y + 3), text(12.0))).map_err(|e| err(&e))?;
                 }
             }
