@@ -1,6 +1,6 @@
 #version 460
 // The trace kernel, one thread per pixel, for either integrator (SPEC_INTEGRATOR):
-// Whitted (camera rays, hard shadows, mirror and glass bounces; below) or path
+// Whitted (the preview: direct light, mirrors, glass split; below) or path
 // tracing (common/path.glsl). Each thread runs samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
 // buffer's header).
 // Compiled once per (structure, geometry) variant by build.rs: exactly one
@@ -32,6 +32,7 @@ layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
 layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 31u;
 layout(constant_id = SPEC_PACKET) const bool PACKET = false;
+layout(constant_id = SPEC_WHITTED_SPLIT) const uint WHITTED_SPLIT = 0u;
 
 #include "common/layout.glsl"
 #include "common/ray.glsl"
@@ -232,50 +233,37 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 
 vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
 
-// Direct light from every light at p (normal n facing the viewer, geometric gn
-// facing the viewer) toward view direction v.
-vec3 direct_light(vec3 p, vec3 err, vec3 n, vec3 gn, vec3 v, uint mat) {
-    vec3 total = vec3(0.0);
-    if (LIGHT_COUNT == 0u) return total;
-    vec4 c = mat_row(mat, 0u);
-    vec4 spec = mat_row(mat, 1u);
-    uint kind = floatBitsToUint(c.w);
-    uint base = params.counts.y * MATERIAL_ROWS;
-    for (uint l = 0u; l < LIGHT_COUNT; l++) {
-        vec4 a = shading_row(base + l * LIGHT_ROWS);
-        vec3 li = shading_row(base + l * LIGHT_ROWS + 1u).xyz;
-        vec3 wi;
-        float dist;
-        if (a.w > 0.5) {
-            vec3 to = a.xyz - p;
-            dist = length(to);
-            wi = to / dist;
-            li /= max(dist * dist, 1e-30);
-        } else {
-            wi = -a.xyz;
-            dist = 3.0e38;
-        }
-        float ndotl = dot(n, wi);
-        if (ndotl <= 0.0 || dot(gn, wi) <= 0.0) continue;
-        Ray sr;
-        sr.origin = offset_ray_origin(p, err, gn, wi); sr.dir = wi; sr.tmin = 0.0;
-        // A point light is not geometry: the ray ends at it. A directional one: never.
-        sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
-        g_rays += 1u;
-        if (trace_any_coherent(sr)) continue;
-        vec3 f = c.rgb / PI;
-        if (kind == MAT_PHONG) {
-            float rv = max(dot(reflect(-wi, n), v), 0.0);
-            f += spec.rgb * (spec.w + 2.0) / (2.0 * PI) * pow(rv, spec.w);
-        }
-        total += f * li * ndotl;
-    }
-    return total;
-}
-
 #include "common/bsdf.glsl"
 #include "common/path.glsl"
 
+// Whitted's glass splits: a refracted ray waiting while the reflected one is followed
+// (at most one per split on the way from the camera, so WHITTED_SPLIT_MAX entries).
+struct Branch {
+    vec3 origin;
+    uint depth;
+    vec3 dir;
+    uint splits;
+    vec3 beta;
+};
+
+// Fresnel reflectance of smooth glass for a ray along dir meeting shading normal n
+// (facing the ray's origin), and the relative index eta; 1 at total internal reflection.
+float glass_fresnel(vec3 dir, vec3 n, float eta) {
+    float cos_i = min(dot(-dir, n), 1.0);
+    float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
+    if (sin2_t >= 1.0) return 1.0;
+    float cos_t = sqrt(1.0 - sin2_t);
+    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// The preview: camera rays; at a Lambert or Phong surface, the point and directional
+// lights (hard shadows), one area light sampled by power (as the path tracer does,
+// without MIS) and the ambient term, and no further bounce; mirrors followed; glass
+// split into its reflected and refracted rays, Fresnel-weighted, up to WHITTED_SPLIT
+// splits a path, then only the stronger of the two. No random choice but the pixel
+// jitter of samples after 0 and the area-light points.
 void whitted_main() {
     uint local;
     if (!job_begin(local)) return;
@@ -302,57 +290,98 @@ void whitted_main() {
         r.tmax = uintBitsToFloat(0x7f800000u);
         vec3 L = vec3(0.0);
         vec3 beta = vec3(1.0);
-        for (uint depth = 0u; depth < MAX_DEPTH; depth++) {
+        uint depth = 0u;
+        uint splits = 0u;
+        Branch waiting[WHITTED_SPLIT_MAX];
+        uint n_waiting = 0u;
+        // One ray a pass: at depth d at most 2^min(d, WHITTED_SPLIT) of them.
+        for (uint pass = 0u; pass < (MAX_DEPTH << WHITTED_SPLIT); pass++) {
             Hit h;
             h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
             g_nodes = 0u; g_tests = 0u;
             g_rays += 1u;
             bool hit = trace_closest(r, h);
+            if (g_suspended) break;
             vec3 p, err, gn, sn;
             uint mat;
             vec2 uv;
-            if (hit) surface(h, r, p, err, gn, sn, mat, uv);
-            if (s == 0u && depth == 0u) {
+            Material m;
+            if (hit) {
+                surface(h, r, p, err, gn, sn, mat, uv);
+                m = material_hit(mat, uv);
+            }
+            if (s == 0u && pass == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
                 out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
-                out_px.albedo_m2.rgb = hit ? mat_row(mat, 0u).rgb : vec3(0.0);
+                out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
             }
-            if (!hit) { L += beta * params.background.rgb; break; }
-            vec4 c = mat_row(mat, 0u);
-            vec4 em = mat_row(mat, 2u);
-            uint kind = floatBitsToUint(c.w);
-            L += beta * em.rgb;
-            bool front = dot(gn, r.dir) < 0.0;
-            vec3 gnf = front ? gn : -gn;
-            vec3 snf = dot(sn, r.dir) < 0.0 ? sn : -sn;
-            if (kind == MAT_LAMBERT || kind == MAT_PHONG) {
-                L += beta * (c.rgb * params.background.a * params.background.rgb
-                             + direct_light(p, err, snf, gnf, -r.dir, mat));
-                break;
-            } else if (kind_used(MAT_MIRROR) && kind == MAT_MIRROR) {
-                beta *= c.rgb;
-                r.dir = normalize(reflect(r.dir, snf));
-                r.origin = offset_ray_origin(p, err, gnf, r.dir);
-            } else if (kind_used(MAT_GLASS) && kind == MAT_GLASS) {
-                float eta = front ? 1.0 / em.a : em.a;
-                float cos_i = min(dot(-r.dir, snf), 1.0);
-                float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
-                float fresnel = 1.0;
-                if (sin2_t < 1.0) {
-                    float cos_t = sqrt(1.0 - sin2_t);
-                    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-                    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-                    fresnel = 0.5 * (rs * rs + rp * rp);
-                }
-                if (rng_next(rng) < fresnel) {
-                    r.dir = normalize(reflect(r.dir, snf));
-                } else {
-                    beta *= c.rgb;
-                    r.dir = normalize(refract(r.dir, snf, eta));
-                }
-                r.origin = offset_ray_origin(p, err, gnf, r.dir);
+            bool follow = false;
+            if (!hit) {
+                L += beta * params.background.rgb;
             } else {
-                break; // emissive
+                L += beta * emitted(m, gn, r.dir);
+                bool front = dot(gn, r.dir) < 0.0;
+                vec3 gnf = front ? gn : -gn;
+                vec3 n = dot(sn, r.dir) < 0.0 ? sn : -sn;
+                vec3 wo = -r.dir;
+                bool more = depth + 1u < MAX_DEPTH;
+                if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG) {
+                    L += beta * (m.albedo * params.background.a * params.background.rgb
+                                 + delta_lights(m, p, err, n, gnf, wo));
+                    if (EMITTER_COUNT > 0u) {
+                        vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
+                        L += beta * area_light(m, p, err, n, gnf, wo, u3, false);
+                    }
+                } else if (kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR && more) {
+                    beta *= m.albedo;
+                    r.dir = normalize(reflect(r.dir, n));
+                    r.origin = offset_ray_origin(p, err, gnf, r.dir);
+                    follow = true;
+                } else if (kind_used(MAT_GLASS) && m.kind == MAT_GLASS && more) {
+                    float eta = front ? 1.0 / m.ior : m.ior;
+                    float fresnel = glass_fresnel(r.dir, n, eta);
+                    vec3 reflected = normalize(reflect(r.dir, n));
+                    vec3 w_reflect = vec3(fresnel);
+                    vec3 w_refract = (1.0 - fresnel) * m.albedo;
+                    bool take_reflect = true;
+                    if (fresnel < 1.0) {
+                        vec3 refracted = normalize(refract(r.dir, n, eta));
+                        if (splits < WHITTED_SPLIT && n_waiting < WHITTED_SPLIT_MAX) {
+                            Branch b;
+                            b.origin = offset_ray_origin(p, err, gnf, refracted);
+                            b.dir = refracted;
+                            b.depth = depth + 1u;
+                            b.splits = splits + 1u;
+                            b.beta = beta * w_refract;
+                            waiting[n_waiting] = b;
+                            n_waiting += 1u;
+                            splits += 1u;
+                        } else if (luminance(w_refract) > luminance(w_reflect)) {
+                            take_reflect = false;
+                            beta *= w_refract;
+                            r.dir = refracted;
+                        }
+                    }
+                    if (take_reflect) {
+                        beta *= w_reflect;
+                        r.dir = reflected;
+                    }
+                    r.origin = offset_ray_origin(p, err, gnf, r.dir);
+                    follow = true;
+                }
+            }
+            if (follow) {
+                depth += 1u;
+            } else if (WHITTED_SPLIT > 0u && n_waiting > 0u) {
+                n_waiting -= 1u;
+                Branch b = waiting[n_waiting];
+                r.origin = b.origin;
+                r.dir = b.dir;
+                depth = b.depth;
+                splits = b.splits;
+                beta = b.beta;
+            } else {
+                break;
             }
             r.tmin = 0.0;
             r.tmax = uintBitsToFloat(0x7f800000u);

@@ -210,6 +210,14 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     return pdf > 0.0 && (le.r > 0.0 || le.g > 0.0 || le.b > 0.0);
 }
 
+// The material at a hit with texture coordinates uv, its albedo textured.
+Material material_hit(uint mat, vec2 uv) {
+    Material m = material_at(mat);
+    if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
+        m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
+    return m;
+}
+
 // --- the integrator -------------------------------------------------------------
 
 // Light from point and directional lights at p toward wo (no MIS: a BSDF sample never
@@ -256,6 +264,19 @@ bool unoccluded(vec3 p, vec3 err, vec3 gnf, vec3 wi, float dist) {
     return !trace_any(sr);
 }
 
+// Light from one area light at p toward wo, chosen by power and sampled at a point by
+// u (a shadow ray), weighted against BSDF sampling by the power heuristic with `mis`.
+vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, vec3 u, bool mis) {
+    vec3 wi, le;
+    float dist, lpdf;
+    if (!sample_emitter(p, u, wi, dist, le, lpdf) || dot(gnf, wi) <= 0.0) return vec3(0.0);
+    float bpdf;
+    vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+    if (f == vec3(0.0) || !unoccluded(p, err, gnf, wi, dist)) return vec3(0.0);
+    float w = mis ? power_heuristic(lpdf, bpdf) : 1.0;
+    return f * le * (abs(dot(n, wi)) * w / lpdf);
+}
+
 void path_main() {
     uint local;
     if (!job_begin(local)) return;
@@ -294,11 +315,7 @@ void path_main() {
             vec2 uv = vec2(0.0);
             if (hit) surface(h, r, p, err, gn, sn, mat, uv);
             Material m;
-            if (hit) {
-                m = material_at(mat);
-                if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
-                    m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
-            }
+            if (hit) m = material_hit(mat, uv);
             if (s == 0u && depth == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
                 out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
@@ -333,17 +350,8 @@ void path_main() {
             if (!delta) {
                 L += beta * delta_lights(m, p, err, n, gnf, wo);
                 if (EMITTER_COUNT > 0u && MIS_MODE != MIS_BSDF) {
-                    vec3 wi, lle;
-                    float dist, lpdf;
                     vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-                    if (sample_emitter(p, u3, wi, dist, lle, lpdf) && dot(gnf, wi) > 0.0) {
-                        float bpdf;
-                        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
-                        if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, dist)) {
-                            float w = MIS_MODE == MIS_BOTH ? power_heuristic(lpdf, bpdf) : 1.0;
-                            L += beta * f * lle * (abs(dot(n, wi)) * w / lpdf);
-                        }
-                    }
+                    L += beta * area_light(m, p, err, n, gnf, wo, u3, MIS_MODE == MIS_BOTH);
                 } else if (EMITTER_COUNT > 0u) {
                     rng_next(rng); rng_next(rng); rng_next(rng);
                 }

@@ -270,8 +270,10 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
     /// Light transport: path (path tracing with area lights, environment light,
-    /// soft shadows and indirect light; converges with more samples) or whitted
-    /// (point and directional lights, hard shadows, mirror and glass; a fast preview).
+    /// soft shadows and indirect light; converges with more samples) or whitted (the
+    /// fast preview: direct light from point, directional and area lights, textures,
+    /// mirrors, glass followed both ways to 3 splits; no indirect diffuse light and no
+    /// environment map: the background instead; area lights converge with --spp).
     #[arg(long, default_value = "path", value_parser = ["path", "whitted"])]
     pub(crate) integrator: String,
     /// Samples per pixel, 1..=1048576 (default: 64 for path, 1 for whitted). Path:

@@ -43,7 +43,6 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let scene = Scene::load(&a.scene)?;
     let load_ms = ms(start);
-    warn_if_only_emissive(&scene, integrator);
     let (w, h) = size.unwrap_or((scene.width, scene.height));
     let mut encoded = vec![(format, 3)];
     for (name, path) in &aovs {
@@ -269,18 +268,6 @@ fn resumable(path: &std::path::Path, part: &render::part::PartInfo) -> Result<re
 
 /// With the Whitted integrator an emissive material lights nothing else: say so when
 /// it is the scene's only light.
-fn warn_if_only_emissive(scene: &Scene, integrator: render::Integrator) {
-    if integrator == render::Integrator::Whitted
-        && scene.lights.is_empty()
-        && scene.materials.iter().any(|m| m.emission != glam::Vec3::ZERO)
-    {
-        eprintln!(
-            "arbor: warning: {}: emissive materials do not light other surfaces with the whitted integrator (no point or directional light)",
-            scene.name
-        );
-    }
-}
-
 /// Renders with progress: a bar on an interactive stderr after the first second, else
 /// a plain line every few seconds; none with `quiet`.
 /// SIGINT and SIGTERM stop a path-traced render after its current sample wave; the

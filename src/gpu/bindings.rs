@@ -193,6 +193,12 @@ pub const SPEC_MATERIAL_KINDS: u32 = 18;
 /// Packet traversal (a subgroup walks one node sequence) for coherent rays: camera
 /// rays of the probe kernel and shadow rays toward point and directional lights. BVHs.
 pub const SPEC_PACKET: u32 = 19;
+/// Whitted: a glass hit within this many splits of the camera ray follows both the
+/// reflected and the refracted ray (the refracted one waits on a branch stack); past
+/// it, the stronger of the two by weight. 0 without glass. At most WHITTED_SPLIT_MAX.
+pub const SPEC_WHITTED_SPLIT: u32 = 21;
+/// The deepest glass split Whitted's kernel has room for, and its default.
+pub const WHITTED_SPLIT_MAX: u32 = 3;
 /// Resumed traces: 1 in the resume kernel (its restore, replay and save code), 0 in
 /// the trace kernel, which only stops a sample whose trace ran out of steps.
 pub const SPEC_RESUME_PASS: u32 = 40;
@@ -276,6 +282,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
     ("SPEC_PACKET", SPEC_PACKET),
+    ("SPEC_WHITTED_SPLIT", SPEC_WHITTED_SPLIT),
+    ("WHITTED_SPLIT_MAX", WHITTED_SPLIT_MAX),
     ("SPEC_RESUME_PASS", SPEC_RESUME_PASS),
     ("SPEC_RESUME_LOG", SPEC_RESUME_LOG),
     ("SPEC_RESUME_RECORDS", SPEC_RESUME_RECORDS),

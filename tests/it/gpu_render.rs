@@ -88,7 +88,10 @@ fn specialised_kernels_bind_only_what_the_scene_needs() {
     for (scene, kernel, bound) in cases {
         let s = RenderSettings::for_size(16, 12);
         let (_, stats) = gpu::render(&ctx, scene, &s, |_, _| {}).expect("render");
-        assert_eq!(stats.kernel, kernel, "{}", scene.name);
+        // The mixed scene's glass splits: more traces a sample, so lavapipe's loop
+        // limit may need brute force's unrolled loops (`_x8`).
+        let unrolled = stats.kernel.strip_prefix(kernel).is_some_and(|u| u.is_empty() || u.starts_with("_x"));
+        assert!(unrolled, "{}: kernel {}, want {kernel}", scene.name, stats.kernel);
         assert_eq!(stats.bindings, bound, "{}", scene.name);
     }
     // Specialised and general kernels render the same image, bit for bit.

@@ -43,3 +43,4 @@ mod surface;
 mod timeline;
 mod trace_rays_example;
 mod transforms;
+mod whitted;

@@ -271,7 +271,7 @@ fn environment_samples_follow_the_map() {
     });
     let scene = b.finish().expect("scene");
     let mut shading = GpuScene::new(&scene).shading;
-    let ex = arbor::render::path::extras(&scene, shading.len() as u32).expect("extras");
+    let ex = arbor::render::path::extras(&scene, shading.len() as u32, true).expect("extras");
     shading.extend_from_slice(&ex.rows);
     let params = arbor::accel::gpu_layout::GpuParams {
         tables: ex.tables,

@@ -114,18 +114,7 @@ impl LoopBounds {
                 Ok(LoopBounds { unroll, per_trace: image.trace_loop.iterations(unroll, 0), steps: 0, reserve: 0 })
             }
             TraceLoop::StepBudget => {
-                // The resume kernel's own loops: a few per trace (each runs at least once
-                // on llvmpipe, even for no lane) and, once, the stacks and the log.
-                let (extra, reserve) = match image.resume_words {
-                    0 => (0, 0),
-                    words => (RESUME_LOOPS_PER_TRACE, u64::from(words) + 10 * traces + 16),
-                };
-                let steps = match ctx.loop_budget() {
-                    Some(budget) => (budget.saturating_sub(reserve) / traces.max(1))
-                        .saturating_sub(2 + extra)
-                        .min(TREE_STEPS_UNLIMITED),
-                    None => TREE_STEPS_UNLIMITED,
-                };
+                let (steps, extra, reserve) = Self::step_budget(ctx, image, traces);
                 if steps < MIN_TREE_STEPS {
                     return Err(Error::Failed(format!(
                         "{}: {traces} traces per sample leave only {steps} traversal steps each within {}'s loop limit; lower [render] max_depth",
@@ -136,6 +125,39 @@ impl LoopBounds {
                 let steps = forced.map_or(steps, |f| steps.min(u64::from(f.max(MIN_FORCED_TRACE_STEPS))));
                 Ok(LoopBounds { unroll: 1, per_trace: steps + extra, steps, reserve })
             }
+        }
+    }
+
+    /// The steps each of `traces` traces a sample may take within `ctx`'s loop limit
+    /// (a tree's step budget), the loop iterations the resume kernel adds to each, and
+    /// those it keeps for itself once per invocation.
+    fn step_budget(ctx: &Context, image: &GpuImage, traces: u64) -> (u64, u64, u64) {
+        // The resume kernel's own loops: a few per trace (each runs at least once on
+        // llvmpipe, even for no lane) and, once, the stacks and the log.
+        let (extra, reserve) = match image.resume_words {
+            0 => (0, 0),
+            words => (RESUME_LOOPS_PER_TRACE, u64::from(words) + 10 * traces + 16),
+        };
+        let steps = match ctx.loop_budget() {
+            Some(budget) => {
+                (budget.saturating_sub(reserve) / traces.max(1)).saturating_sub(2 + extra).min(TREE_STEPS_UNLIMITED)
+            }
+            None => TREE_STEPS_UNLIMITED,
+        };
+        (steps, extra, reserve)
+    }
+
+    /// Whether `traces` traces a sample fit `ctx`'s loop limit: each trace of a tree
+    /// keeps at least its smallest step budget; brute force's loops, at their largest
+    /// unroll factor, fit one sample. (Always, on a driver without a limit.)
+    pub fn fits(ctx: &Context, image: &GpuImage, traces: u64) -> bool {
+        let Some(budget) = ctx.loop_budget() else { return true };
+        match image.trace_loop {
+            TraceLoop::Unrolled { .. } => {
+                let most = BRUTE_UNROLL_FACTORS[BRUTE_UNROLL_FACTORS.len() - 1];
+                loop_iterations_per_sample(traces, image.trace_loop.iterations(most, 0)) <= budget
+            }
+            TraceLoop::StepBudget => Self::step_budget(ctx, image, traces).0 >= MIN_TREE_STEPS,
         }
     }
 

@@ -71,7 +71,6 @@ impl RenderSettings {
 }
 
 /// What an integrator asks of the loop.
-#[derive(Debug)]
 pub struct Request {
     /// The kernel's entry: `trace` (the integrators and probes) or `rays` (batches).
     pub prefix: &'static str,
@@ -89,6 +88,24 @@ pub struct Request {
     pub extra_bindings: Vec<BindingDesc>,
     /// Most pixels (or rays) a chunk holds; also kept within the device's buffers.
     pub chunk_most: u64,
+    /// For an integrator whose work per sample can shrink to fit the driver's loop
+    /// limit: given whether a number of traces a sample fits, the traces it will run
+    /// (replacing `traces`) and the specialization constants that say so.
+    pub fit: Option<Fit>,
+}
+
+/// See [`Request::fit`].
+pub type Fit = Box<dyn Fn(&dyn Fn(u64) -> bool) -> (u64, Vec<(u32, u32)>)>;
+
+impl std::fmt::Debug for Request {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Request")
+            .field("prefix", &self.prefix)
+            .field("traces", &self.traces)
+            .field("spec", &self.spec)
+            .field("fit", &self.fit.is_some())
+            .finish_non_exhaustive()
+    }
 }
 
 /// A kernel ready to run, with its buffers bound.
@@ -146,6 +163,12 @@ impl<'a> Prepared<'a> {
     ) -> Result<Prepared<'a>> {
         kernel::check_subgroups(ctx)?;
         let image = accel.gpu_image(scene).map_err(|e| Error::scene(scene.name.clone(), e.to_string()))?;
+        let mut request = request;
+        if let Some(fit) = request.fit.take() {
+            let (traces, spec) = fit(&|t| LoopBounds::fits(ctx, &image, t));
+            request.traces = traces;
+            request.spec.extend(spec);
+        }
         let traces = request.traces;
         let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
         let mut variant = Variant::new(request.prefix, scene, settings.kernel, &image, &bounds)?;

@@ -178,8 +178,9 @@ pub struct Extras {
     pub env_size: (u32, u32),
 }
 
-/// The extra shading rows for `scene`, whose Whitted rows number `base`.
-pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
+/// The extra shading rows for `scene`, whose Whitted rows number `base`: the emitter
+/// and texture tables, and with `env` the environment map's.
+pub fn extras(scene: &Scene, base: u32, env: bool) -> Result<Extras> {
     let mut ex = Extras::default();
     let list = emitters(scene);
     let mut next = base;
@@ -197,7 +198,7 @@ pub fn extras(scene: &Scene, base: u32) -> Result<Extras> {
         next += rows.len() as u32;
         ex.rows.extend(rows);
     }
-    if let Some(env) = &scene.environment {
+    if let Some(env) = scene.environment.as_ref().filter(|_| env) {
         let seen = env_texels_as_seen(&env.texels);
         let rows = env_texel_rows(&env.texels);
         ex.tables[2] = next;
@@ -317,7 +318,7 @@ pub fn render_with(
     settings.check()?;
     let Control { mut progress, interrupted, mut checkpoint } = control;
     let mut gs = GpuScene::new(scene);
-    let ex = extras(scene, gs.shading.len() as u32)?;
+    let ex = extras(scene, gs.shading.len() as u32, true)?;
     gs.shading.extend_from_slice(&ex.rows);
     let request = Request {
         prefix: "trace",
@@ -328,6 +329,7 @@ pub fn render_with(
         scene: gs,
         extra_bindings: Vec::new(),
         chunk_most: MAX_CHUNK_PIXELS,
+        fit: None,
     };
     let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
     let start = Instant::now();

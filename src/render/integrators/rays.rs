@@ -178,6 +178,7 @@ impl<'a> RayTracer<'a> {
             scene: GpuScene::new(scene),
             extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
             chunk_most: settings.pixels,
+            fit: None,
         };
         let prep = Prepared::new(ctx, scene, &settings, accel, request)?;
         let sizer = std::cell::RefCell::new(prep.sizer(1));
