@@ -69,9 +69,9 @@ pub enum Error {
         /// The driver's answer.
         result: String,
     },
-    /// A storage buffer exceeds the device's maxStorageBufferRange.
+    /// A buffer exceeds what the device allows for the way it is bound.
     #[error(
-        "buffer '{name}' needs {size} bytes but the device allows at most {limit} bytes per storage buffer (maxStorageBufferRange); the scene is too large for this device"
+        "buffer '{name}' needs {size} bytes but the device allows at most {limit} bytes {per}; the scene is too large for this device"
     )]
     BufferTooLarge {
         /// The buffer's label.
@@ -80,6 +80,8 @@ pub enum Error {
         size: u64,
         /// Bytes the device allows.
         limit: u64,
+        /// Which limit: "per storage buffer (maxStorageBufferRange)" and the like.
+        per: &'static str,
     },
     /// A pipeline would bind more storage buffers per stage than the project allows.
     #[error("pipeline '{name}' binds {count} storage buffers; at most {limit} per stage are allowed")]

@@ -1,6 +1,7 @@
 //! `--accel auto`: the structure with the lowest expected build plus trace time for a
 //! scene, an image size and a sample count, from a cost model whose constants were
-//! measured with `arbor bench` on lavapipe (docs/auto.md).
+//! measured with `arbor bench` on lavapipe (docs/auto.md), among those whose buffers
+//! fit the device ([`choose_on`]).
 //!
 //! Model, per structure: `time = build_ns · N + rays · (trace_ns · (1 + 0.1 log2(N / 1e5)))`
 //! for trees, and `rays · test_ns · N` for brute force; `rays` is pixels x samples x
@@ -23,6 +24,12 @@ const TREES: &[(AccelKind, f64, f64)] = &[
     (AccelKind::Lbvh, 86.0, 115.7),
     (AccelKind::Trbvh, 215.0, 106.5),
     (AccelKind::Bvh4, 738.0, 100.9),
+    // Not in that run: scaled from bvh4 by the ratios of `arbor bench --tris
+    // 100000,1000000 --size 1024x1024 --repeat 3 --accel lbvh,trbvh,bvh4,bvh8,cwbvh`
+    // (6 December 2026; builds 1.05x bvh4's, traces 1.5x and 1.45x on lavapipe, where
+    // subgroups of 8 lanes gain nothing from wider nodes). Candidates for their size.
+    (AccelKind::Bvh8, 775.0, 151.0),
+    (AccelKind::Cwbvh, 775.0, 146.0),
     (AccelKind::Grid, 194.0, 205.4),
     (AccelKind::Octree, 1105.0, 169.8),
 ];
@@ -50,16 +57,105 @@ pub fn estimates(scene: &Scene, pixels: u64, spp: u32) -> Vec<(AccelKind, f64)> 
     out
 }
 
-/// The structure to use, and a sentence saying why.
+/// The structure to use, and a sentence saying why, before the device is known.
 pub fn choose(scene: &Scene, pixels: u64, spp: u32) -> (AccelKind, String) {
     let est = estimates(scene, pixels, spp);
+    (est[0].0, why(scene, pixels, spp, &est, ""))
+}
+
+fn why(scene: &Scene, pixels: u64, spp: u32, est: &[(AccelKind, f64)], dropped: &str) -> String {
     let (best, ms) = est[0];
     let runner = est.get(1).map(|(k, t)| format!(", then {k} at {t:.0} ms")).unwrap_or_default();
-    let why = format!(
-        "{} primitives, {pixels} pixels x {spp} spp: {best} expected fastest at {ms:.0} ms build + trace{runner} (cost model in src/accel/auto.rs)",
+    format!(
+        "{} primitives, {pixels} pixels x {spp} spp: {best} expected fastest at {ms:.0} ms build + trace{runner}{dropped} (built-in costs measured on lavapipe, docs/auto.md)",
         scene.drawn_triangles() + scene.spheres.len() as u64
-    );
-    (best, why)
+    )
+}
+
+/// What a structure must fit on a device: the most bytes one of its buffers may hold
+/// (its nodes and its indices are each bound as a texel buffer) and the device's
+/// memory, which holds the scene's geometry too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fit {
+    /// The most bytes one buffer of the structure may hold.
+    pub buffer_bytes: u64,
+    /// The device's memory for the structure and the scene's geometry.
+    pub memory_bytes: u64,
+}
+
+impl Fit {
+    /// The limits of `ctx`'s device.
+    pub fn of(ctx: &crate::gpu::Context) -> Fit {
+        Fit { buffer_bytes: ctx.binding_limit(crate::gpu::BindingKind::Texel), memory_bytes: ctx.device_memory() }
+    }
+}
+
+/// Device bytes per stored primitive of each structure (nodes and indices together),
+/// from `arbor info builtin:blob:N --accel K` at 100k and 1M triangles (the larger of
+/// the two); those whose references per primitive depend on the scene (kd-tree, grid,
+/// octree) with room for more.
+const BYTES_PER_PRIM: &[(AccelKind, f64)] = &[
+    (AccelKind::None, 0.0),
+    (AccelKind::Kdtree, 36.0),
+    (AccelKind::BvhSah, 38.8),
+    (AccelKind::Lbvh, 68.0),
+    (AccelKind::Trbvh, 39.1),
+    (AccelKind::Bvh4, 35.0),
+    (AccelKind::Bvh8, 49.2),
+    (AccelKind::Cwbvh, 23.4),
+    (AccelKind::Grid, 27.0),
+    (AccelKind::Octree, 64.0),
+];
+
+/// The estimated device bytes of `kind`'s structure over `scene`, or None for a kind
+/// the model does not size.
+pub fn structure_bytes(kind: AccelKind, scene: &Scene) -> Option<u64> {
+    let stored = scene.stored_triangles() as f64 + scene.spheres.len() as f64;
+    BYTES_PER_PRIM.iter().find(|(k, _)| *k == kind).map(|(_, b)| (b * stored * 1.05) as u64)
+}
+
+/// Device bytes of the scene's geometry: vertices (32 bytes), triangles (16), spheres
+/// (32).
+fn geometry_bytes(scene: &Scene) -> u64 {
+    32 * scene.positions.len() as u64 + 16 * scene.stored_triangles() + 32 * scene.spheres.len() as u64
+}
+
+/// [`choose`] on a device: candidates whose buffers would not fit `fit` are dropped
+/// first. An error, naming the smallest structure's need and the device's limit, when
+/// no structure that could trace the scene in reasonable time fits (brute force stands
+/// in only where it was the pick anyway).
+pub fn choose_on(scene: &Scene, pixels: u64, spp: u32, fit: &Fit) -> crate::error::Result<(AccelKind, String)> {
+    let all = estimates(scene, pixels, spp);
+    // Geometry that does not fit fails whatever the structure, at its upload, which
+    // names the buffer.
+    let buffers = [32 * scene.positions.len() as u64, 16 * scene.stored_triangles(), 32 * scene.spheres.len() as u64];
+    if buffers.iter().any(|&b| b > fit.buffer_bytes) {
+        return Ok(choose(scene, pixels, spp));
+    }
+    let geometry = geometry_bytes(scene);
+    let fits = |k: AccelKind| {
+        structure_bytes(k, scene).is_some_and(|b| b <= fit.buffer_bytes && b + geometry <= fit.memory_bytes)
+    };
+    let kept: Vec<(AccelKind, f64)> = all.iter().copied().filter(|&(k, _)| fits(k)).collect();
+    let usable = kept.first().is_some_and(|&(k, _)| k != AccelKind::None || all[0].0 == AccelKind::None);
+    if !usable {
+        let (smallest, need) = BYTES_PER_PRIM
+            .iter()
+            .filter(|(k, _)| *k != AccelKind::None)
+            .filter_map(|&(k, _)| structure_bytes(k, scene).map(|b| (k, b)))
+            .min_by_key(|&(_, b)| b)
+            .unwrap_or((AccelKind::Cwbvh, 0));
+        return Err(crate::error::Error::Failed(format!(
+            "--accel auto: no structure fits this device: the smallest, {smallest}, needs about {need} bytes in one buffer and {} with the geometry; the device allows {} bytes per buffer and has {} bytes of memory",
+            need + geometry,
+            fit.buffer_bytes,
+            fit.memory_bytes
+        )));
+    }
+    let dropped: Vec<String> = all.iter().filter(|(k, _)| !fits(*k)).map(|(k, _)| k.to_string()).collect();
+    let note =
+        if dropped.is_empty() { String::new() } else { format!(" ({} would not fit the device)", dropped.join(", ")) };
+    Ok((kept[0].0, why(scene, pixels, spp, &kept, &note)))
 }
 
 #[cfg(test)]
@@ -85,5 +181,36 @@ mod tests {
         assert_eq!(k, AccelKind::Trbvh, "{why}");
         let (k, why) = choose(&scene(100_000), 1920 * 1080, 256);
         assert_eq!(k, AccelKind::Bvh4, "{why}");
+    }
+
+    /// A buffer limit that lbvh's 68 bytes per primitive exceed: auto takes the next
+    /// fastest that fits, says what it dropped, and fails, naming the smallest
+    /// structure's need, when nothing fits.
+    #[test]
+    fn structures_that_do_not_fit_are_dropped() {
+        let s = scene(100_000);
+        let n = (s.stored_triangles() + s.spheres.len() as u64) as f64;
+        let roomy = Fit { buffer_bytes: 1 << 40, memory_bytes: 1 << 40 };
+        assert_eq!(choose_on(&s, 640 * 480, 1, &roomy).expect("fits").0, AccelKind::Lbvh);
+        let tight = Fit { buffer_bytes: (60.0 * n) as u64, memory_bytes: 1 << 40 };
+        let (k, why) = choose_on(&s, 640 * 480, 1, &tight).expect("fits");
+        assert_ne!(k, AccelKind::Lbvh, "{why}");
+        assert!(structure_bytes(k, &s).expect("sized") <= tight.buffer_bytes, "{why}");
+        assert!(why.contains("lbvh") && why.contains("would not fit"), "{why}");
+        // Only cwbvh (23.4 bytes a primitive) and the grid (27) fit 30.
+        let (k, why) = choose_on(&s, 640 * 480, 64, &Fit { buffer_bytes: (30.0 * n) as u64, memory_bytes: 1 << 40 })
+            .expect("fits");
+        assert!(matches!(k, AccelKind::Cwbvh | AccelKind::Grid), "{why}");
+        let err = choose_on(&s, 640 * 480, 1, &Fit { buffer_bytes: (20.0 * n) as u64, memory_bytes: 1 << 40 })
+            .expect_err("nothing fits")
+            .to_string();
+        assert!(err.contains("cwbvh") && err.contains("per buffer"), "{err}");
+        // Memory counts the geometry too.
+        let err = choose_on(&s, 640 * 480, 1, &Fit { buffer_bytes: 1 << 40, memory_bytes: 1 << 20 })
+            .expect_err("no memory")
+            .to_string();
+        assert!(err.contains("memory"), "{err}");
+        // A handful of triangles: brute force needs no structure and still wins.
+        assert_eq!(choose_on(&scene(10), 640 * 480, 1, &tight).expect("fits").0, AccelKind::None);
     }
 }

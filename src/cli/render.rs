@@ -56,7 +56,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             return Err(usage(format!("--aov {n}: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested")));
         }
     }
-    let heat = output::HeatmapInfo { subject: format!("{}, {accel}", scene.name), scale };
+    let mut heat = output::HeatmapInfo { subject: format!("{}, {accel}", scene.name), scale };
     let scene = flatten_if(scene, a.flatten, accel, a.quiet)?;
     arbor::accel::check_build(accel, &scene, params.build)?;
     let mut settings = RenderSettings::for_size(w, h);
@@ -78,6 +78,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     settings.trace_steps = a.trace_steps;
     settings.kernel = if a.kernel == "general" { KernelChoice::General } else { KernelChoice::Specialized };
     let (spp_total, shard_name) = shard_settings(a, &mut settings)?;
+    let part_args = (spp_total, shard_name.clone());
     if let Some((n, _)) = aovs.iter().find(|(n, _)| output::HEATMAP_AOVS.contains(&n.as_str())) {
         if settings.first_sample > 0 {
             eprintln!(
@@ -87,14 +88,11 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
         }
     }
     settings.check()?;
-    let part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
+    let mut part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
     if let Some(path) = &a.resume {
         settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
     }
     // Every check of the command line and its inputs above; the device only now.
-    if let (Some(why), false) = (&why, a.quiet) {
-        eprintln!("accel auto: {why}");
-    }
     let opened = Instant::now();
     let ctx = {
         let _span = arbor::timeline::span("device", || "open device");
@@ -102,6 +100,25 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     };
     trace_device(&ctx);
     let device_ms = ms(opened);
+    // Auto drops what does not fit the device, but for the parts of a farm render,
+    // which must pick alike on every node (docs/farm.md).
+    let farm_part = a.shard.is_some() || a.resume.is_some();
+    let why = match why {
+        Some(_) if !farm_part => {
+            let fit = arbor::accel::auto::Fit::of(&ctx);
+            let (kind, why) = arbor::accel::auto::choose_on(&scene, u64::from(w) * u64::from(h), spp, &fit)?;
+            if kind != settings.accel {
+                settings.accel = kind;
+                heat.subject = format!("{}, {kind}", scene.name);
+                part = render::part::PartInfo::new(&scene, &settings, part_args.0, part_args.1);
+            }
+            Some(why)
+        }
+        why => why,
+    };
+    if let (Some(why), false) = (&why, a.quiet) {
+        eprintln!("accel auto: {why}");
+    }
     let spp = settings.spp;
     let mut part_note = String::new();
     if let Some(c) = settings.crop {

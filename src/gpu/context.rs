@@ -131,6 +131,13 @@ pub struct Context {
     pub(crate) max_storage_range: u64,
     /// `maxTexelBufferElements`: texels a texel-buffer view may span.
     pub(crate) max_texel_elements: u64,
+    /// `maxMemoryAllocationSize`: the most bytes one allocation (one buffer) may take.
+    max_allocation: u64,
+    /// `ContextOptions::max_storage_range` where given: a per-buffer limit for every
+    /// binding, to check that a scene fits a smaller device.
+    lowered: Option<u64>,
+    /// Bytes of the largest device-local memory heap.
+    device_memory: u64,
     pub(crate) max_workgroups: [u32; 3],
     /// `minAccelerationStructureScratchOffsetAlignment` (ray queries only; else 1).
     pub(crate) scratch_align: u64,
@@ -472,6 +479,19 @@ impl Context {
         } else {
             1
         };
+        let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
+        // SAFETY: physical/instance valid; Vulkan 1.1 core.
+        unsafe { shared.instance.get_physical_device_properties2(physical, &mut p2) };
+        let max_allocation = m3.max_memory_allocation_size;
+        // SAFETY: physical/instance valid.
+        let memory = unsafe { shared.instance.get_physical_device_memory_properties(physical) };
+        let device_memory = memory.memory_heaps[..memory.memory_heap_count as usize]
+            .iter()
+            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .map(|h| h.size)
+            .max()
+            .unwrap_or(0);
         let mut max_storage_range = info.max_storage_buffer_range;
         if let Some(lim) = opts.max_storage_range {
             max_storage_range = max_storage_range.min(lim);
@@ -485,6 +505,9 @@ impl Context {
             timestamps,
             max_storage_range,
             max_texel_elements: u64::from(props.limits.max_texel_buffer_elements),
+            max_allocation,
+            device_memory,
+            lowered: opts.max_storage_range,
             max_workgroups: props.limits.max_compute_work_group_count,
             scratch_align,
             calibration,
@@ -517,6 +540,44 @@ impl Context {
     /// `maxTexelBufferElements`: the most 16-byte texels one texel-buffer view spans.
     pub fn max_texel_elements(&self) -> u64 {
         self.max_texel_elements
+    }
+
+    /// `maxMemoryAllocationSize`: the most bytes one buffer may take.
+    pub fn max_allocation(&self) -> u64 {
+        self.max_allocation
+    }
+
+    /// Bytes of the device's largest device-local memory heap (on a CPU device, the
+    /// host's memory).
+    pub fn device_memory(&self) -> u64 {
+        self.device_memory
+    }
+
+    /// The most bytes a buffer bound as `kind` may hold: a storage binding's range, a
+    /// texel view's texels (16 bytes each), within one allocation.
+    pub fn binding_limit(&self, kind: crate::gpu::BindingKind) -> u64 {
+        self.binding_limit_named(kind).0
+    }
+
+    /// [`Context::binding_limit`], and which limit it is, for messages.
+    pub fn binding_limit_named(&self, kind: crate::gpu::BindingKind) -> (u64, &'static str) {
+        let (range, per) = match kind {
+            crate::gpu::BindingKind::Texel => {
+                (self.max_texel_elements.saturating_mul(16), "per texel buffer (maxTexelBufferElements x 16 bytes)")
+            }
+            _ => (self.max_storage_range, "per storage buffer (maxStorageBufferRange)"),
+        };
+        let (range, per) = if self.max_allocation < range {
+            (self.max_allocation, "per allocation (maxMemoryAllocationSize)")
+        } else {
+            (range, per)
+        };
+        match self.lowered {
+            Some(l) if l < range => {
+                (l, "per buffer (maxStorageBufferRange, lowered for every buffer by ARBOR_MAX_STORAGE_RANGE)")
+            }
+            _ => (range, per),
+        }
     }
 
     /// Fails with [`Error::Validation`] if the validation layer reported any error so far.

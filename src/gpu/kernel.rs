@@ -447,6 +447,7 @@ impl Context {
                 name: buffer.name().to_string(),
                 size: buffer.size(),
                 limit: self.max_storage_range,
+                per: "per storage buffer (maxStorageBufferRange)",
             });
         }
         if desc.kind == BindingKind::Texel {
@@ -456,6 +457,7 @@ impl Context {
                     name: buffer.name().to_string(),
                     size: buffer.size(),
                     limit: self.max_texel_elements * 16,
+                    per: "per texel buffer (maxTexelBufferElements x 16 bytes)",
                 });
             }
             let info = vk::BufferViewCreateInfo::default()

@@ -93,3 +93,41 @@ fn info_ends_quietly_when_stdout_closes() {
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(stderr.is_empty(), "{stderr}");
 }
+
+/// `--accel auto` drops the structures whose buffers would not fit the device
+/// (`ARBOR_MAX_STORAGE_RANGE` lowers every buffer's limit, texel bindings included) and
+/// says which; a farm part keeps the pick made from the scene alone, so that every
+/// node picks alike, and fails naming the buffer.
+#[test]
+fn auto_drops_structures_that_do_not_fit_the_device() {
+    if !common::has_gpu() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let png = dir.path().join("x.png").display().to_string();
+    let args = ["render", "builtin:blob:20000", "--size", "64x64", "--integrator", "whitted", "-o", &png];
+    let run = |extra: &[&str], limit: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_arbor"));
+        c.args(args).args(extra).env_remove("ARBOR_MAX_STORAGE_RANGE");
+        if let Some(l) = limit {
+            c.env("ARBOR_MAX_STORAGE_RANGE", l);
+        }
+        let out = c.output().expect("run arbor");
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (code, err) = run(&[], None);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("accel auto: ") && err.contains("lbvh expected fastest"), "{err}");
+    // lbvh's nodes (68 bytes a primitive, 1.3 MB) exceed 1 MB; trbvh's (39) do not.
+    let (code, err) = run(&[], Some("1000000"));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("lbvh, bvh8, octree would not fit the device"), "{err}");
+    assert!(err.contains("accel trbvh"), "{err}");
+    let (code, err) = run(&["--shard", "0/2"], Some("1000000"));
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("'accel_nodes'") && err.contains("1000000"), "{err}");
+    // Nothing fits: the smallest structure's need and the limit.
+    let (code, err) = run(&[], Some("420000"));
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("no structure fits") && err.contains("cwbvh") && err.contains("420000"), "{err}");
+}

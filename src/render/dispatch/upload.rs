@@ -145,7 +145,7 @@ pub fn bind_all(
             (BINDING_ACCEL_INDICES, Some(AccelBuffers::Device { indices, .. })) => Arc::clone(indices),
             _ => Arc::new(upload_one(
                 ctx,
-                b.binding,
+                (b.binding, b.kind),
                 scene,
                 image,
                 chunk_pixels,
@@ -180,7 +180,7 @@ fn built_geometry(binding: u32, scene: &GpuScene, image: &GpuImage) -> Option<Ar
 /// noting where the pixel and ray buffers are (`at`: its index in the storage list).
 fn upload_one(
     ctx: &Context,
-    binding: u32,
+    (binding, kind): (u32, BindingKind),
     scene: &GpuScene,
     image: &GpuImage,
     chunk_pixels: u64,
@@ -188,17 +188,17 @@ fn upload_one(
     at: usize,
 ) -> Result<Buffer> {
     Ok(match binding {
-        BINDING_VERTICES => upload_checked(ctx, "vertices", bytemuck::cast_slice(&scene.vertices))?,
-        BINDING_TRIANGLES => upload_checked(ctx, "triangles", bytemuck::cast_slice(&scene.triangles))?,
-        BINDING_SPHERES => upload_checked(ctx, "spheres", bytemuck::cast_slice(&scene.spheres))?,
-        BINDING_SHADING => upload_checked(ctx, "shading", bytemuck::cast_slice(&scene.shading))?,
+        BINDING_VERTICES => upload_checked(ctx, kind, "vertices", bytemuck::cast_slice(&scene.vertices))?,
+        BINDING_TRIANGLES => upload_checked(ctx, kind, "triangles", bytemuck::cast_slice(&scene.triangles))?,
+        BINDING_SPHERES => upload_checked(ctx, kind, "spheres", bytemuck::cast_slice(&scene.spheres))?,
+        BINDING_SHADING => upload_checked(ctx, kind, "shading", bytemuck::cast_slice(&scene.shading))?,
         BINDING_ACCEL_NODES => match &image.buffers {
-            Some(AccelBuffers::Host(nodes, _)) => upload_checked(ctx, "accel_nodes", nodes)?,
+            Some(AccelBuffers::Host(nodes, _)) => upload_checked(ctx, kind, "accel_nodes", nodes)?,
             _ => return Err(Error::Failed(format!("the {} structure has no nodes", image.family))),
         },
         BINDING_ACCEL_INDICES => match &image.buffers {
             Some(AccelBuffers::Host(_, indices)) => {
-                upload_checked(ctx, "accel_indices", bytemuck::cast_slice(indices))?
+                upload_checked(ctx, kind, "accel_indices", bytemuck::cast_slice(indices))?
             }
             _ => return Err(Error::Failed(format!("the {} structure has no indices", image.family))),
         },
@@ -206,7 +206,7 @@ fn upload_one(
         BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
         BINDING_PIXELS => {
             let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
-            check_range(ctx, "pixels", size)?;
+            check_range(ctx, kind, "pixels", size)?;
             *pixels = Some(at);
             let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
             // Cleared here so that on a CPU device the first touch of its pages
@@ -216,7 +216,7 @@ fn upload_one(
         }
         BINDING_RAYS => {
             let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
-            check_range(ctx, "rays", size)?;
+            check_range(ctx, kind, "rays", size)?;
             *rays = Some(at);
             ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
         }
@@ -245,14 +245,18 @@ pub fn bind_again(
     Ok(())
 }
 
-fn check_range(ctx: &Context, name: &str, size: u64) -> Result<()> {
-    if size > ctx.max_storage_range() {
-        return Err(Error::BufferTooLarge { name: name.to_string(), size, limit: ctx.max_storage_range() });
+/// Refuses, before it is created, a buffer larger than its binding allows
+/// ([`Context::binding_limit`]: a texel view's limit for texel bindings, the storage
+/// range for storage ones).
+fn check_range(ctx: &Context, kind: BindingKind, name: &str, size: u64) -> Result<()> {
+    let (limit, per) = ctx.binding_limit_named(kind);
+    if size > limit {
+        return Err(Error::BufferTooLarge { name: name.to_string(), size, limit, per });
     }
     Ok(())
 }
 
-fn upload_checked(ctx: &Context, name: &str, data: &[u8]) -> Result<Buffer> {
-    check_range(ctx, name, data.len() as u64)?;
+fn upload_checked(ctx: &Context, kind: BindingKind, name: &str, data: &[u8]) -> Result<Buffer> {
+    check_range(ctx, kind, name, data.len() as u64)?;
     ctx.upload_storage(name, data)
 }
