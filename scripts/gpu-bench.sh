@@ -33,6 +33,8 @@
 # that is not empty is refused unless --force, which replaces what this script wrote
 # there before):
 #   devices.txt           `arbor devices`
+#   calibration.txt       `arbor calibrate`: `--accel auto`'s costs on this device (its
+#                         cache file goes to ARBOR_CACHE_DIR, default DIR/cache)
 #   NN-STEP/              per step: bench.csv, bench.json, plots/ (as `bench --out`
 #                         writes them) and table.txt (the printed table)
 #   summary.md            Mrays/s per structure and ray kind; GPU build Mtris/s against
@@ -199,8 +201,14 @@ if [ -n "$MESH" ]; then MESH_ARGS=(--scene "$MESH"); fi
 
 mkdir -p "$OUT"
 # --force: what an earlier run wrote goes; anything else in the folder stays.
-rm -rf "$OUT"/[0-9][0-9]-*/ "$OUT/summary.md" "$OUT/devices.txt"
+rm -rf "$OUT"/[0-9][0-9]-*/ "$OUT/summary.md" "$OUT/devices.txt" "$OUT/calibration.txt"
 printf '%s\n' "$DEVICES" >"$OUT/devices.txt"
+
+# --- the cost model of --accel auto, measured first -----------------------------------
+say "arbor calibrate ${DEVICE_ARGS[*]}"
+if ! ARBOR_CACHE_DIR=${ARBOR_CACHE_DIR:-$OUT/cache} "$BIN" calibrate "${DEVICE_ARGS[@]}" >"$OUT/calibration.txt"; then
+  fail "'arbor calibrate' failed"
+fi
 
 # --- the grid -------------------------------------------------------------------------
 ALL=$ACCEL${RAYQUERY:+,$RAYQUERY}

@@ -1,4 +1,4 @@
-//! The `arbor` command line: render, info, devices, bench, compare, merge. This file
+//! The `arbor` command line: render, info, devices, calibrate, bench, compare, merge. This file
 //! parses the arguments, hands each command to its module under `src/cli/` and turns
 //! an error into one line and an exit status; it also sets up the allocator.
 
@@ -9,6 +9,8 @@ use clap::Parser;
 mod args;
 #[path = "cli/bench.rs"]
 mod bench;
+#[path = "cli/calibrate.rs"]
+mod calibrate;
 #[path = "cli/common.rs"]
 mod common;
 #[path = "cli/compare.rs"]
@@ -135,6 +137,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Devices => devices::run(),
+        Command::Calibrate(args) => calibrate::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Compare(args) => compare::run(&args),
         Command::Merge(args) => merge::run(&args),

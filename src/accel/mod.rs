@@ -22,6 +22,7 @@
 pub mod auto;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod bvh;
+pub mod calibrate;
 pub mod family;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod gpu_layout;

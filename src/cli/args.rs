@@ -463,6 +463,16 @@ pub(crate) struct CompareArgs {
     pub(crate) json: bool,
 }
 
+/// `arbor calibrate`.
+#[derive(clap::Args)]
+pub(crate) struct CalibrateArgs {
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
+    /// Print the constants as JSON on stdout instead of a table.
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
 #[derive(Subcommand)]
 pub(crate) enum Command {
     /// Render a scene to PNG (8-bit sRGB) or EXR (linear float).
@@ -471,6 +481,12 @@ pub(crate) enum Command {
     Info(InfoArgs),
     /// List the Vulkan devices arbor can use.
     Devices,
+    /// Measure the cost model of `--accel auto` on this device: build every structure
+    /// on the CPU (and, where the device builds, lbvh, trbvh, bvh4 and bvh8 there) and
+    /// trace camera rays with each; about 10-20 s on lavapipe. The constants go to a
+    /// cache file keyed by the device and driver (ARBOR_CACHE_DIR, else
+    /// $XDG_CACHE_HOME/arbor or ~/.cache/arbor), which `render --accel auto` reads.
+    Calibrate(CalibrateArgs),
     /// Benchmark every structure's build and trace on procedural meshes and scenes:
     /// build ms, GPU trace ms (timestamps), Mrays/s, speedup over brute force, mean and
     /// p99 nodes and primitives per ray, bytes, SAH cost, cracks and disagreement with

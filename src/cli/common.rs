@@ -38,13 +38,35 @@ pub(crate) fn context(d: &DeviceArgs) -> Result<Context> {
 }
 
 /// `--accel`: a structure name, or `auto` resolved by the cost model (with its reason).
-pub(crate) fn resolve_accel(s: &str, scene: &Scene, pixels: u64, spp: u32) -> Result<(AccelKind, Option<String>)> {
+/// With `--build gpu`, auto picks among the kinds the device builds.
+pub(crate) fn resolve_accel(
+    s: &str,
+    scene: &Scene,
+    pixels: u64,
+    spp: u32,
+    build: arbor::accel::BuildOn,
+) -> Result<(AccelKind, Option<String>)> {
     if s == "auto" {
-        let (k, why) = arbor::accel::auto::choose(scene, pixels, spp);
+        let (k, why) = arbor::accel::auto::choose_built(scene, pixels, spp, build)?;
         return Ok((k, Some(why)));
     }
     let k: AccelKind = s.parse().map_err(|e: String| usage(format!("--accel {s}: {e}, or auto")))?;
     Ok((k, None))
+}
+
+/// The cost model for `--accel auto` on `ctx`'s device: its `arbor calibrate` file if
+/// there is a sound one (a foreign or corrupt one is named in a warning), else the
+/// built-in constants.
+pub(crate) fn device_costs(ctx: &Context) -> arbor::accel::auto::Costs {
+    use arbor::accel::calibrate::{cache_dir, load, Cached};
+    match cache_dir().map(|d| load(&d, ctx.info())) {
+        Some(Cached::Costs(c)) => c,
+        Some(Cached::Ignored(why)) => {
+            eprintln!("arbor: warning: calibration {why}");
+            arbor::accel::auto::Costs::builtin()
+        }
+        _ => arbor::accel::auto::Costs::builtin(),
+    }
 }
 
 /// `--size WIDTHxHEIGHT`, each side within the film limit.

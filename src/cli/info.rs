@@ -16,7 +16,8 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     }
     let _recording = start_trace(&a.trace, "info")?;
     let scene = Scene::load(&a.scene)?;
-    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(scene.width) * u64::from(scene.height), 1)?;
+    let pixels = u64::from(scene.width) * u64::from(scene.height);
+    let (accel, why) = resolve_accel(&a.accel, &scene, pixels, 1, params.build)?;
     let scene = flatten_if(scene, a.flatten, accel, true)?;
     // The driver's structure exists only on a device: it is built there, as on the GPU.
     let built = match params.build {

@@ -50,7 +50,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     }
     let stored = scene.stored_triangles() as usize + scene.spheres.len();
     memory::check_render(&format!("--size {w}x{h}"), w, h, stored, &encoded)?;
-    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp)?;
+    let (accel, why) = resolve_accel(&a.accel, &scene, u64::from(w) * u64::from(h), spp, params.build)?;
     if let Some((n, _)) = aovs.iter().find(|(n, _)| output::HEATMAP_AOVS.contains(&n.as_str())) {
         if accel.driver_built() {
             return Err(usage(format!("--aov {n}: {accel} is the driver's structure, whose traversal does not say how many nodes it visited or primitives it tested")));
@@ -106,9 +106,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     let why = match why {
         Some(_) if !farm_part => {
             let fit = arbor::accel::auto::Fit::of(&ctx);
-            let (kind, why) = arbor::accel::auto::choose_on(&scene, u64::from(w) * u64::from(h), spp, &fit)?;
-            if kind != settings.accel {
+            let costs = crate::common::device_costs(&ctx);
+            // Without --build, auto also answers where to build.
+            let build = a.structure.build.first().copied();
+            let pixels = u64::from(w) * u64::from(h);
+            let ((kind, on), why) = arbor::accel::auto::choose_on(&scene, pixels, spp, &fit, &costs, build)?;
+            if (kind, on) != (settings.accel, settings.params.build) {
                 settings.accel = kind;
+                settings.params.build = on;
                 heat.subject = format!("{}, {kind}", scene.name);
                 part = render::part::PartInfo::new(&scene, &settings, part_args.0, part_args.1);
             }
@@ -160,7 +165,11 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             st.triangles,
             if st.instances > 0 { format!(" ({} instances)", st.instances) } else { String::new() },
             st.spheres,
-            st.accel,
+            if settings.params.build == arbor::accel::BuildOn::Gpu {
+                format!("{} built on the device", st.accel)
+            } else {
+                st.accel.clone()
+            },
             st.device,
             st.build_ms,
             st.kernel_ms,

@@ -32,7 +32,7 @@ pub struct ContextOptions {
 }
 
 /// What the user sees of a physical device.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct DeviceInfo {
     /// Index in the loader's enumeration (`--device INDEX`).
     pub index: usize,

@@ -17,8 +17,12 @@ use arbor::scene::Scene;
 /// arbor never looks up a system font (plotters reads fonts with ab_glyph, not
 /// fontconfig), so these runs show that plots need none.
 fn run(args: &[&str]) -> std::process::Output {
-    let out =
-        Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).env_remove("ARBOR_FONT").output().expect("run arbor");
+    let out = Command::new(env!("CARGO_BIN_EXE_arbor"))
+        .args(args)
+        .env_remove("ARBOR_FONT")
+        .env("ARBOR_CACHE_DIR", "/nonexistent/arbor-test-cache")
+        .output()
+        .expect("run arbor");
     assert!(
         out.status.success(),
         "arbor {args:?} failed:\n{}\n{}",

@@ -6,8 +6,11 @@ use crate::common;
 
 use std::process::{Command, Output, Stdio};
 
+/// No calibration file is read: auto's picks are the built-in model's on every machine.
+const NO_CACHE: &str = "/nonexistent/arbor-test-cache";
+
 fn arbor(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).output().expect("run arbor")
+    Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).env("ARBOR_CACHE_DIR", NO_CACHE).output().expect("run arbor")
 }
 
 fn ok(args: &[&str]) -> Output {
@@ -108,7 +111,7 @@ fn auto_drops_structures_that_do_not_fit_the_device() {
     let args = ["render", "builtin:blob:20000", "--size", "64x64", "--integrator", "whitted", "-o", &png];
     let run = |extra: &[&str], limit: Option<&str>| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_arbor"));
-        c.args(args).args(extra).env_remove("ARBOR_MAX_STORAGE_RANGE");
+        c.args(args).args(extra).env_remove("ARBOR_MAX_STORAGE_RANGE").env("ARBOR_CACHE_DIR", NO_CACHE);
         if let Some(l) = limit {
             c.env("ARBOR_MAX_STORAGE_RANGE", l);
         }
@@ -130,4 +133,49 @@ fn auto_drops_structures_that_do_not_fit_the_device() {
     let (code, err) = run(&[], Some("420000"));
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("no structure fits") && err.contains("cwbvh") && err.contains("420000"), "{err}");
+}
+
+/// `arbor calibrate` writes the device's costs to the cache and `render --accel auto`
+/// then names them; a corrupt file is ignored with a warning; a cache directory that
+/// cannot be created fails before any measuring (under a regular file: tests run as
+/// root, so permissions would not stop them).
+#[test]
+fn calibrate_writes_the_cache_that_auto_reads() {
+    if !common::has_gpu() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cache = dir.path().join("cache");
+    let run = |args: &[&str], cache: &std::path::Path| {
+        let out =
+            Command::new(env!("CARGO_BIN_EXE_arbor")).args(args).env("ARBOR_CACHE_DIR", cache).output().expect("run");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, table, err) = run(&["calibrate"], &cache);
+    assert_eq!(code, Some(0), "{err}");
+    for row in ["kdtree     cpu", "cwbvh      cpu", "lbvh       gpu", "bvh8       gpu", "brute force:"] {
+        assert!(table.contains(row), "no {row:?} in:\n{table}");
+    }
+    assert!(err.contains("calibrate: 9/9: octree") && err.contains("wrote"), "{err}");
+    let files: Vec<_> = std::fs::read_dir(&cache).expect("cache").filter_map(|e| e.ok()).map(|e| e.path()).collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    let png = dir.path().join("x.png").display().to_string();
+    let render = ["render", "builtin:blob:20000", "--size", "32x32", "--integrator", "whitted", "-o", png.as_str()];
+    let (code, _, err) = run(&render, &cache);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("measured on this device by `arbor calibrate`"), "{err}");
+    std::fs::write(&files[0], "{ torn").expect("corrupt it");
+    let (code, _, err) = run(&render, &cache);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("warning: calibration") && err.contains("corrupt"), "{err}");
+    assert!(err.contains("built-in costs measured on lavapipe"), "{err}");
+    let plain = dir.path().join("plain");
+    std::fs::write(&plain, "x").expect("write");
+    let (code, _, err) = run(&["calibrate"], &plain.join("cache"));
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("cannot write the cache") && !err.contains("calibrate: 1/9"), "{err}");
 }

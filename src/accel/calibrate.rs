@@ -1,0 +1,326 @@
+//! `arbor calibrate`: the cost model's constants ([`super::auto::Costs`]) measured on
+//! one device, and the cache file that keeps them (docs/auto.md).
+//!
+//! The measurement builds a 100k-triangle blob with every structure on the CPU (and,
+//! where the device builds, lbvh, trbvh, bvh4 and bvh8 there) and traces its camera
+//! rays with each, the faster of two runs after one that compiles; brute force traces
+//! a 2000-triangle blob. The file is keyed by the
+//! device's name and driver version and lives in the user's cache directory
+//! (`ARBOR_CACHE_DIR`, else `$XDG_CACHE_HOME/arbor`, else `~/.cache/arbor`). A file
+//! that cannot be read, is corrupt, or belongs to another device or driver is ignored
+//! with a warning, never trusted. Nothing calibrates by itself.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::auto::{Costs, TreeCost};
+use super::{Accel, AccelKind, AccelParams, BuildOn};
+use crate::error::{Error, Result};
+use crate::gpu::{Context, DeviceInfo};
+use crate::render::{gpu, RenderSettings};
+use crate::scene::{procedural, Scene, SceneBuilder};
+
+/// The file format's version.
+const FORMAT: u32 = 1;
+
+/// The structures measured, built on the CPU.
+const KINDS: [AccelKind; 9] = [
+    AccelKind::Kdtree,
+    AccelKind::BvhSah,
+    AccelKind::Lbvh,
+    AccelKind::Trbvh,
+    AccelKind::Bvh4,
+    AccelKind::Bvh8,
+    AccelKind::Cwbvh,
+    AccelKind::Grid,
+    AccelKind::Octree,
+];
+
+/// Triangles of the scene built and traced, and of brute force's.
+const TRIS: usize = 100_000;
+const BRUTE_TRIS: usize = 2_000;
+/// Side of the traced image (camera rays, one per pixel): large enough that a
+/// dispatch's fixed cost is a small part of its time.
+const TRACE_SIDE: u32 = 384;
+const BRUTE_SIDE: u32 = 48;
+
+#[derive(Debug, Serialize, Deserialize)]
+struct File {
+    format: u32,
+    arbor: String,
+    device: String,
+    driver: String,
+    brute_test_ns: f64,
+    trees: Vec<Row>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+struct Row {
+    kind: String,
+    build: String,
+    build_ns: f64,
+    trace_ns: f64,
+}
+
+/// The cache directory: `ARBOR_CACHE_DIR` (non-empty), else `$XDG_CACHE_HOME/arbor`,
+/// else `$HOME/.cache/arbor`; None without any of them.
+pub fn cache_dir() -> Option<PathBuf> {
+    let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
+    var("ARBOR_CACHE_DIR")
+        .or_else(|| var("XDG_CACHE_HOME").map(|d| d.join("arbor")))
+        .or_else(|| var("HOME").map(|d| d.join(".cache").join("arbor")))
+}
+
+/// The file for `device` in `dir`: its name and driver, letters and digits only.
+pub fn cache_file(dir: &Path, device: &DeviceInfo) -> PathBuf {
+    let key = format!("{} {}", device.name, device.driver);
+    let mut name = String::from("calibration");
+    for word in key.split(|c: char| !c.is_ascii_alphanumeric() && c != '.').filter(|w| !w.is_empty()) {
+        name.push('-');
+        name.push_str(word);
+    }
+    dir.join(format!("{name}.json"))
+}
+
+/// What the cache holds for a device.
+#[derive(Debug)]
+pub enum Cached {
+    /// No file.
+    Absent,
+    /// The device's measured costs.
+    Costs(Costs),
+    /// A file that is not to be trusted, and why (a warning for the user).
+    Ignored(String),
+}
+
+/// The costs cached in `dir` for `device`.
+pub fn load(dir: &Path, device: &DeviceInfo) -> Cached {
+    let path = cache_file(dir, device);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Cached::Absent,
+        Err(e) => return Cached::Ignored(format!("{}: cannot read it ({e}); ignored", path.display())),
+    };
+    let file: File = match serde_json::from_str(&text) {
+        Ok(f) => f,
+        Err(e) => return Cached::Ignored(format!("{}: corrupt ({e}); ignored, run `arbor calibrate`", path.display())),
+    };
+    if file.format != FORMAT {
+        return Cached::Ignored(format!("{}: format {} is not {FORMAT}; ignored", path.display(), file.format));
+    }
+    if (file.device.as_str(), file.driver.as_str()) != (device.name.as_str(), device.driver.as_str()) {
+        return Cached::Ignored(format!(
+            "{}: measured on {} ({}), not on this device; ignored",
+            path.display(),
+            file.device,
+            file.driver
+        ));
+    }
+    let mut trees = Vec::new();
+    for r in &file.trees {
+        let (Ok(kind), Ok(build)) = (r.kind.parse::<AccelKind>(), r.build.parse::<BuildOn>()) else {
+            return Cached::Ignored(format!("{}: unknown structure {} {}; ignored", path.display(), r.kind, r.build));
+        };
+        let sane = |x: f64| x.is_finite() && x > 0.0;
+        if !sane(r.build_ns) || !sane(r.trace_ns) {
+            return Cached::Ignored(format!("{}: {} has no positive costs; ignored", path.display(), r.kind));
+        }
+        trees.push(TreeCost { kind, build, build_ns: r.build_ns, trace_ns: r.trace_ns });
+    }
+    if trees.is_empty() || !(file.brute_test_ns.is_finite() && file.brute_test_ns > 0.0) {
+        return Cached::Ignored(format!("{}: no costs in it; ignored", path.display()));
+    }
+    Cached::Costs(Costs {
+        trees,
+        brute_test_ns: file.brute_test_ns,
+        source: format!("costs measured on this device by `arbor calibrate`, {}", path.display()),
+    })
+}
+
+/// Creates `dir` if needed and checks that a file can be written there (before a
+/// calibration spends its time).
+pub fn check_writable(dir: &Path) -> Result<()> {
+    let fail = |e: std::io::Error| Error::Failed(format!("{}: cannot write the cache there: {e}", dir.display()));
+    std::fs::create_dir_all(dir).map_err(fail)?;
+    let probe = dir.join(format!(".arbor-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(fail)?;
+    std::fs::remove_file(&probe).map_err(fail)
+}
+
+/// Writes `costs` for `device` to its file in `dir` (whole or not at all); its path.
+pub fn save(dir: &Path, device: &DeviceInfo, costs: &Costs) -> Result<PathBuf> {
+    check_writable(dir)?;
+    let file = File {
+        format: FORMAT,
+        arbor: env!("CARGO_PKG_VERSION").into(),
+        device: device.name.clone(),
+        driver: device.driver.clone(),
+        brute_test_ns: costs.brute_test_ns,
+        trees: costs
+            .trees
+            .iter()
+            .map(|t| Row {
+                kind: t.kind.name().into(),
+                build: t.build.name().into(),
+                build_ns: t.build_ns,
+                trace_ns: t.trace_ns,
+            })
+            .collect(),
+    };
+    let path = cache_file(dir, device);
+    let text = serde_json::to_string_pretty(&file).map_err(|e| Error::Failed(format!("calibration: {e}")))?;
+    let tmp = path.with_extension("json.tmp");
+    let fail = |e: std::io::Error| Error::Failed(format!("{}: cannot write the cache: {e}", path.display()));
+    std::fs::write(&tmp, text).map_err(fail)?;
+    std::fs::rename(&tmp, &path).map_err(fail)?;
+    Ok(path)
+}
+
+fn blob(tris: usize) -> Result<Scene> {
+    let mut b = SceneBuilder::new(&format!("calibration blob of {tris}"));
+    b.mesh(&procedural::blob(tris, 0.1, 1), 1.0, glam::Vec3::ZERO, None);
+    b.finish()
+}
+
+/// GPU ns per camera ray of `kind` over `scene` at `side` x `side`: the faster of two
+/// timed runs after one that compiles.
+fn trace_ns(ctx: &Context, scene: &Scene, accel: &Accel, kind: AccelKind, side: u32) -> Result<f64> {
+    let mut s = RenderSettings::for_size(side, side);
+    s.accel = kind;
+    s.primary_only = true;
+    let mut times = Vec::new();
+    for run in 0..3 {
+        let (_, st) = gpu::render_with(ctx, scene, &s, accel, |_, _| {})?;
+        let ms = st.trace_ms.unwrap_or(st.loop_ms);
+        if run > 0 {
+            times.push(ms * 1e6 / st.rays.max(1) as f64);
+        }
+    }
+    Ok(times.into_iter().fold(f64::INFINITY, f64::min))
+}
+
+/// Measures every candidate's costs on `ctx`; `progress` gets a line per structure.
+pub fn measure(ctx: &Context, progress: &mut dyn FnMut(&str)) -> Result<Costs> {
+    let scene = blob(TRIS)?;
+    let n = scene.prim_count() as f64;
+    let params = AccelParams::default();
+    let mut trees = Vec::new();
+    for (k, &kind) in KINDS.iter().enumerate() {
+        let start = Instant::now();
+        let accel = Accel::build_with(kind, &scene, &params);
+        let build_ns = start.elapsed().as_secs_f64() * 1e9 / n;
+        let trace = trace_ns(ctx, &scene, &accel, kind, TRACE_SIDE)?;
+        progress(&format!(
+            "{}/{}: {kind}: build {build_ns:.0} ns a primitive, trace {trace:.1} ns a ray",
+            k + 1,
+            KINDS.len()
+        ));
+        trees.push(TreeCost { kind, build: BuildOn::Cpu, build_ns, trace_ns: trace });
+    }
+    // Device builds make the same trees as the CPU's (bvh4 and bvh8 collapse trbvh's):
+    // their trace costs are those measured above.
+    let mut pipelines = None;
+    let gpu_params = AccelParams { build: BuildOn::Gpu, ..AccelParams::default() };
+    // A first build creates the builder's pipelines, shared by every kind.
+    if let Err(e) = Accel::build_on_reusing(ctx, AccelKind::Lbvh, &scene, &gpu_params, &mut pipelines) {
+        progress(&format!("device builds: none ({e})"));
+        return finish(ctx, trees, progress);
+    }
+    for kind in [AccelKind::Lbvh, AccelKind::Trbvh, AccelKind::Bvh4, AccelKind::Bvh8] {
+        let start = Instant::now();
+        drop(Accel::build_on_reusing(ctx, kind, &scene, &gpu_params, &mut pipelines)?);
+        let best = start.elapsed().as_secs_f64() * 1e9 / n;
+        let trace = trees.iter().find(|t| t.kind == kind && t.build == BuildOn::Cpu).map_or(f64::NAN, |t| t.trace_ns);
+        progress(&format!("device build: {kind}: {best:.0} ns a primitive"));
+        trees.push(TreeCost { kind, build: BuildOn::Gpu, build_ns: best, trace_ns: trace });
+    }
+    finish(ctx, trees, progress)
+}
+
+fn finish(ctx: &Context, trees: Vec<TreeCost>, progress: &mut dyn FnMut(&str)) -> Result<Costs> {
+    let scene = blob(BRUTE_TRIS)?;
+    let accel = Accel::build_with(AccelKind::None, &scene, &AccelParams::default());
+    let per_ray = trace_ns(ctx, &scene, &accel, AccelKind::None, BRUTE_SIDE)?;
+    let brute_test_ns = per_ray / scene.prim_count() as f64;
+    progress(&format!("brute force: {brute_test_ns:.2} ns a primitive test"));
+    Ok(Costs { trees, brute_test_ns, source: "costs measured on this device by `arbor calibrate`".into() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn device(name: &str, driver: &str) -> DeviceInfo {
+        DeviceInfo { name: name.into(), driver: driver.into(), ..DeviceInfo::default() }
+    }
+
+    fn costs() -> Costs {
+        let mut c = Costs::builtin();
+        c.trees.push(TreeCost { kind: AccelKind::Bvh4, build: BuildOn::Gpu, build_ns: 12.5, trace_ns: 99.0 });
+        c
+    }
+
+    /// Saved costs come back for the same device and driver only; another driver's
+    /// file is another file, and a file renamed onto this device's name is foreign.
+    #[test]
+    fn the_cache_is_keyed_by_device_and_driver() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let a = device("llvmpipe (LLVM 15.0.6, 256 bits)", "Mesa 22.3.6");
+        let b = device("llvmpipe (LLVM 15.0.6, 256 bits)", "Mesa 25.0.1");
+        assert!(matches!(load(dir.path(), &a), Cached::Absent));
+        let path = save(dir.path(), &a, &costs()).expect("save");
+        assert!(path.starts_with(dir.path()) && path.extension().is_some_and(|e| e == "json"));
+        match load(dir.path(), &a) {
+            Cached::Costs(c) => {
+                assert_eq!(c.trees, costs().trees);
+                assert_eq!(c.brute_test_ns, costs().brute_test_ns);
+                assert!(c.source.contains("arbor calibrate"), "{}", c.source);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_ne!(cache_file(dir.path(), &a), cache_file(dir.path(), &b));
+        assert!(matches!(load(dir.path(), &b), Cached::Absent));
+        std::fs::copy(&path, cache_file(dir.path(), &b)).expect("copy");
+        match load(dir.path(), &b) {
+            Cached::Ignored(why) => assert!(why.contains("not on this device"), "{why}"),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// A corrupt file, one with a cost that is not positive, one with an unknown
+    /// structure: each ignored with its reason, never trusted.
+    #[test]
+    fn a_corrupt_cache_is_ignored_with_a_reason() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let d = device("gpu", "1.0");
+        let path = save(dir.path(), &d, &costs()).expect("save");
+        let good = std::fs::read_to_string(&path).expect("read");
+        for (text, want) in [
+            ("{ not json".to_string(), "corrupt"),
+            (good.replace("\"trace_ns\": 99.0", "\"trace_ns\": -1.0"), "no positive costs"),
+            (good.replacen("\"kind\": \"kdtree\"", "\"kind\": \"quadtree\"", 1), "unknown structure"),
+            (good.replace("\"format\": 1", "\"format\": 9"), "format 9"),
+        ] {
+            std::fs::write(&path, &text).expect("write");
+            match load(dir.path(), &d) {
+                Cached::Ignored(why) => assert!(why.contains(want), "{want}: {why}"),
+                other => panic!("{want}: {other:?}"),
+            }
+        }
+    }
+
+    /// A cache directory that cannot be created (it would sit under a regular file:
+    /// tests run as root, so permissions would not stop them) fails, naming it.
+    #[test]
+    fn an_unwritable_cache_directory_is_an_error() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join("plain");
+        std::fs::write(&file, "x").expect("write");
+        let under = file.join("cache");
+        let err = save(&under, &device("gpu", "1.0"), &costs()).expect_err("unwritable").to_string();
+        assert!(err.contains(&under.display().to_string()), "{err}");
+        assert!(check_writable(&under).is_err());
+    }
+}
