@@ -6,7 +6,8 @@
 //!
 //! The parts: [`options`] (defaults, one row per build device and swept parameter),
 //! `run` (the rounds), `rows` (figures of a case, table lines), `files` (CSV, JSON),
-//! [`plots`].
+//! [`plots`]; and [`calibrate`], `arbor calibrate`'s measurement of `--accel auto`'s
+//! costs.
 
 #![forbid(unsafe_code)]
 
@@ -15,6 +16,7 @@ use std::path::PathBuf;
 use crate::accel::{AccelKind, AccelParams};
 use crate::math::intersect::IntersectMode;
 
+pub mod calibrate;
 pub mod convergence;
 mod files;
 pub mod options;

@@ -18,7 +18,7 @@ pub(crate) fn run(a: &CalibrateArgs) -> Result<()> {
     trace_device(&ctx);
     eprintln!("calibrate: {}, {}", ctx.info().name, ctx.info().driver);
     let start = Instant::now();
-    let costs = calibrate::measure(&ctx, &mut |line| {
+    let costs = arbor::bench::calibrate::measure(&ctx, &mut |line| {
         eprintln!("calibrate: {line} ({:.1} s)", start.elapsed().as_secs_f64());
     })?;
     ctx.check_validation()?;
