@@ -151,7 +151,7 @@ pub fn choose_built(scene: &Scene, pixels: u64, spp: u32, build: BuildOn) -> cra
 
 fn no_device_build() -> crate::error::Error {
     crate::error::Error::Usage(
-        "--accel auto --build gpu: the device builds no structure of an instanced scene; use --build cpu or --flatten"
+        "--accel auto --build gpu: the device builds no structure of an instanced scene; use --build cpu, or --flatten with a structure named (--accel lbvh)"
             .into(),
     )
 }
