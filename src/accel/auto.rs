@@ -108,12 +108,7 @@ pub fn estimates_with(
     // device builds stand in (the device builds the same trees).
     let measured = costs.trees.iter().any(|t| t.build == BuildOn::Gpu);
     let stand_ins: Vec<TreeCost> = if build == Some(BuildOn::Gpu) && !measured {
-        costs
-            .trees
-            .iter()
-            .filter(|t| super::bvh::gpu_build::Target::of(t.kind).is_some())
-            .map(|t| TreeCost { build: BuildOn::Gpu, ..*t })
-            .collect()
+        costs.trees.iter().filter(|t| t.kind.builds_on_gpu()).map(|t| TreeCost { build: BuildOn::Gpu, ..*t }).collect()
     } else {
         Vec::new()
     };

@@ -741,7 +741,7 @@ pub fn check_build(kind: AccelKind, scene: &crate::scene::Scene, build: BuildOn)
                 .into(),
         ));
     }
-    if bvh::gpu_build::Target::of(kind).is_none() {
+    if !kind.builds_on_gpu() {
         return Err(Usage(format!(
             "--build gpu builds lbvh, trbvh, bvh4 and bvh8; {kind} is built on the CPU (use --build cpu)"
         )));

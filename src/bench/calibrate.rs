@@ -16,19 +16,6 @@ use crate::gpu::Context;
 use crate::render::{gpu, RenderSettings};
 use crate::scene::{procedural, Scene, SceneBuilder};
 
-/// The structures measured, built on the CPU.
-const KINDS: [AccelKind; 9] = [
-    AccelKind::Kdtree,
-    AccelKind::BvhSah,
-    AccelKind::Lbvh,
-    AccelKind::Trbvh,
-    AccelKind::Bvh4,
-    AccelKind::Bvh8,
-    AccelKind::Cwbvh,
-    AccelKind::Grid,
-    AccelKind::Octree,
-];
-
 /// Triangles of the scene built and traced, and of brute force's.
 const TRIS: usize = 100_000;
 const BRUTE_TRIS: usize = 2_000;
@@ -65,8 +52,10 @@ pub fn measure(ctx: &Context, progress: &mut dyn FnMut(&str)) -> Result<Costs> {
     let scene = blob(TRIS)?;
     let n = scene.prim_count() as f64;
     let params = AccelParams::default();
+    // The structures the model ranks, each built on the CPU.
+    let kinds: Vec<AccelKind> = Costs::builtin().trees.iter().map(|t| t.kind).collect();
     let mut trees = Vec::new();
-    for (k, &kind) in KINDS.iter().enumerate() {
+    for (k, &kind) in kinds.iter().enumerate() {
         let start = Instant::now();
         let accel = Accel::build_with(kind, &scene, &params);
         let build_ns = start.elapsed().as_secs_f64() * 1e9 / n;
@@ -74,7 +63,7 @@ pub fn measure(ctx: &Context, progress: &mut dyn FnMut(&str)) -> Result<Costs> {
         progress(&format!(
             "{}/{}: {kind}: build {build_ns:.0} ns a primitive, trace {trace:.1} ns a ray",
             k + 1,
-            KINDS.len()
+            kinds.len()
         ));
         trees.push(TreeCost { kind, build: BuildOn::Cpu, build_ns, trace_ns: trace });
     }
@@ -85,7 +74,7 @@ pub fn measure(ctx: &Context, progress: &mut dyn FnMut(&str)) -> Result<Costs> {
         progress(&format!("device builds: none ({e})"));
         return finish(ctx, trees, progress);
     }
-    for kind in [AccelKind::Lbvh, AccelKind::Trbvh, AccelKind::Bvh4, AccelKind::Bvh8] {
+    for kind in kinds.into_iter().filter(|k| k.builds_on_gpu()) {
         let start = Instant::now();
         drop(Accel::build_on_reusing(ctx, kind, &scene, &gpu_params, &mut pipelines)?);
         let best = start.elapsed().as_secs_f64() * 1e9 / n;
