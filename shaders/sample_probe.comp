@@ -8,7 +8,7 @@
 // records three vec4:
 //   mode 0, BSDF sample: in (wo, material), (u, front); out (wi, pdf),
 //           (weight, pdf that bsdf_eval reports at wi), (f at wi, ok | delta << 1 | transmit << 2)
-//   mode 1, BSDF evaluation: in (wo, material), (wi, unused); out (f, pdf), 0, 0
+//   mode 1, BSDF evaluation: in (wo, material), (wi, front); out (f, pdf), 0, 0
 //   mode 2, environment sample: in (u1, u2, unused), unused; out (direction, pdf),
 //           (env_pdf at the direction, the direction's cell x and y, the sampled cell
 //           y * width + x), (radiance, unused)
@@ -19,7 +19,7 @@ layout(local_size_x = 64) in;
 #define HAS_SPHERES 0
 layout(constant_id = SPEC_ENV_WIDTH) const uint ENV_WIDTH = 1u;
 layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
-layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 31u;
+layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 127u;
 #include "common/layout.glsl"
 
 vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
@@ -49,14 +49,14 @@ void main() {
         bool delta, transmit;
         bool ok = bsdf_sample(m, n, a.xyz, b.w > 0.5, b.xyz, wi, weight, pdf, delta, transmit);
         float epdf;
-        vec3 f = bsdf_eval(m, n, a.xyz, wi, epdf);
+        vec3 f = bsdf_eval(m, n, a.xyz, wi, b.w > 0.5, epdf);
         o0 = vec4(wi, pdf);
         o1 = vec4(weight, epdf);
         o2 = vec4(f, float(uint(ok) | uint(delta) << 1u | uint(transmit) << 2u));
     } else if (probe.range.x == 1u) {
         Material m = material_at(uint(a.w));
         float pdf;
-        vec3 f = bsdf_eval(m, n, a.xyz, b.xyz, pdf);
+        vec3 f = bsdf_eval(m, n, a.xyz, b.xyz, b.w > 0.5, pdf);
         o0 = vec4(f, pdf);
     } else {
         vec3 d;

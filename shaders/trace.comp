@@ -30,7 +30,7 @@ layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
-layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 31u;
+layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 127u;
 layout(constant_id = SPEC_PACKET) const bool PACKET = false;
 layout(constant_id = SPEC_WHITTED_SPLIT) const uint WHITTED_SPLIT = 0u;
 
@@ -258,10 +258,11 @@ float glass_fresnel(vec3 dir, vec3 n, float eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-// The preview: camera rays; at a Lambert or Phong surface, the point and directional
-// lights (hard shadows), one area light sampled by power (as the path tracer does,
-// without MIS) and the ambient term, and no further bounce; mirrors followed; glass
-// split into its reflected and refracted rays, Fresnel-weighted, up to WHITTED_SPLIT
+// The preview: camera rays; at a Lambert, Phong or rough (microfacet) surface, the
+// point and directional lights (hard shadows), one area light sampled by power (as
+// the path tracer does, without MIS) and the ambient term, and no further bounce;
+// mirrors and smooth conductors followed (Fresnel-weighted); glass and smooth
+// dielectrics split into its reflected and refracted rays, Fresnel-weighted, up to WHITTED_SPLIT
 // splits a path, then only the stronger of the two. No random choice but the pixel
 // jitter of samples after 0 and the area-light points.
 void whitted_main() {
@@ -325,19 +326,20 @@ void whitted_main() {
                 vec3 n = dot(sn, r.dir) < 0.0 ? sn : -sn;
                 vec3 wo = -r.dir;
                 bool more = depth + 1u < MAX_DEPTH;
-                if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG) {
-                    L += beta * (m.albedo * params.background.a * params.background.rgb
-                                 + delta_lights(m, p, err, n, gnf, wo));
+                if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG || is_rough_conductor(m)
+                    || is_rough_dielectric(m)) {
+                    L += beta * (bsdf_colour(m) * params.background.a * params.background.rgb
+                                 + delta_lights(m, p, err, n, gnf, wo, front));
                     if (EMITTER_COUNT > 0u) {
                         vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-                        L += beta * area_light(m, p, err, n, gnf, wo, u3, false);
+                        L += beta * area_light(m, p, err, n, gnf, wo, front, u3, false);
                     }
-                } else if (kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR && more) {
-                    beta *= m.albedo;
+                } else if (((kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || is_smooth_conductor(m)) && more) {
+                    beta *= m.kind == MAT_MIRROR ? m.albedo : conductor_fresnel(m, min(dot(n, wo), 1.0));
                     r.dir = normalize(reflect(r.dir, n));
                     r.origin = offset_ray_origin(p, err, gnf, r.dir);
                     follow = true;
-                } else if (kind_used(MAT_GLASS) && m.kind == MAT_GLASS && more) {
+                } else if (is_glass(m) && more) {
                     float eta = front ? 1.0 / m.ior : m.ior;
                     float fresnel = glass_fresnel(r.dir, n, eta);
                     vec3 reflected = normalize(reflect(r.dir, n));

@@ -9,6 +9,7 @@
 #define ARBOR_BSDF_GLSL
 
 #include "common/sampling.glsl"
+#include "common/microfacet.glsl"
 
 // Whether the scene has a material of kind k (SPEC_MATERIAL_KINDS, a bit per MAT_*).
 // Code for absent kinds compiles away; on llvmpipe, where every branch runs for all
@@ -16,14 +17,18 @@
 bool kind_used(uint k) { return (MATERIAL_KINDS & (1u << k)) != 0u; }
 
 struct Material {
-    vec3 albedo;      // Lambert / Phong diffuse albedo (textured), mirror and glass tint
+    vec3 albedo;      // Lambert / Phong diffuse albedo (textured), mirror, glass and
+                      // dielectric tint, conductor tint (or F0 with MAT_FLAG_SCHLICK)
     uint kind;        // MAT_*
     vec3 specular;    // Phong
     float shininess;  // Phong exponent
     vec3 emission;
-    float ior;        // glass
-    vec3 absorption;  // glass: Beer-Lambert coefficient per unit length
-    uint flags;       // MAT_FLAG_TWO_SIDED | texture index + 1 << MAT_TEXTURE_SHIFT
+    float ior;        // glass, dielectric
+    vec3 absorption;  // glass, dielectric: Beer-Lambert coefficient per unit length
+    uint flags;       // MAT_FLAG_TWO_SIDED | MAT_FLAG_SCHLICK | texture index + 1 << MAT_TEXTURE_SHIFT
+    float alpha;      // conductor, dielectric: GGX alpha (0: smooth)
+    vec3 eta;         // conductor: complex index of refraction, real part
+    vec3 k;           // conductor: imaginary part
 };
 
 Material material_at(uint id) {
@@ -40,6 +45,16 @@ Material material_at(uint id) {
     m.ior = r2.w;
     m.absorption = r3.rgb;
     m.flags = floatBitsToUint(r3.w);
+    m.alpha = 0.0;
+    m.eta = vec3(1.0);
+    m.k = vec3(0.0);
+    if (kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR) {
+        m.alpha = r1.w;
+        m.eta = r1.rgb;
+        m.k = r3.rgb;
+        m.absorption = vec3(0.0);
+    }
+    if (kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC) m.alpha = r1.w;
     if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
         // Energy conservation: diffuse + specular albedo at most 1 per channel.
         float s = max(max(m.albedo.r + m.specular.r, m.albedo.g + m.specular.g), m.albedo.b + m.specular.b);
@@ -48,8 +63,43 @@ Material material_at(uint id) {
     return m;
 }
 
+// A smooth dielectric scatters exactly as glass; a smooth conductor as a mirror of
+// Fresnel reflectance.
+bool is_glass(Material m) {
+    return (kind_used(MAT_GLASS) && m.kind == MAT_GLASS)
+        || (kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC && m.alpha < ALPHA_SMOOTH);
+}
+bool is_smooth_conductor(Material m) {
+    return kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR && m.alpha < ALPHA_SMOOTH;
+}
+bool is_rough_conductor(Material m) {
+    return kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR && m.alpha >= ALPHA_SMOOTH;
+}
+bool is_rough_dielectric(Material m) {
+    return kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC && m.alpha >= ALPHA_SMOOTH;
+}
+
 bool bsdf_is_delta(Material m) {
-    return (kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || (kind_used(MAT_GLASS) && m.kind == MAT_GLASS);
+    return (kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || is_glass(m) || is_smooth_conductor(m);
+}
+
+// Whether light may arrive through the surface, from below (next-event estimation
+// then samples lights on both sides).
+bool bsdf_transmits(Material m) {
+    return is_rough_dielectric(m);
+}
+
+// A conductor's Fresnel reflectance at cosine c (about the half vector), tinted.
+vec3 conductor_fresnel(Material m, float c) {
+    if ((m.flags & MAT_FLAG_SCHLICK) != 0u) return fresnel_schlick(c, m.albedo);
+    return m.albedo * fresnel_conductor(c, m.eta, m.k);
+}
+
+// The reflectance that stands for a surface where only a colour will do (the
+// Whitted preview's ambient term): the albedo, a conductor's at normal incidence.
+vec3 bsdf_colour(Material m) {
+    if (kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR) return conductor_fresnel(m, 1.0);
+    return m.albedo;
 }
 
 // Probability that a Phong sample takes the specular lobe.
@@ -59,11 +109,69 @@ float phong_specular_weight(Material m) {
     return d + s > 0.0 ? s / (d + s) : 0.0;
 }
 
+// Exact Fresnel reflectance of a smooth dielectric for unpolarised light; cos_i > 0,
+// eta = n_transmitted / n_incident. 1 under total internal reflection.
+float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
+    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) { cos_t = 0.0; return 1.0; }
+    cos_t = sqrt(1.0 - sin2_t);
+    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// The rough conductor's f at wi and the pdf of sampling wi (cos_i = n.wi).
+vec3 conductor_eval(Material m, vec3 n, vec3 wo, vec3 wi, float cos_i, out float pdf) {
+    pdf = 0.0;
+    float co = dot(n, wo);
+    if (cos_i <= 0.0 || co <= 0.0) return vec3(0.0);
+    vec3 h = normalize(wo + wi);
+    float d = ggx_d(dot(n, h), m.alpha);
+    pdf = ggx_g1(co, m.alpha) * d / (4.0 * co);
+    return conductor_fresnel(m, dot(wo, h)) * (d * ggx_g2(co, cos_i, m.alpha) / (4.0 * co * cos_i));
+}
+
+// The rough dielectric's f at wi and the pdf of sampling wi: reflection with the
+// Fresnel probability, refraction with the rest. `front`: wo is outside.
+vec3 dielectric_eval(Material m, vec3 n, vec3 wo, vec3 wi, float cos_i, bool front, out float pdf) {
+    pdf = 0.0;
+    float co = dot(n, wo);
+    if (co <= 0.0 || cos_i == 0.0) return vec3(0.0);
+    float eta = front ? m.ior : 1.0 / m.ior;
+    float ct;
+    if (cos_i > 0.0) {
+        vec3 h = normalize(wo + wi);
+        float F = fresnel_dielectric(dot(wo, h), eta, ct);
+        float d = ggx_d(dot(n, h), m.alpha);
+        pdf = F * ggx_g1(co, m.alpha) * d / (4.0 * co);
+        return vec3(F * d * ggx_g2(co, cos_i, m.alpha) / (4.0 * co * cos_i));
+    }
+    // Refraction: the half vector of wo and wi through indices 1 and eta, on n's side.
+    vec3 h = -(wo + eta * wi);
+    float len = length(h);
+    if (!(len > 0.0)) return vec3(0.0);
+    h /= len;
+    if (dot(n, h) < 0.0) h = -h;
+    float oh = dot(wo, h);
+    float ih = dot(wi, h);
+    if (oh <= 0.0 || ih >= 0.0) return vec3(0.0);
+    float T = 1.0 - fresnel_dielectric(oh, eta, ct);
+    float denom = oh + eta * ih;
+    denom *= denom;
+    if (T <= 0.0 || !(denom > 1.0e-20)) return vec3(0.0);
+    float d = ggx_d(dot(n, h), m.alpha);
+    pdf = T * ggx_visible_pdf(co, oh, dot(n, h), m.alpha) * eta * eta * (-ih) / denom;
+    return m.albedo * (T * d * ggx_g2(co, cos_i, m.alpha) * oh * (-ih) / (co * (-cos_i) * denom));
+}
+
 // f(wo, wi) and the solid-angle pdf of bsdf_sample choosing wi. Zero for delta
-// materials and emitters (they are never evaluated, only sampled).
-vec3 bsdf_eval(Material m, vec3 n, vec3 wo, vec3 wi, out float pdf) {
+// materials and emitters (they are never evaluated, only sampled). `front`: wo is on
+// the geometric normal's side (outside), which a dielectric's eta depends on.
+vec3 bsdf_eval(Material m, vec3 n, vec3 wo, vec3 wi, bool front, out float pdf) {
     pdf = 0.0;
     float cos_i = dot(n, wi);
+    if (is_rough_conductor(m)) return conductor_eval(m, n, wo, wi, cos_i, pdf);
+    if (is_rough_dielectric(m)) return dielectric_eval(m, n, wo, wi, cos_i, front, pdf);
     if (kind_used(MAT_LAMBERT) && m.kind == MAT_LAMBERT) {
         if (cos_i <= 0.0) return vec3(0.0);
         pdf = cos_i * INV_PI;
@@ -81,15 +189,17 @@ vec3 bsdf_eval(Material m, vec3 n, vec3 wo, vec3 wi, out float pdf) {
     return vec3(0.0);
 }
 
-// Exact Fresnel reflectance of a smooth dielectric for unpolarised light; cos_i > 0,
-// eta = n_transmitted / n_incident. 1 under total internal reflection.
-float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
-    float sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if (sin2_t >= 1.0) { cos_t = 0.0; return 1.0; }
-    cos_t = sqrt(1.0 - sin2_t);
-    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    return 0.5 * (rs * rs + rp * rp);
+// A half vector from the visible normals of m's GGX surface seen from wo (u1, u2),
+// in world space; false when wo grazes or lies below.
+bool sample_half_vector(Material m, vec3 n, vec3 wo, float u1, float u2, out vec3 h) {
+    vec3 t, b;
+    onb(n, t, b);
+    vec3 lo = vec3(dot(wo, t), dot(wo, b), dot(wo, n));
+    h = n;
+    if (lo.z <= 0.0) return false;
+    vec3 lh = ggx_sample_visible(lo, m.alpha, u1, u2);
+    h = normalize(t * lh.x + b * lh.y + n * lh.z);
+    return dot(wo, h) > 0.0;
 }
 
 // Samples wi for wo from three uniform numbers. `front`: wo is on the geometric
@@ -112,6 +222,26 @@ bool bsdf_sample(Material m, vec3 n, vec3 wo, bool front, vec3 u, out vec3 wi, o
         weight = m.albedo;
         return true;
     }
+    if (is_rough_conductor(m) || is_rough_dielectric(m)) {
+        vec3 h;
+        if (!sample_half_vector(m, n, wo, u.x, u.y, h)) return false;
+        float oh = dot(wo, h);
+        float ct;
+        float F = is_rough_conductor(m) ? 1.0 : fresnel_dielectric(oh, front ? m.ior : 1.0 / m.ior, ct);
+        if (u.z < F) {
+            wi = normalize(2.0 * oh * h - wo);
+            if (dot(n, wi) <= 0.0) return false;
+        } else {
+            float eta = front ? m.ior : 1.0 / m.ior;
+            wi = normalize(-wo / eta + (oh / eta - ct) * h);
+            if (dot(n, wi) >= 0.0) return false;
+            transmit = true;
+        }
+        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
+        if (!(pdf > 0.0)) return false;
+        weight = f * abs(dot(n, wi)) / pdf;
+        return true;
+    }
     if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
         float ps = phong_specular_weight(m);
         if (u.z < ps) {
@@ -121,19 +251,19 @@ bool bsdf_sample(Material m, vec3 n, vec3 wo, bool front, vec3 u, out vec3 wi, o
             wi = cosine_direction(n, u.x, u.y);
         }
         if (dot(n, wi) <= 0.0) return false;
-        vec3 f = bsdf_eval(m, n, wo, wi, pdf);
+        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
         if (pdf <= 0.0) return false;
         weight = f * dot(n, wi) / pdf;
         return true;
     }
-    if (kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) {
+    if ((kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || is_smooth_conductor(m)) {
         wi = normalize(2.0 * dot(n, wo) * n - wo);
         delta = true;
         pdf = 1.0;
-        weight = m.albedo;
+        weight = m.kind == MAT_MIRROR ? m.albedo : conductor_fresnel(m, min(dot(n, wo), 1.0));
         return dot(n, wi) > 0.0;
     }
-    if (kind_used(MAT_GLASS) && m.kind == MAT_GLASS) {
+    if (is_glass(m)) {
         delta = true;
         float eta = front ? m.ior : 1.0 / m.ior;
         float cos_i = min(dot(n, wo), 1.0);

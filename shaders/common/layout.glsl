@@ -21,11 +21,13 @@ struct Pixel {
 };                      // 64 bytes
 
 // Material = 4 vec4 rows of the shading buffer:
-//   row 0: rgb colour, a = kind (uint bits)
-//   row 1: rgb specular, a = shininess
+//   row 0: rgb colour (conductor: tint, or F0 with MAT_FLAG_SCHLICK), a = kind (uint bits)
+//   row 1: rgb specular (Phong) or eta (conductor), a = shininess (Phong) or GGX
+//          alpha = roughness^2 (conductor, dielectric)
 //   row 2: rgb emission, a = ior
-//   row 3: rgb absorption (glass), a = flags (uint bits): MAT_FLAG_TWO_SIDED,
-//          texture index + 1 from bit MAT_TEXTURE_SHIFT (0: none)
+//   row 3: rgb absorption (glass, dielectric) or k (conductor), a = flags (uint
+//          bits): MAT_FLAG_TWO_SIDED, MAT_FLAG_SCHLICK, texture index + 1 from bit
+//          MAT_TEXTURE_SHIFT (0: none)
 // Light = 2 vec4 rows, after all materials:
 //   row 0: xyz position (w = 1) or travel direction (w = 0)
 //   row 1: rgb radiance / intensity
@@ -36,6 +38,8 @@ struct Pixel {
 #define MAT_MIRROR 2u
 #define MAT_GLASS 3u
 #define MAT_EMISSIVE 4u
+#define MAT_CONDUCTOR 5u
+#define MAT_DIELECTRIC 6u
 
 layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     vec4 cam_eye;      // 0   xyz eye, w tan(vfov/2)

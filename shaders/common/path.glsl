@@ -222,7 +222,7 @@ Material material_hit(uint mat, vec2 uv) {
 
 // Light from point and directional lights at p toward wo (no MIS: a BSDF sample never
 // hits a delta light).
-vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo) {
+vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front) {
     vec3 total = vec3(0.0);
     if (LIGHT_COUNT == 0u) return total;
     uint base = params.counts.y * MATERIAL_ROWS;
@@ -240,9 +240,9 @@ vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo) {
             wi = -a.xyz;
             dist = 3.0e38;
         }
-        if (dot(gnf, wi) <= 0.0) continue;
+        if (dot(gnf, wi) <= 0.0 && !bsdf_transmits(m)) continue;
         float bpdf;
-        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+        vec3 f = bsdf_eval(m, n, wo, wi, front, bpdf);
         if (f == vec3(0.0)) continue;
         Ray sr;
         sr.origin = offset_ray_origin(p, err, gnf, wi); sr.dir = wi; sr.tmin = 0.0;
@@ -266,12 +266,12 @@ bool unoccluded(vec3 p, vec3 err, vec3 gnf, vec3 wi, float dist) {
 
 // Light from one area light at p toward wo, chosen by power and sampled at a point by
 // u (a shadow ray), weighted against BSDF sampling by the power heuristic with `mis`.
-vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, vec3 u, bool mis) {
+vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front, vec3 u, bool mis) {
     vec3 wi, le;
     float dist, lpdf;
-    if (!sample_emitter(p, u, wi, dist, le, lpdf) || dot(gnf, wi) <= 0.0) return vec3(0.0);
+    if (!sample_emitter(p, u, wi, dist, le, lpdf) || (dot(gnf, wi) <= 0.0 && !bsdf_transmits(m))) return vec3(0.0);
     float bpdf;
-    vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+    vec3 f = bsdf_eval(m, n, wo, wi, front, bpdf);
     if (f == vec3(0.0) || !unoccluded(p, err, gnf, wi, dist)) return vec3(0.0);
     float w = mis ? power_heuristic(lpdf, bpdf) : 1.0;
     return f * le * (abs(dot(n, wi)) * w / lpdf);
@@ -348,10 +348,10 @@ void path_main() {
             vec3 wo = -r.dir;
             bool delta = bsdf_is_delta(m);
             if (!delta) {
-                L += beta * delta_lights(m, p, err, n, gnf, wo);
+                L += beta * delta_lights(m, p, err, n, gnf, wo, front);
                 if (EMITTER_COUNT > 0u && MIS_MODE != MIS_BSDF) {
                     vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-                    L += beta * area_light(m, p, err, n, gnf, wo, u3, MIS_MODE == MIS_BOTH);
+                    L += beta * area_light(m, p, err, n, gnf, wo, front, u3, MIS_MODE == MIS_BOTH);
                 } else if (EMITTER_COUNT > 0u) {
                     rng_next(rng); rng_next(rng); rng_next(rng);
                 }
@@ -360,9 +360,9 @@ void path_main() {
                     float epdf;
                     uvec2 ecell;
                     vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf, ecell);
-                    if (epdf > 0.0 && dot(gnf, wi) > 0.0) {
+                    if (epdf > 0.0 && (dot(gnf, wi) > 0.0 || bsdf_transmits(m))) {
                         float bpdf;
-                        vec3 f = bsdf_eval(m, n, wo, wi, bpdf);
+                        vec3 f = bsdf_eval(m, n, wo, wi, front, bpdf);
                         if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, 3.0e38)) {
                             float w = MIS_MODE == MIS_BOTH ? power_heuristic(epdf, bpdf) : 1.0;
                             L += beta * f * ele * (abs(dot(n, wi)) * w / epdf);
@@ -381,7 +381,7 @@ void path_main() {
             // transmitted one on the other.
             if ((dot(gnf, wi) > 0.0) == transmit) break;
             beta *= weight;
-            if (kind_used(MAT_GLASS) && transmit && m.kind == MAT_GLASS) sigma = front ? m.absorption : vec3(0.0);
+            if (transmit && (is_glass(m) || is_rough_dielectric(m))) sigma = front ? m.absorption : vec3(0.0);
             prev_delta = sdelta;
             prev_pdf = bpdf;
             prev_p = p;

@@ -209,8 +209,15 @@ pub const SPEC_RESUME_RECORDS: u32 = 42;
 pub const SPEC_RESUME_JOBS: u32 = 43;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
+/// Bit of a material's flags word: a conductor's Fresnel is Schlick's from its colour
+/// (the reflectance at normal incidence), not from its complex index (eta, k).
+pub const MAT_FLAG_SCHLICK: u32 = 2;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
 pub const MAT_TEXTURE_SHIFT: u32 = 8;
+/// GGX alpha below which a conductor or dielectric is smooth (a delta lobe), as its
+/// f32 bits (shaders read `uintBitsToFloat(SMOOTH_ALPHA_BITS)`): 0.001, roughness
+/// 0.0316.
+pub const SMOOTH_ALPHA_BITS: u32 = 0x3a83_126f;
 /// Values of SPEC_MIS.
 pub const MIS_BOTH: u32 = 0;
 pub const MIS_LIGHT: u32 = 1;
@@ -300,6 +307,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),
     ("INST_ENTRY_STEPS", INST_ENTRY_STEPS),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
+    ("MAT_FLAG_SCHLICK", MAT_FLAG_SCHLICK),
+    ("SMOOTH_ALPHA_BITS", SMOOTH_ALPHA_BITS),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
     ("MIS_BOTH", MIS_BOTH),
     ("MIS_LIGHT", MIS_LIGHT),

@@ -12,10 +12,29 @@ pub enum MaterialKind {
     Mirror = 2,
     Glass = 3,
     Emissive = 4,
+    /// A metal: GGX microfacets, Fresnel from [`Material::complex_ior`] or, without
+    /// it, Schlick's from `color` (docs/materials.md).
+    Conductor = 5,
+    /// Rough glass: GGX microfacets that reflect and refract (Walter et al. 2007).
+    Dielectric = 6,
+}
+
+impl MaterialKind {
+    /// The last kind (the GPU's kind bits run from 0 to this).
+    pub const LAST: MaterialKind = MaterialKind::Dielectric;
+}
+
+/// A conductor's complex index of refraction per RGB channel, eta + i k, relative to
+/// the medium outside (air).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComplexIor {
+    pub eta: Vec3,
+    pub k: Vec3,
 }
 
 /// A material. `color` is the diffuse albedo (Lambert, Phong), the reflectance tint
-/// (mirror) or the transmission tint (glass).
+/// (mirror; a conductor with a complex index), the reflectance at normal incidence
+/// (a conductor without one) or the transmission tint (glass, dielectric).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Material {
     pub name: String,
@@ -25,15 +44,22 @@ pub struct Material {
     pub specular: Vec3,
     /// Phong exponent.
     pub shininess: f32,
-    /// Index of refraction (glass).
+    /// Index of refraction (glass, dielectric).
     pub ior: f32,
     /// Emitted radiance (emissive; also added for any kind where non-zero).
     pub emission: Vec3,
     /// Emission on both sides of the surface; otherwise only along the geometric
     /// normal (the side the triangle's winding faces, a sphere's outside).
     pub two_sided: bool,
-    /// Glass: Beer-Lambert absorption coefficient per unit length inside (0 = clear).
+    /// Glass, dielectric: Beer-Lambert absorption coefficient per unit length inside
+    /// (0 = clear).
     pub absorption: Vec3,
+    /// Conductor, dielectric: roughness in [0, 1], as glTF defines it (GGX alpha =
+    /// roughness squared); below [`Material::SMOOTH_ROUGHNESS`] the surface is smooth.
+    pub roughness: f32,
+    /// Conductor: the complex index of refraction its Fresnel term follows; None for
+    /// Schlick's approximation from `color`.
+    pub complex_ior: Option<ComplexIor>,
     /// Diffuse albedo texture: an index into `Scene::textures` (the albedo multiplies
     /// `color`), or, in a `MeshData`, into `MeshData::textures`.
     pub texture: Option<u32>,
@@ -52,7 +78,40 @@ impl Material {
             emission: Vec3::ZERO,
             two_sided: false,
             absorption: Vec3::ZERO,
+            roughness: 0.0,
+            complex_ior: None,
             texture: None,
+        }
+    }
+
+    /// Below this roughness (GGX alpha `SMOOTH_ALPHA_BITS` of src/gpu/bindings.rs,
+    /// 0.001) a conductor is a mirror of Fresnel reflectance and a dielectric is
+    /// smooth glass.
+    pub const SMOOTH_ROUGHNESS: f32 = 0.031_622_78;
+
+    /// The GGX alpha of a conductor or dielectric: roughness squared.
+    pub fn alpha(&self) -> f32 {
+        self.roughness * self.roughness
+    }
+
+    /// What is out of range in the microfacet parameters (roughness in [0, 1]; a
+    /// complex index with eta > 0 and k >= 0, finite), or None.
+    pub fn microfacet_error(&self) -> Option<String> {
+        if !(0.0..=1.0).contains(&self.roughness) {
+            return Some(format!("roughness {} is outside [0, 1]", self.roughness));
+        }
+        let c = self.complex_ior?;
+        let ok = c.eta.is_finite() && c.k.is_finite() && c.eta.min_element() > 0.0 && c.k.min_element() >= 0.0;
+        (!ok).then(|| format!("eta {} must be > 0 and k {} >= 0, finite, per channel", c.eta, c.k))
+    }
+
+    /// Whether this material refracts as smooth glass does: glass, and a dielectric
+    /// below [`Material::SMOOTH_ROUGHNESS`].
+    pub fn is_smooth_glass(&self) -> bool {
+        match self.kind {
+            MaterialKind::Glass => true,
+            MaterialKind::Dielectric => self.alpha() < f32::from_bits(crate::gpu::bindings::SMOOTH_ALPHA_BITS),
+            _ => false,
         }
     }
 }

@@ -28,7 +28,7 @@ use glam::{Vec2, Vec3};
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
 pub use instance::{Instance, Instancing, Prototype};
-pub use mesh::{Environment, Material, MaterialKind, MeshData, Texture};
+pub use mesh::{ComplexIor, Environment, Material, MaterialKind, MeshData, Texture};
 
 use crate::error::{Error, Result};
 use crate::math::Aabb;
@@ -291,6 +291,9 @@ impl SceneBuilder {
             }
             if !(m.absorption.is_finite() && m.absorption.min_element() >= 0.0) {
                 return Err(err(format!("material {k} ('{}'): absorption must be finite and >= 0", m.name)));
+            }
+            if let Some(what) = m.microfacet_error() {
+                return Err(err(format!("material {k} ('{}'): {what}", m.name)));
             }
             if let Some(t) = m.texture.filter(|&t| t as usize >= s.textures.len()) {
                 return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));

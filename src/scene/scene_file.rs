@@ -18,7 +18,7 @@ use toml::Spanned;
 
 use super::images::{load_environment, load_texture};
 use super::limits::{self, FileKind};
-use super::mesh::{Material, MaterialKind, MeshData};
+use super::mesh::{ComplexIor, Material, MaterialKind, MeshData};
 use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
 use crate::error::{Error, Result};
 
@@ -211,6 +211,9 @@ struct MaterialDef {
     two_sided: bool,
     absorption: Option<[f32; 3]>,
     texture: Option<String>,
+    roughness: Option<f32>,
+    eta: Option<[f32; 3]>,
+    k: Option<[f32; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -233,6 +236,20 @@ struct LightDef {
 
 fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+/// A key given to a material type that has no use for it (so that a typo of type
+/// does not pass silently): roughness outside conductor and dielectric, eta and k
+/// outside conductor.
+fn misplaced_key(d: &MaterialDef) -> Option<String> {
+    let microfacet = matches!(d.kind, MaterialKind::Conductor | MaterialKind::Dielectric);
+    if d.roughness.is_some() && !microfacet {
+        return Some("roughness is for type = \"conductor\" or \"dielectric\"".into());
+    }
+    if (d.eta.is_some() || d.k.is_some()) && d.kind != MaterialKind::Conductor {
+        return Some("eta and k are for type = \"conductor\" (a dielectric's index is ior)".into());
+    }
+    None
 }
 
 fn v3(a: [f32; 3]) -> Vec3 {
@@ -273,8 +290,21 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
         let base = Material::lambert(&d.name, Vec3::splat(0.7));
         let default_color = match d.kind {
-            MaterialKind::Mirror | MaterialKind::Glass | MaterialKind::Emissive => Vec3::ONE,
-            _ => base.color,
+            MaterialKind::Lambert | MaterialKind::Phong => base.color,
+            _ => Vec3::ONE,
+        };
+        if let Some(what) = misplaced_key(d) {
+            return Err(at(m.span(), format!("material '{}': {what}", d.name)));
+        }
+        let complex_ior = match (d.eta, d.k) {
+            (Some(eta), Some(k)) => Some(ComplexIor { eta: v3(eta), k: v3(k) }),
+            (None, None) => None,
+            _ => {
+                return Err(at(
+                    m.span(),
+                    format!("material '{}': a conductor's eta and k go together (or give color alone)", d.name),
+                ))
+            }
         };
         let mat = Material {
             kind: d.kind,
@@ -293,6 +323,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             }),
             two_sided: d.two_sided,
             absorption: d.absorption.map(v3).unwrap_or(Vec3::ZERO),
+            roughness: d.roughness.unwrap_or(0.0),
+            complex_ior,
             ..base
         };
         let bad = !(mat.color.is_finite()
@@ -308,6 +340,9 @@ pub fn load(path: &Path) -> Result<Scene> {
                 m.span(),
                 format!("material '{}': absorption must be three finite numbers >= 0 (per unit length)", d.name),
             ));
+        }
+        if let Some(what) = mat.microfacet_error() {
+            return Err(at(m.span(), format!("material '{}': {what}", d.name)));
         }
         let mut mat = mat;
         if let Some(t) = &d.texture {

@@ -30,6 +30,7 @@ mod kdtree;
 mod kubernetes;
 mod manual;
 mod mesh_files;
+mod microfacet;
 mod path;
 mod ray_batch;
 mod rayquery;

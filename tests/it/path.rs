@@ -11,7 +11,7 @@ use arbor::scene::procedural::quad;
 use arbor::scene::{Camera, Material, MaterialKind, Scene, SceneBuilder, Sphere};
 use glam::Vec3;
 
-fn settings(w: u32, h: u32, spp: u32) -> RenderSettings {
+pub(crate) fn settings(w: u32, h: u32, spp: u32) -> RenderSettings {
     let mut s = RenderSettings::for_size(w, h);
     s.integrator = Integrator::Path;
     s.spp = spp;
@@ -20,7 +20,7 @@ fn settings(w: u32, h: u32, spp: u32) -> RenderSettings {
     s
 }
 
-fn render(ctx: &arbor::gpu::Context, scene: &Scene, s: &RenderSettings) -> Frame {
+pub(crate) fn render(ctx: &arbor::gpu::Context, scene: &Scene, s: &RenderSettings) -> Frame {
     gpu::render(ctx, scene, s, |_, _| {}).expect("render").0
 }
 
@@ -30,7 +30,7 @@ fn lum(c: [f32; 3]) -> f64 {
 
 /// Mean luminance of the pixels `keep` selects, and the standard error of that mean
 /// from the per-pixel variance estimates.
-fn mean_and_error(f: &Frame, keep: impl Fn(usize) -> bool) -> (f64, f64) {
+pub(crate) fn mean_and_error(f: &Frame, keep: impl Fn(usize) -> bool) -> (f64, f64) {
     let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
     for k in 0..f.radiance.len() {
         if keep(k) {
@@ -47,7 +47,7 @@ fn lambert(albedo: f32) -> Material {
     Material::lambert("white", Vec3::splat(albedo))
 }
 
-fn emitter(radiance: f32) -> Material {
+pub(crate) fn emitter(radiance: f32) -> Material {
     Material { kind: MaterialKind::Emissive, emission: Vec3::splat(radiance), ..Material::lambert("light", Vec3::ONE) }
 }
 

@@ -15,7 +15,7 @@ use glam::Vec3;
 
 /// Runs `mode` of the probe on `input` (two vec4 per record) with `shading` rows and
 /// `params`; returns three vec4 per record.
-fn probe(
+pub(crate) fn probe(
     ctx: &Context,
     mode: u32,
     input: &[[f32; 4]],
@@ -51,10 +51,10 @@ fn probe(
 }
 
 /// A small counter-based generator (splitmix64), seeded.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
-    fn next(&mut self) -> f32 {
+    pub(crate) fn next(&mut self) -> f32 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -98,7 +98,7 @@ fn materials() -> (Vec<(&'static str, u32)>, Vec<[f32; 4]>) {
     (list, GpuScene::new(&scene).shading)
 }
 
-fn dir(theta_deg: f32) -> Vec3 {
+pub(crate) fn dir(theta_deg: f32) -> Vec3 {
     let t = theta_deg.to_radians();
     Vec3::new(t.sin(), 0.0, t.cos())
 }

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use arbor::scene::{load_environment, load_mesh, load_texture, MeshData, Scene, SceneBuilder};
+use arbor::scene::{load_environment, load_mesh, load_texture, MaterialKind, MeshData, Scene, SceneBuilder};
 use glam::{Vec2, Vec3};
 
 /// Writes `text` to `dir/name` and returns the path.
@@ -177,6 +177,56 @@ fn toml_material_keys_and_environment_parse() {
     assert_eq!((env.rotation, env.intensity, env.texels[1]), (0.0, 1.0, [1.0; 3]));
     assert_eq!(load_environment(&d.join("sky.exr"), 10.0, 0.0).unwrap().rotation, 10.0);
     assert_eq!(load_texture(&d.join("wood.png")).unwrap().width, 2);
+}
+
+/// The microfacet materials' keys (docs/scenes.md): a conductor by complex index or by
+/// colour, a dielectric with ior and absorption, roughness 0 allowed; a misplaced,
+/// half-given or out-of-range key is an error at its table's line.
+#[test]
+fn toml_conductor_and_dielectric_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sphere = "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n";
+    let toml = |text: &str| write(d, "m.toml", &format!("{text}{sphere}"));
+    let scene = Scene::load(
+        &toml(
+            "[[material]]\nname = \"gold\"\ntype = \"conductor\"\nroughness = 0.3\n\
+             eta = [0.14, 0.37, 1.44]\nk = [3.98, 2.38, 1.60]\n\
+             [[material]]\nname = \"copper\"\ntype = \"conductor\"\ncolor = [0.95, 0.64, 0.54]\n\
+             [[material]]\nname = \"frosted\"\ntype = \"dielectric\"\nroughness = 0.2\nior = 1.33\n\
+             absorption = [0.1, 0, 0]\n\
+             [[material]]\nname = \"clear\"\ntype = \"dielectric\"\nroughness = 0\n",
+        )
+        .display()
+        .to_string(),
+    )
+    .unwrap();
+    let by_name = |n: &str| scene.materials.iter().find(|m| m.name == n).unwrap();
+    let gold = by_name("gold");
+    assert_eq!((gold.kind, gold.roughness, gold.color), (MaterialKind::Conductor, 0.3, Vec3::ONE));
+    let ior = gold.complex_ior.expect("a complex index");
+    assert_eq!((ior.eta, ior.k), (Vec3::new(0.14, 0.37, 1.44), Vec3::new(3.98, 2.38, 1.60)));
+    let copper = by_name("copper");
+    assert_eq!((copper.roughness, copper.complex_ior, copper.color), (0.0, None, Vec3::new(0.95, 0.64, 0.54)));
+    let frosted = by_name("frosted");
+    assert_eq!((frosted.kind, frosted.ior, frosted.absorption.x), (MaterialKind::Dielectric, 1.33, 0.1));
+    assert!(!frosted.is_smooth_glass() && by_name("clear").is_smooth_glass());
+    assert_eq!(by_name("clear").ior, 1.5, "the default ior");
+
+    for (table, want) in [
+        ("type = \"conductor\"\nroughness = 1.5\n", "roughness 1.5 is outside [0, 1]"),
+        ("type = \"dielectric\"\nroughness = -0.1\n", "outside [0, 1]"),
+        ("type = \"conductor\"\neta = [1, 1, 1]\n", "eta and k go together"),
+        ("type = \"conductor\"\neta = [0, 1, 1]\nk = [1, 1, 1]\n", "must be > 0"),
+        ("type = \"conductor\"\neta = [1, 1, 1]\nk = [-1, 1, 1]\n", "k"),
+        ("type = \"phong\"\nroughness = 0.5\n", "roughness is for type = \"conductor\" or \"dielectric\""),
+        ("type = \"dielectric\"\neta = [1, 1, 1]\nk = [0, 0, 0]\n", "a dielectric's index is ior"),
+        ("type = \"metal\"\n", "metal"),
+        ("type = \"conductor\"\nrougness = 0.5\n", "rougness"),
+    ] {
+        let msg = error(&toml(&format!("[[material]]\nname = \"m\"\n{table}")), "m.toml:");
+        assert!(msg.contains(want), "{table:?}: {msg}");
+    }
 }
 
 #[test]

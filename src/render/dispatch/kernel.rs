@@ -46,7 +46,7 @@ pub fn trace_bindings(family: KernelFamily, geometry: Geometry) -> Vec<BindingDe
 /// least, the kind of the default material. The general kernel has code for every kind.
 pub fn material_kinds(scene: &Scene, choice: KernelChoice) -> u32 {
     if choice == KernelChoice::General {
-        return (1 << (MaterialKind::Emissive as u32 + 1)) - 1;
+        return (1 << (MaterialKind::LAST as u32 + 1)) - 1;
     }
     scene.materials.iter().fold(1 << MaterialKind::Lambert as u32, |m, x| m | 1 << x.kind as u32)
 }

@@ -6,7 +6,8 @@ use crate::accel::{AccelBuffers, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
-use crate::scene::{Light, Scene};
+use crate::scene::{ComplexIor, Light, MaterialKind, Scene};
+use glam::Vec3;
 use std::sync::Arc;
 
 /// Scene data in GPU layout.
@@ -41,11 +42,21 @@ impl GpuScene {
 fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     let mut shading = Vec::with_capacity(scene.materials.len() * 4 + scene.lights.len() * 2);
     for m in &scene.materials {
+        // A conductor keeps eta in the specular row and k in the absorption row; it and
+        // the dielectric keep GGX alpha where Phong keeps its exponent.
+        let (specular, shininess, absorption) = match (m.kind, m.complex_ior) {
+            (MaterialKind::Conductor, ior) => {
+                let c = ior.unwrap_or(ComplexIor { eta: Vec3::ONE, k: Vec3::ZERO });
+                (c.eta, m.alpha(), c.k)
+            }
+            (MaterialKind::Dielectric, _) => (Vec3::ZERO, m.alpha(), m.absorption),
+            _ => (m.specular, m.shininess, m.absorption),
+        };
         let g = GpuMaterial {
             color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(m.kind as u32)],
-            specular: [m.specular.x, m.specular.y, m.specular.z, m.shininess],
+            specular: [specular.x, specular.y, specular.z, shininess],
             emission_ior: [m.emission.x, m.emission.y, m.emission.z, m.ior],
-            absorption_flags: [m.absorption.x, m.absorption.y, m.absorption.z, f32::from_bits(material_flags(m))],
+            absorption_flags: [absorption.x, absorption.y, absorption.z, f32::from_bits(material_flags(m))],
         };
         shading.extend([g.color_kind, g.specular, g.emission_ior, g.absorption_flags]);
     }
@@ -66,8 +77,9 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
 /// The flags word of material row 3 (shaders/common/layout.glsl).
 fn material_flags(m: &crate::scene::Material) -> u32 {
     let sides = if m.two_sided { MAT_FLAG_TWO_SIDED } else { 0 };
+    let schlick = if m.kind == MaterialKind::Conductor && m.complex_ior.is_none() { MAT_FLAG_SCHLICK } else { 0 };
     let tex = m.texture.map_or(0, |t| (t + 1) << MAT_TEXTURE_SHIFT);
-    sides | tex
+    sides | schlick | tex
 }
 
 /// The buffers bound to one kernel, kept alive while it runs.

@@ -18,7 +18,7 @@ use crate::render::dispatch::upload::GpuScene;
 use crate::render::dispatch::{Next, Waves};
 use crate::render::integrators::path::{extras, Extras};
 use crate::render::{Frame, RenderSettings, RenderStats};
-use crate::scene::{MaterialKind, Scene};
+use crate::scene::Scene;
 
 /// Most pixels held on the device at once (64 bytes each).
 const MAX_CHUNK_PIXELS: u64 = 1 << 20;
@@ -114,7 +114,7 @@ pub fn render_with(
     let mut gs = GpuScene::new(scene);
     let ex = if probe(settings) { Extras::default() } else { extras(scene, gs.shading.len() as u32, false)? };
     gs.shading.extend_from_slice(&ex.rows);
-    let glass = !probe(settings) && scene.materials.iter().any(|m| m.kind == MaterialKind::Glass);
+    let glass = !probe(settings) && scene.materials.iter().any(|m| m.is_smooth_glass());
     let (depth, lights, emitters) = (scene.max_depth, scene.lights.len() as u64, ex.emitter_count);
     let request = Request {
         prefix: "trace",
