@@ -88,16 +88,20 @@ fn main() {
                 let unrolls: &[u32] = if accel == "none" { &bindings::BRUTE_UNROLL_FACTORS } else { &[1] };
                 for &unroll in unrolls {
                     let suffix = if unroll == 1 { String::new() } else { format!("_x{unroll}") };
+                    // One module per integrator (bindings::TRACE_ENTRIES).
                     for (geo, tris, spheres) in GEOMETRY {
-                        variants.push((
-                            format!("trace_{accel}_{geo}{suffix}"),
-                            vec![
-                                (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
-                                ("HAS_TRIANGLES".into(), tris.to_string()),
-                                ("HAS_SPHERES".into(), spheres.to_string()),
-                                ("BRUTE_UNROLL".into(), unroll.to_string()),
-                            ],
-                        ));
+                        for (entry, value) in bindings::TRACE_ENTRIES {
+                            variants.push((
+                                format!("trace_{accel}_{geo}{suffix}.{entry}"),
+                                vec![
+                                    (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                                    ("HAS_TRIANGLES".into(), tris.to_string()),
+                                    ("HAS_SPHERES".into(), spheres.to_string()),
+                                    ("BRUTE_UNROLL".into(), unroll.to_string()),
+                                    ("TRACE_ENTRY".into(), value.to_string()),
+                                ],
+                            ));
+                        }
                     }
                     // Ray batches (src/render/rays.rs): the same traversal, rays read
                     // from a buffer; flat scenes only.
@@ -118,15 +122,18 @@ fn main() {
                 // force as the bottom level; instances are meshes, so never spheres only.
                 if accel != "none" {
                     for (geo, tris, spheres) in GEOMETRY.iter().filter(|g| g.1 == 1) {
-                        variants.push((
-                            format!("trace_inst_{accel}_{geo}"),
-                            vec![
-                                (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
-                                ("HAS_TRIANGLES".into(), tris.to_string()),
-                                ("HAS_SPHERES".into(), spheres.to_string()),
-                                ("HAS_INSTANCES".into(), "1".into()),
-                            ],
-                        ));
+                        for (entry, value) in bindings::TRACE_ENTRIES {
+                            variants.push((
+                                format!("trace_inst_{accel}_{geo}.{entry}"),
+                                vec![
+                                    (format!("ACCEL_{}", accel.to_uppercase()), "1".into()),
+                                    ("HAS_TRIANGLES".into(), tris.to_string()),
+                                    ("HAS_SPHERES".into(), spheres.to_string()),
+                                    ("HAS_INSTANCES".into(), "1".into()),
+                                    ("TRACE_ENTRY".into(), value.to_string()),
+                                ],
+                            ));
+                        }
                     }
                 }
             }

@@ -3,9 +3,11 @@
 // Whitted (the preview: direct light, mirrors, glass split; below) or path
 // tracing (common/path.glsl). Each thread runs samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
 // buffer's header).
-// Compiled once per (structure, geometry) variant by build.rs: exactly one
-// ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist; with
-// RAY_BATCH (the rays_* kernels) it traces rays from a buffer instead (batch_main).
+// Compiled once per (structure, geometry, integrator) variant by build.rs: exactly one
+// ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist,
+// TRACE_ENTRY which integrator main() runs (SPEC_INTEGRATOR must agree: the host picks
+// the module by it); with RAY_BATCH (the rays_* kernels) it traces rays from a buffer
+// instead (batch_main).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
@@ -486,10 +488,16 @@ void main() {
     batch_main();
 }
 #else
+// One integrator a module (TRACE_ENTRY, src/gpu/bindings.rs TRACE_ENTRIES): the others'
+// code is not in it for the driver to compile and throw away.
 void main() {
     TREE_STEPS = dispatch_limits.x;
-    if (INTEGRATOR == 1u) path_main();
-    else if (INTEGRATOR == 2u) probe_main();
-    else whitted_main();
+#if TRACE_ENTRY == INTEGRATOR_PATH
+    path_main();
+#elif TRACE_ENTRY == INTEGRATOR_PROBE
+    probe_main();
+#else
+    whitted_main();
+#endif
 }
 #endif

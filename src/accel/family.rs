@@ -214,15 +214,19 @@ mod tests {
         }
         for family in KernelFamily::EVERY {
             for geometry in Geometry::ALL {
-                let trace = format!("trace_{family}_{geometry}");
                 let compiled = !family.is_instanced() || geometry.has_triangles();
-                assert_eq!(crate::gpu::spirv::get(&trace).is_some(), compiled, "{trace}");
+                for (entry, _) in crate::gpu::bindings::TRACE_ENTRIES {
+                    let trace = format!("trace_{family}_{geometry}.{entry}");
+                    assert_eq!(crate::gpu::spirv::get(&trace).is_some(), compiled, "{trace}");
+                }
+                assert!(crate::gpu::spirv::get(&format!("trace_{family}_{geometry}")).is_none());
                 let rays = format!("rays_{family}_{geometry}");
                 assert_eq!(crate::gpu::spirv::get(&rays).is_some(), !family.is_instanced(), "{rays}");
                 // Brute force once more per unrolled loop; no other family.
                 for unroll in crate::gpu::bindings::BRUTE_UNROLL_FACTORS.into_iter().filter(|&u| u > 1) {
                     for prefix in ["trace", "rays"] {
-                        let name = format!("{prefix}_{family}_{geometry}_x{unroll}");
+                        let dot_path = if prefix == "trace" { ".path" } else { "" };
+                        let name = format!("{prefix}_{family}_{geometry}_x{unroll}{dot_path}");
                         assert_eq!(crate::gpu::spirv::get(&name).is_some(), family == KernelFamily::None, "{name}");
                     }
                 }

@@ -175,6 +175,16 @@ pub const SPEC_WIDE_WIDTH: u32 = 20;
 /// Integrator of the trace kernel: 0 Whitted, 1 path tracing, 2 the benchmark's probe
 /// (camera rays and, with `SPEC_DIFFUSE_PROBE`, one bounce; no shading).
 pub const SPEC_INTEGRATOR: u32 = 11;
+/// Values of SPEC_INTEGRATOR: the trace kernel's entry points. Each is compiled into a
+/// module of its own (`trace_<family>_<geometry>.<entry>`, TRACE_ENTRY in
+/// shaders/trace.comp), so a driver compiles only the integrator it runs: on lavapipe
+/// that halves a trace pipeline's creation. Ray batches run as the probe.
+pub const INTEGRATOR_WHITTED: u32 = 0;
+pub const INTEGRATOR_PATH: u32 = 1;
+pub const INTEGRATOR_PROBE: u32 = 2;
+/// The entry points' module suffixes, by SPEC_INTEGRATOR value.
+pub const TRACE_ENTRIES: [(&str, u32); 3] =
+    [("whitted", INTEGRATOR_WHITTED), ("path", INTEGRATOR_PATH), ("probe", INTEGRATOR_PROBE)];
 /// Path integrator: emissive primitives in the emitter table (0: no area-light code).
 pub const SPEC_EMITTERS: u32 = 12;
 /// Path integrator: environment map width and height in texels (width 0: no map).
@@ -281,6 +291,9 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_TRIANGLE_COUNT", SPEC_TRIANGLE_COUNT),
     ("SPEC_SPHERE_COUNT", SPEC_SPHERE_COUNT),
     ("SPEC_INTEGRATOR", SPEC_INTEGRATOR),
+    ("INTEGRATOR_WHITTED", INTEGRATOR_WHITTED),
+    ("INTEGRATOR_PATH", INTEGRATOR_PATH),
+    ("INTEGRATOR_PROBE", INTEGRATOR_PROBE),
     ("SPEC_EMITTERS", SPEC_EMITTERS),
     ("SPEC_ENV_WIDTH", SPEC_ENV_WIDTH),
     ("SPEC_ENV_HEIGHT", SPEC_ENV_HEIGHT),

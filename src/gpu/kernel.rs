@@ -780,12 +780,12 @@ mod tests {
         let spv = crate::gpu::spirv::get("sample_probe").expect("sample_probe is compiled");
         let ids = declared_spec_ids(spv);
         assert!(!ids.is_empty(), "sample_probe declares specialization constants");
-        let trace = crate::gpu::spirv::get("trace_bvh_tris").expect("trace_bvh_tris is compiled");
+        let trace = crate::gpu::spirv::get("trace_bvh_tris.path").expect("trace_bvh_tris.path is compiled");
         let ids = declared_spec_ids(trace);
         use crate::gpu::bindings::{SPEC_STACK_SIZE, SPEC_TRIANGLE_COUNT};
         assert!(ids.contains(&SPEC_STACK_SIZE), "a BVH kernel has a stack: {ids:?}");
         assert!(!ids.contains(&SPEC_TRIANGLE_COUNT), "only brute force counts triangles: {ids:?}");
-        let brute = crate::gpu::spirv::get("trace_none_tris").expect("trace_none_tris is compiled");
+        let brute = crate::gpu::spirv::get("trace_none_tris.path").expect("trace_none_tris.path is compiled");
         assert!(declared_spec_ids(brute).contains(&SPEC_TRIANGLE_COUNT));
         assert!(declared_spec_ids(b"not spir-v at all!!!").is_empty());
     }

@@ -181,8 +181,10 @@ fn every_pipeline_respects_the_storage_buffer_limit() {
             let storage = b.iter().filter(|d| d.kind == BindingKind::Storage).count();
             assert!(storage <= MAX_STORAGE_BUFFERS_PER_STAGE as usize, "{kind} {geometry}: {storage}");
             Kernel::check_storage_limit(geometry.name(), &b).expect("within limit");
-            let name = format!("trace_{}_{geometry}", kind.kernel());
-            assert!(arbor::gpu::spirv::get(&name).is_some(), "{name} was not compiled");
+            for (entry, _) in arbor::gpu::bindings::TRACE_ENTRIES {
+                let name = format!("trace_{}_{geometry}.{entry}", kind.kernel());
+                assert!(arbor::gpu::spirv::get(&name).is_some(), "{name} was not compiled");
+            }
         }
     }
     let nine: Vec<BindingDesc> =
@@ -191,7 +193,7 @@ fn every_pipeline_respects_the_storage_buffer_limit() {
     assert!(err.to_string().contains("9 storage buffers"), "{err}");
     // And on the device: creating such a kernel fails before any Vulkan call.
     let Some(ctx) = common::gpu() else { return };
-    let spv = arbor::gpu::spirv::get("trace_none_all").expect("kernel");
+    let spv = arbor::gpu::spirv::get("trace_none_all.path").expect("kernel");
     assert!(ctx.create_kernel("nine", spv, &nine, &[], 0).is_err());
 }
 
@@ -222,9 +224,11 @@ fn trace_kernels_take_no_push_constants() {
     assert!(variable_storage_classes(probe).contains(&PUSH_CONSTANT), "the scan must see math_probe's push constants");
     for kind in AccelKind::ALL {
         for geometry in Geometry::ALL {
-            let name = format!("trace_{}_{geometry}", kind.kernel());
-            let spv = arbor::gpu::spirv::get(&name).expect("compiled");
-            assert!(!variable_storage_classes(spv).contains(&PUSH_CONSTANT), "{name} declares push constants");
+            for (entry, _) in arbor::gpu::bindings::TRACE_ENTRIES {
+                let name = format!("trace_{}_{geometry}.{entry}", kind.kernel());
+                let spv = arbor::gpu::spirv::get(&name).expect("compiled");
+                assert!(!variable_storage_classes(spv).contains(&PUSH_CONSTANT), "{name} declares push constants");
+            }
         }
     }
 }
@@ -277,7 +281,7 @@ fn validation_errors_fail_the_operation() {
             return;
         }
     };
-    let spv = arbor::gpu::spirv::get("trace_none_spheres").expect("kernel");
+    let spv = arbor::gpu::spirv::get("trace_none_spheres.whitted").expect("kernel");
     let short: Vec<BindingDesc> =
         gpu::trace_bindings(KernelFamily::None, Geometry::Spheres).into_iter().filter(|d| d.name != "pixels").collect();
     let err = ctx.create_kernel("missing_pixels", spv, &short, &[], 0).expect_err("validation must fail this");

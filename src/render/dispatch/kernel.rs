@@ -189,9 +189,12 @@ pub struct Variant {
 impl Variant {
     /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
     /// geometry (or every buffer with [`KernelChoice::General`]), with `_x8` or `_x32`
-    /// for brute force's unrolled loops (`bounds.unroll`).
+    /// for brute force's unrolled loops (`bounds.unroll`). A trace kernel's module is
+    /// that name and the entry point of the integrator `spec` specializes
+    /// (`.whitted`, `.path` or `.probe`, [`TRACE_ENTRIES`]).
     pub fn new(
         prefix: &str,
+        spec: &[(u32, u32)],
         scene: &Scene,
         choice: KernelChoice,
         image: &GpuImage,
@@ -200,8 +203,17 @@ impl Variant {
         let geometry = kernel_geometry(scene, choice);
         let unrolled = if bounds.unroll > 1 { format!("_x{}", bounds.unroll) } else { String::new() };
         let name = format!("{prefix}_{}_{geometry}{unrolled}", image.family);
-        let spirv =
-            crate::gpu::spirv::get(&name).ok_or_else(|| Error::Failed(format!("no kernel '{name}' was compiled")))?;
+        let module = match prefix {
+            "trace" => {
+                let integrator = spec.iter().find(|s| s.0 == SPEC_INTEGRATOR).map_or(INTEGRATOR_WHITTED, |s| s.1);
+                let entry = TRACE_ENTRIES.iter().find(|e| e.1 == integrator).map(|e| e.0);
+                let entry = entry.ok_or_else(|| Error::Failed(format!("no trace entry point {integrator}")))?;
+                format!("{name}.{entry}")
+            }
+            _ => name.clone(),
+        };
+        let spirv = crate::gpu::spirv::get(&module)
+            .ok_or_else(|| Error::Failed(format!("no kernel '{module}' was compiled")))?;
         let mut bindings = trace_bindings(image.family, geometry);
         if image.resume_words > 0 {
             // A stand-in for the trace kernel, the pool for the resume kernel (resume.rs).

@@ -171,7 +171,7 @@ impl<'a> Prepared<'a> {
         }
         let traces = request.traces;
         let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
-        let mut variant = Variant::new(request.prefix, scene, settings.kernel, &image, &bounds)?;
+        let mut variant = Variant::new(request.prefix, &request.spec, scene, settings.kernel, &image, &bounds)?;
         variant.bindings.extend(request.extra_bindings);
         let most_samples = bounds.samples_within_limit(ctx, scene, traces)?;
         let mut spec = request.spec;

@@ -256,7 +256,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
         (SPEC_LIGHTS, scene.lights.len() as u32),
         (SPEC_MAX_DEPTH, max_depth(scene, settings)),
         (SPEC_DIFFUSE_PROBE, 0),
-        (SPEC_INTEGRATOR, 1),
+        (SPEC_INTEGRATOR, INTEGRATOR_PATH),
         (SPEC_EMITTERS, ex.emitter_count),
         (SPEC_ENV_WIDTH, ex.env_size.0),
         (SPEC_ENV_HEIGHT, ex.env_size.1.max(1)),

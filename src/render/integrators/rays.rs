@@ -171,7 +171,7 @@ impl<'a> RayTracer<'a> {
                 (SPEC_MAX_DEPTH, 1),
                 // The probe kernel's value: the resume sweep finds a stopped ray by its
                 // zero count (shaders/common/resume_trace.glsl).
-                (SPEC_INTEGRATOR, 2),
+                (SPEC_INTEGRATOR, INTEGRATOR_PROBE),
             ],
             // No camera: the rays come from the batch.
             params: base_params(scene, (1, 1), 0, accel),

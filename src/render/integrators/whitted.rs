@@ -84,7 +84,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
         (SPEC_MAX_DEPTH, if probe { 1 } else { scene.max_depth }),
         (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
         // The probe modes run the lean probe kernel (trace.comp, probe_main).
-        (SPEC_INTEGRATOR, if probe { 2 } else { 0 }),
+        (SPEC_INTEGRATOR, if probe { INTEGRATOR_PROBE } else { INTEGRATOR_WHITTED }),
         (SPEC_EMITTERS, ex.emitter_count),
         (SPEC_TEXTURES, u32::from(!probe && !scene.textures.is_empty())),
     ]
