@@ -60,6 +60,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         }
     }
     let scenes = bench::load_scenes(&opts)?;
+    scenes.iter().for_each(crate::common::warn_scene);
     if let Some(d) = &args.out {
         std::fs::create_dir_all(d).with_context(|| format!("{}: cannot create the --out directory", d.display()))?;
         let files = [d.join("bench.json"), d.join("bench.csv")];
@@ -144,6 +145,7 @@ fn convergence(args: &BenchArgs, reference: &std::path::Path) -> Result<()> {
         output::check_outputs(std::iter::once(d.join("convergence.csv").as_path()))?;
     }
     let scene = Scene::load(scene_arg)?;
+    crate::common::warn_scene(&scene);
     let ladder = bench::convergence::Ladder {
         reference: reference.to_path_buf(),
         accel: args.accel.iter().copied().filter(|k| !k.is_brute_force() || scene.prim_count() <= 4096).collect(),

@@ -142,3 +142,10 @@ pub(crate) fn aov_scale(
     }
     Ok(arg.map(str::parse).transpose().map_err(usage)?.unwrap_or_default())
 }
+
+/// Prints what the scene's files have that arbor does not read, one line each.
+pub fn warn_scene(scene: &arbor::scene::Scene) {
+    for w in &scene.warnings {
+        eprintln!("arbor: warning: {w}");
+    }
+}

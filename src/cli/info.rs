@@ -16,6 +16,7 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     }
     let _recording = start_trace(&a.trace, "info")?;
     let scene = Scene::load(&a.scene)?;
+    crate::common::warn_scene(&scene);
     let pixels = u64::from(scene.width) * u64::from(scene.height);
     let (accel, why) = resolve_accel(&a.accel, &scene, pixels, 1, params.build)?;
     let scene = flatten_if(scene, a.flatten, accel, true)?;

@@ -42,6 +42,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     }
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let scene = Scene::load(&a.scene)?;
+    crate::common::warn_scene(&scene);
     let load_ms = ms(start);
     let (w, h) = size.unwrap_or((scene.width, scene.height));
     let mut encoded = vec![(format, 3)];

@@ -4,10 +4,11 @@
 //!
 //! Materials (metallic-roughness) map as follows, roughness and metallic being the
 //! factors (their textures are not read):
-//! - transmission (KHR_materials_transmission) of 0.5 or more: glass, tinted by the
-//!   base colour, with KHR_materials_ior's index (default 1.5);
-//! - metallic of 0.5 or more and roughness of 0.1 or less: a mirror tinted by the base
-//!   colour;
+//! - transmission (KHR_materials_transmission) of 0.5 or more: a rough dielectric of
+//!   the material's roughness, tinted by the base colour, with KHR_materials_ior's
+//!   index (default 1.5);
+//! - metallic of 0.5 or more: a rough conductor of the material's roughness, Schlick's
+//!   Fresnel from the base colour (its texture too), as glTF's metal;
 //! - roughness below 0.5: normalised Phong; specular = mix(0.04, base, metallic),
 //!   diffuse = base x (1 - metallic) x (1 - max(specular)), shininess 2/a^2 - 2 with
 //!   a = roughness^2 (at most 10,000);
@@ -48,12 +49,16 @@ pub struct GltfScene {
     pub prototypes: Vec<(String, MeshData)>,
     /// (prototype, object-to-world transform) of each node drawing one.
     pub instances: Vec<(u32, glam::Affine3A)>,
+    /// What the file has that arbor does not read (the extensions it uses), for a
+    /// warning.
+    pub warnings: Vec<String>,
 }
 
 impl GltfScene {
     /// Every triangle in world space in one mesh: the instances' copies appended.
     pub fn into_mesh(self) -> MeshData {
         let mut out = self.mesh;
+        out.warnings.extend(self.warnings);
         let had_normals = out.normals.is_some();
         let mut normals = out.normals.take().unwrap_or_else(|| vec![Vec3::ZERO; out.positions.len()]);
         let any_uvs = out.uvs.is_some() || self.prototypes.iter().any(|(_, p)| p.uvs.is_some());
@@ -107,6 +112,10 @@ pub fn load(path: &Path) -> Result<GltfScene> {
     }
 }
 
+/// Extensions this loader reads; a file that uses others gets one warning naming them.
+const READ: [&str; 4] =
+    ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_emissive_strength"];
+
 /// Extensions a file may require: what this loader reads, and those whose absence
 /// only changes the look (the file stays valid glTF without them).
 const KNOWN_REQUIRED: [&str; 5] = [
@@ -152,6 +161,10 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         .unwrap_or_else(|| format!("glTF images: {e}"))
     })?;
     let mut out = GltfScene::default();
+    let unread: Vec<&str> = document.extensions_used().filter(|e| !READ.contains(e)).collect();
+    if !unread.is_empty() {
+        out.warnings.push(format!("{name}: arbor does not read the glTF extension(s) {}", unread.join(", ")));
+    }
     // Materials and textures: one arbor material per glTF material, then the default.
     let mut textures: Vec<Option<u32>> = vec![None; images.len()];
     for m in document.materials() {
@@ -374,10 +387,13 @@ fn material(
     let name = m.name().map_or_else(|| format!("gltf material {}", m.index().unwrap_or(0)), str::to_string);
     let mut out = Material::lambert(&name, base);
     if transmission >= 0.5 {
-        out.kind = MaterialKind::Glass;
+        out.kind = MaterialKind::Dielectric;
+        out.roughness = rough;
         out.ior = m.ior().unwrap_or(1.5);
-    } else if metallic >= 0.5 && rough <= 0.1 {
-        out.kind = MaterialKind::Mirror;
+    } else if metallic >= 0.5 {
+        // glTF's metal: GGX with Schlick's Fresnel from the base colour.
+        out.kind = MaterialKind::Conductor;
+        out.roughness = rough;
     } else if rough < 0.5 {
         let spec = Vec3::splat(0.04).lerp(base, metallic);
         out.kind = MaterialKind::Phong;

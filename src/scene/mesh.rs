@@ -133,6 +133,8 @@ pub struct MeshData {
     pub uvs: Option<Vec<glam::Vec2>>,
     /// Texture images the materials name (`Material::texture` indexes this).
     pub textures: Vec<Texture>,
+    /// What the file has that arbor does not read, for a warning (glTF extensions).
+    pub warnings: Vec<String>,
 }
 
 /// A texture image: 8-bit RGBA texels as stored (sRGB-encoded colour), row 0 at the

@@ -110,6 +110,9 @@ pub struct Scene {
     pub max_depth: u32,
     /// Zero-area triangles (kept; never hit).
     pub degenerate_triangles: usize,
+    /// What the scene's files have that arbor does not read (glTF extensions), each
+    /// once; the command line prints them as warnings.
+    pub warnings: Vec<String>,
     /// Meshes stored once and drawn by instances ([`instance`]); `triangles` holds
     /// only the scene's own.
     pub instancing: Option<Instancing>,
@@ -145,6 +148,7 @@ impl SceneBuilder {
                 ambient: 0.05,
                 max_depth: 8,
                 degenerate_triangles: 0,
+                warnings: Vec::new(),
                 instancing: None,
             },
         }
@@ -180,6 +184,11 @@ impl SceneBuilder {
     /// triangle's winding is reversed, so geometric normals keep facing out.
     pub fn mesh_transformed(&mut self, mesh: &MeshData, t: &glam::Affine3A, material: Option<u32>) {
         let s = &mut self.scene;
+        for w in &mesh.warnings {
+            if !s.warnings.contains(w) {
+                s.warnings.push(w.clone());
+            }
+        }
         let base = s.positions.len() as u32;
         s.positions.extend(mesh.positions.iter().map(|p| t.transform_point3(*p)));
         let normal_matrix = t.matrix3.inverse().transpose();
@@ -424,6 +433,7 @@ impl Scene {
             return Err(Error::scene(name, msg));
         }
         let mut b = SceneBuilder::new(name);
+        b.scene.warnings.extend(g.warnings.iter().cloned());
         let mat_base = b.scene.materials.len() as u32;
         b.mesh(&g.mesh, 1.0, Vec3::ZERO, None);
         // Prototypes index the file's materials, which the mesh above brought in.

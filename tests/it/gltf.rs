@@ -246,3 +246,55 @@ fn shared_meshes_become_instances_and_a_node_scaled_to_nothing_stays_flat() {
     let mesh = arbor::scene::load_mesh(&path).expect("mesh");
     assert_eq!(mesh.triangles.len(), 3);
 }
+
+/// glTF's metals become rough conductors (Schlick's Fresnel from the base colour),
+/// transmissive materials rough dielectrics with KHR_materials_ior's index; an
+/// extension the file uses but arbor does not read is named once in a warning, for
+/// the scene and for a mesh of a scene file.
+#[test]
+fn metals_and_transmission_map_to_microfacet_materials() {
+    let json = r#"{
+      "asset": {"version": "2.0"},
+      "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_clearcoat"],
+      "scene": 0,
+      "scenes": [{"nodes": [0, 1]}],
+      "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [2, 0, 0]}],
+      "materials": [
+        {"name": "gold", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.77, 0.34, 1],
+                                                   "metallicFactor": 1, "roughnessFactor": 0.3}},
+        {"name": "frosted", "pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0.4},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1},
+                        "KHR_materials_ior": {"ior": 1.33},
+                        "KHR_materials_clearcoat": {"clearcoatFactor": 1}}}
+      ],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]},
+                 {"primitives": [{"attributes": {"POSITION": 0}, "material": 1}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36,
+                   "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
+    }"#;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("materials.gltf");
+    std::fs::write(&path, json).expect("gltf");
+    let s = Scene::load(&path.display().to_string()).expect("loads");
+    let by_name = |n: &str| s.materials.iter().find(|m| m.name == n).expect(n);
+    let gold = by_name("gold");
+    assert_eq!((gold.kind, gold.roughness, gold.complex_ior), (MaterialKind::Conductor, 0.3, None));
+    assert!((gold.color - glam::Vec3::new(1.0, 0.77, 0.34)).length() < 1e-6, "F0 is the base colour");
+    let frosted = by_name("frosted");
+    assert_eq!((frosted.kind, frosted.roughness, frosted.ior), (MaterialKind::Dielectric, 0.4, 1.33));
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(
+        s.warnings[0].contains("KHR_materials_clearcoat") && s.warnings[0].contains("materials.gltf"),
+        "{:?}",
+        s.warnings
+    );
+    assert!(!s.warnings[0].contains("KHR_materials_ior"), "{:?}", s.warnings);
+    // As the file of two [[mesh]] tables: still one warning.
+    let toml = dir.path().join("s.toml");
+    std::fs::write(&toml, "[[mesh]]\nfile = \"materials.gltf\"\n[[mesh]]\nfile = \"materials.gltf\"\n").expect("toml");
+    let t = Scene::load(&toml.display().to_string()).expect("loads");
+    assert_eq!(t.warnings, s.warnings);
+}
