@@ -369,6 +369,7 @@ impl Grid {
             resolution: Some(self.res),
             levels: None,
             opaque: None,
+            on_device: None,
         }
     }
 

@@ -394,6 +394,7 @@ impl super::Structure for TwoLevel {
             resolution: None,
             levels: Some(levels),
             opaque: None,
+            on_device: None,
         }
     }
 

@@ -276,9 +276,15 @@ pub struct BuildStats {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub levels: Option<instance::LevelStats>,
     /// Set where the structure is the driver's (`rayquery`): what arbor cannot see of
-    /// it (node counts, depth and SAH cost are then 0, meaning unknown).
+    /// it (node counts, depth and SAH cost are then 0, meaning unknown). The kernel
+    /// cannot count its nodes and primitives either, so renders leave those out.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub opaque: Option<String>,
+    /// Set where arbor's own tree was built on the device and kept there: what needs
+    /// it read back to the host (leaf counts, SAH cost; 0 until then). The kernel
+    /// counts nodes visited and primitives tested as for any tree.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on_device: Option<String>,
 }
 
 /// One timed phase of a build.

@@ -315,6 +315,7 @@ impl Octree {
             resolution: None,
             levels: None,
             opaque: None,
+            on_device: None,
         }
     }
 

@@ -139,6 +139,11 @@ fn gpu_built_wide_trees_render_without_readback() {
     assert_eq!(frame.prim, reference.prim, "trbvh kept on the device");
     let names: Vec<&str> = st.build.phases.iter().map(|p| p.name.as_str()).collect();
     assert!(!names.iter().any(|n| n.contains("readback")), "{names:?}");
+    // The kernel counted as for any tree; only what needs the tree on the host is
+    // named unknown.
+    assert!(st.build.opaque.is_none() && st.build.on_device.is_some(), "{:?}", st.build);
+    assert!(st.mean_nodes_visited.is_some_and(|n| n > 0.0), "nodes visited: {:?}", st.mean_nodes_visited);
+    assert!(st.mean_prims_tested.is_some_and(|n| n > 0.0), "prims tested: {:?}", st.mean_prims_tested);
     // The geometry crossed the bus once: the trace bound the build's buffers.
     for name in ["vertices", "triangles"] {
         assert!(st.bindings.contains(&format!("{name} (the build's)")), "{name}: {:?}", st.bindings);

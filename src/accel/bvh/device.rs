@@ -6,7 +6,7 @@
 //!
 //! Without the host copy, [`DeviceTree::stats`] gives what the build's header says
 //! (node count, depth, bytes, timing) and names the rest unknown in
-//! `BuildStats::opaque`; `validate` is an error that says to read the tree back, and
+//! `BuildStats::on_device`; `validate` is an error that says to read the tree back, and
 //! CPU traversal panics (a caller's mistake, not a user's: every CLI path that
 //! traverses on the CPU reads back first).
 
@@ -168,7 +168,7 @@ impl DeviceTree {
             None => BuildStats {
                 nodes: self.node_count,
                 max_depth: self.depth,
-                opaque: Some(
+                on_device: Some(
                     "kept on the device: leaf counts and the SAH cost need the tree on the host (read back)".into(),
                 ),
                 ..Default::default()

@@ -551,6 +551,7 @@ fn tree_stats<const W: usize>(
         resolution: None,
         levels: None,
         opaque: None,
+        on_device: None,
     }
 }
 

@@ -320,6 +320,7 @@ impl KdTree {
             resolution: None,
             levels: None,
             opaque: None,
+            on_device: None,
         }
     }
 
