@@ -33,13 +33,7 @@ struct Pixel {
 //   row 1: rgb radiance / intensity
 #define MATERIAL_ROWS 4
 #define LIGHT_ROWS 2
-#define MAT_LAMBERT 0u
-#define MAT_PHONG 1u
-#define MAT_MIRROR 2u
-#define MAT_GLASS 3u
-#define MAT_EMISSIVE 4u
-#define MAT_CONDUCTOR 5u
-#define MAT_DIELECTRIC 6u
+// The MAT_* kind codes come from src/gpu/bindings.rs.
 
 layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     vec4 cam_eye;      // 0   xyz eye, w tan(vfov/2)

@@ -217,6 +217,15 @@ pub const SPEC_RESUME_PASS: u32 = 40;
 pub const SPEC_RESUME_LOG: u32 = 41;
 pub const SPEC_RESUME_RECORDS: u32 = 42;
 pub const SPEC_RESUME_JOBS: u32 = 43;
+/// Material kind codes (row 0, w of a material; `scene::MaterialKind` takes its values
+/// from these).
+pub const MAT_LAMBERT: u32 = 0;
+pub const MAT_PHONG: u32 = 1;
+pub const MAT_MIRROR: u32 = 2;
+pub const MAT_GLASS: u32 = 3;
+pub const MAT_EMISSIVE: u32 = 4;
+pub const MAT_CONDUCTOR: u32 = 5;
+pub const MAT_DIELECTRIC: u32 = 6;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Bit of a material's flags word: a conductor's Fresnel is Schlick's from its colour
@@ -319,6 +328,13 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),
     ("INST_ENTRY_STEPS", INST_ENTRY_STEPS),
+    ("MAT_LAMBERT", MAT_LAMBERT),
+    ("MAT_PHONG", MAT_PHONG),
+    ("MAT_MIRROR", MAT_MIRROR),
+    ("MAT_GLASS", MAT_GLASS),
+    ("MAT_EMISSIVE", MAT_EMISSIVE),
+    ("MAT_CONDUCTOR", MAT_CONDUCTOR),
+    ("MAT_DIELECTRIC", MAT_DIELECTRIC),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_FLAG_SCHLICK", MAT_FLAG_SCHLICK),
     ("SMOOTH_ALPHA_BITS", SMOOTH_ALPHA_BITS),

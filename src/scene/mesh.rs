@@ -1,5 +1,8 @@
 //! Triangle mesh data as the loaders produce it, before it joins a scene.
 
+use crate::gpu::bindings::{
+    MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_GLASS, MAT_LAMBERT, MAT_MIRROR, MAT_PHONG,
+};
 use glam::Vec3;
 
 /// How a surface scatters light. The numeric values are the GPU's material kind codes.
@@ -7,16 +10,16 @@ use glam::Vec3;
 #[serde(rename_all = "lowercase")]
 #[repr(u32)]
 pub enum MaterialKind {
-    Lambert = 0,
-    Phong = 1,
-    Mirror = 2,
-    Glass = 3,
-    Emissive = 4,
+    Lambert = MAT_LAMBERT,
+    Phong = MAT_PHONG,
+    Mirror = MAT_MIRROR,
+    Glass = MAT_GLASS,
+    Emissive = MAT_EMISSIVE,
     /// A metal: GGX microfacets, Fresnel from [`Material::complex_ior`] or, without
     /// it, Schlick's from `color` (docs/materials.md).
-    Conductor = 5,
+    Conductor = MAT_CONDUCTOR,
     /// Rough glass: GGX microfacets that reflect and refract (Walter et al. 2007).
-    Dielectric = 6,
+    Dielectric = MAT_DIELECTRIC,
 }
 
 impl MaterialKind {
@@ -55,7 +58,7 @@ pub struct Material {
     /// (0 = clear).
     pub absorption: Vec3,
     /// Conductor, dielectric: roughness in [0, 1], as glTF defines it (GGX alpha =
-    /// roughness squared); below [`Material::SMOOTH_ROUGHNESS`] the surface is smooth.
+    /// roughness squared); see [`Material::is_smooth`].
     pub roughness: f32,
     /// Conductor: the complex index of refraction its Fresnel term follows; None for
     /// Schlick's approximation from `color`.
@@ -84,11 +87,6 @@ impl Material {
         }
     }
 
-    /// Below this roughness (GGX alpha `SMOOTH_ALPHA_BITS` of src/gpu/bindings.rs,
-    /// 0.001) a conductor is a mirror of Fresnel reflectance and a dielectric is
-    /// smooth glass.
-    pub const SMOOTH_ROUGHNESS: f32 = 0.031_622_78;
-
     /// The GGX alpha of a conductor or dielectric: roughness squared.
     pub fn alpha(&self) -> f32 {
         self.roughness * self.roughness
@@ -105,12 +103,19 @@ impl Material {
         (!ok).then(|| format!("eta {} must be > 0 and k {} >= 0, finite, per channel", c.eta, c.k))
     }
 
-    /// Whether this material refracts as smooth glass does: glass, and a dielectric
-    /// below [`Material::SMOOTH_ROUGHNESS`].
+    /// Whether the GGX alpha is below `SMOOTH_ALPHA_BITS` (src/gpu/bindings.rs, the
+    /// shaders' threshold too; 0.001, roughness 0.0316): a conductor is then a mirror
+    /// of Fresnel reflectance and a dielectric smooth glass.
+    pub fn is_smooth(&self) -> bool {
+        self.alpha() < f32::from_bits(crate::gpu::bindings::SMOOTH_ALPHA_BITS)
+    }
+
+    /// Whether this material refracts as smooth glass does: glass, and a smooth
+    /// dielectric ([`Material::is_smooth`]).
     pub fn is_smooth_glass(&self) -> bool {
         match self.kind {
             MaterialKind::Glass => true,
-            MaterialKind::Dielectric => self.alpha() < f32::from_bits(crate::gpu::bindings::SMOOTH_ALPHA_BITS),
+            MaterialKind::Dielectric => self.is_smooth(),
             _ => false,
         }
     }

@@ -8,7 +8,7 @@
 
 use crate::common;
 use crate::path;
-use crate::sampling::{dir, probe, Rng};
+use crate::sampling::{dir, probe, ChiSquare, Rng};
 
 use arbor::accel::gpu_layout::GpuParams;
 use arbor::render::upload::GpuScene;
@@ -133,12 +133,6 @@ fn integrate_bins(
     g
 }
 
-/// The chi-square quantile at p = 1e-4 for `df` degrees of freedom (Wilson-Hilferty).
-fn critical(df: f64) -> f64 {
-    let k = 2.0 / (9.0 * df);
-    df * (1.0 - k + 3.719 * k.sqrt()).powi(3)
-}
-
 #[test]
 fn rough_conductors_and_dielectrics_sample_the_pdf_they_evaluate() {
     let Some(ctx) = common::gpu() else { return };
@@ -191,28 +185,18 @@ fn rough_conductors_and_dielectrics_sample_the_pdf_they_evaluate() {
                 // lost samples (the pdf's deficit) pooled or alone.
                 let total_pdf: f64 = g.pdf.iter().sum();
                 assert!(total_pdf <= 1.0 + 2e-3, "{what}: the pdf integrates to {total_pdf}");
-                let (mut chi2, mut bins, mut pool_e, mut pool_o) = (0.0f64, 0usize, 0.0f64, 0.0f64);
                 let lost_e = (1.0 - total_pdf).max(0.0) * n as f64;
-                for (o, e) in
-                    counts.iter().copied().chain([lost]).zip(g.pdf.iter().map(|p| p * n as f64).chain([lost_e]))
-                {
-                    if e >= 5.0 {
-                        chi2 += (o - e) * (o - e) / e;
-                        bins += 1;
-                    } else {
-                        pool_e += e;
-                        pool_o += o;
-                    }
-                }
-                if pool_e >= 5.0 {
-                    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
-                    bins += 1;
-                } else {
+                let c = ChiSquare::of(
+                    counts.iter().copied().chain([lost]).zip(g.pdf.iter().map(|p| p * n as f64).chain([lost_e])),
+                );
+                let (pool_o, pool_e) = c.pooled;
+                if pool_e < 5.0 {
                     assert!(pool_o <= 20.0 + 4.0 * pool_e, "{what}: {pool_o} samples where {pool_e:.2} were expected");
                 }
-                let df = (bins - 1) as f64;
-                assert!(bins >= 3, "{what}: only {bins} bins");
-                if chi2 >= critical(df) {
+                assert!(c.bins >= 3, "{what}: only {} bins", c.bins);
+                // p = 1e-4: z = 3.719.
+                let (chi2, df, critical) = (c.chi2, c.df(), c.critical(3.719));
+                if chi2 >= critical {
                     let mut worst: Vec<(f64, usize)> = (0..Z * P)
                         .map(|b| (counts[b] - g.pdf[b] * n as f64, b))
                         .map(|(d, b)| (d * d / (g.pdf[b] * n as f64).max(1e-9), b))
@@ -225,8 +209,7 @@ fn rough_conductors_and_dielectrics_sample_the_pdf_they_evaluate() {
                         })
                         .collect();
                     panic!(
-                        "{what}: chi-square {chi2:.1} over {df} degrees of freedom (critical {:.1}); lost {lost} for {lost_e:.1}; worst {}",
-                        critical(df),
+                        "{what}: chi-square {chi2:.1} over {df} degrees of freedom (critical {critical:.1}); lost {lost} for {lost_e:.1}; worst {}",
                         bins.join(", ")
                     );
                 }

@@ -314,25 +314,50 @@ fn environment_samples_follow_the_map() {
         }
     }
     assert!(counts.iter().zip(&weight).all(|(&c, &f)| f > 0.0 || c == 0.0), "a black cell was sampled");
-    // Chi-square over cells with an expected count of at least 5 (the rest pooled).
-    let (mut chi2, mut cells, mut pooled_e, mut pooled_o) = (0.0f64, 0usize, 0.0f64, 0.0f64);
-    for (o, f) in counts.iter().zip(&weight) {
-        let e = f / total * n as f64;
-        if e >= 5.0 {
-            chi2 += (o - e) * (o - e) / e;
-            cells += 1;
-        } else {
-            pooled_e += e;
-            pooled_o += o;
+    let c = ChiSquare::of(counts.iter().copied().zip(weight.iter().map(|f| f / total * n as f64)));
+    // p = 0.001: z = 3.090.
+    let (df, critical) = (c.df(), c.critical(3.090));
+    assert!(c.chi2 < critical, "chi-square {:.1} over {df} degrees of freedom (critical {critical:.1})", c.chi2);
+}
+
+/// Pearson's chi-square of (observed, expected) counts over the bins that expect at
+/// least 5, the others pooled into one bin when together they expect 5 or more.
+pub(crate) struct ChiSquare {
+    pub(crate) chi2: f64,
+    pub(crate) bins: usize,
+    /// The pooled bins' observed and expected counts.
+    pub(crate) pooled: (f64, f64),
+}
+
+impl ChiSquare {
+    pub(crate) fn of(pairs: impl Iterator<Item = (f64, f64)>) -> ChiSquare {
+        let mut c = ChiSquare { chi2: 0.0, bins: 0, pooled: (0.0, 0.0) };
+        for (o, e) in pairs {
+            if e >= 5.0 {
+                c.chi2 += (o - e) * (o - e) / e;
+                c.bins += 1;
+            } else {
+                c.pooled.0 += o;
+                c.pooled.1 += e;
+            }
         }
+        let (o, e) = c.pooled;
+        if e >= 5.0 {
+            c.chi2 += (o - e) * (o - e) / e;
+            c.bins += 1;
+        }
+        c
     }
-    if pooled_e >= 5.0 {
-        chi2 += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
-        cells += 1;
+
+    pub(crate) fn df(&self) -> f64 {
+        self.bins.saturating_sub(1) as f64
     }
-    let df = (cells - 1) as f64;
-    // Wilson-Hilferty: the chi-square quantile at p = 0.001 (z = 3.090).
-    let k = 2.0 / (9.0 * df);
-    let critical = df * (1.0 - k + 3.090 * k.sqrt()).powi(3);
-    assert!(chi2 < critical, "chi-square {chi2:.1} over {df} degrees of freedom (critical {critical:.1})");
+
+    /// The quantile at the normal deviate `z` for [`ChiSquare::df`] degrees of freedom
+    /// (Wilson-Hilferty).
+    pub(crate) fn critical(&self, z: f64) -> f64 {
+        let df = self.df();
+        let k = 2.0 / (9.0 * df);
+        df * (1.0 - k + z * k.sqrt()).powi(3)
+    }
 }
