@@ -19,7 +19,7 @@ layout(local_size_x = 64) in;
 #define HAS_SPHERES 0
 layout(constant_id = SPEC_ENV_WIDTH) const uint ENV_WIDTH = 1u;
 layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
-layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 127u;
+layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 255u;
 #include "common/layout.glsl"
 
 vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }

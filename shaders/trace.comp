@@ -32,7 +32,7 @@ layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
-layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 127u;
+layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 255u;
 layout(constant_id = SPEC_PACKET) const bool PACKET = false;
 layout(constant_id = SPEC_WHITTED_SPLIT) const uint WHITTED_SPLIT = 0u;
 
@@ -164,6 +164,7 @@ uint aov_prim(Hit h) {
 }
 
 #include "common/sampling.glsl"
+#include "common/textures.glsl"
 
 // The hit point, its error bound and the geometric normal, without the shading frame.
 void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
@@ -216,6 +217,10 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
         uv = vec2(a.position.w, a.normal.w) * w0 + vec2(b.position.w, b.normal.w) * h.u
              + vec2(c.position.w, c.normal.w) * h.v;
         mat = tri.w;
+        if (HAS_TEXTURES && (MATERIAL_KINDS & (1u << MAT_PBR)) != 0u)
+            sn = normal_mapped(mat, sn, uv, a.position.xyz, b.position.xyz, c.position.xyz,
+                               vec2(a.position.w, a.normal.w), vec2(b.position.w, b.normal.w),
+                               vec2(c.position.w, c.normal.w));
 #ifdef HAS_INSTANCES
         inst_to_world(h, p, err, gn, sn);
 #endif
@@ -329,7 +334,7 @@ void whitted_main() {
                 vec3 wo = -r.dir;
                 bool more = depth + 1u < MAX_DEPTH;
                 if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG || is_rough_conductor(m)
-                    || is_rough_dielectric(m)) {
+                    || is_rough_dielectric(m) || is_pbr(m)) {
                     L += beta * (bsdf_colour(m) * params.background.a * params.background.rgb
                                  + delta_lights(m, p, err, n, gnf, wo, front));
                     if (EMITTER_COUNT > 0u) {

@@ -1,7 +1,6 @@
 // Materials of the path integrator: evaluation, sampling and pdf agree (the pdf a
 // sampler returns is the pdf `bsdf_eval` reports for that direction), and no material
-// reflects more than it receives. Needs `mat_row` (the shading buffer) and, with
-// HAS_TEXTURE_CODE, `texture_albedo`.
+// reflects more than it receives. Needs `mat_row` (the shading buffer).
 //
 // Conventions: n is the shading normal turned to the side of wo (toward the viewer);
 // wi points away from the surface; `f` excludes the cosine factor.
@@ -29,6 +28,9 @@ struct Material {
     float alpha;      // conductor, dielectric: GGX alpha (0: smooth)
     vec3 eta;         // conductor: complex index of refraction, real part
     vec3 k;           // conductor: imaginary part
+    float metallic;   // metallic-roughness (MAT_PBR): how metallic, in [0, 1]
+    float spec_weight; // MAT_PBR: the dielectric layer's weight
+    vec3 f0;          // MAT_PBR: the dielectric layer's reflectance at normal incidence
 };
 
 Material material_at(uint id) {
@@ -55,6 +57,18 @@ Material material_at(uint id) {
         m.absorption = vec3(0.0);
     }
     if (kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC) m.alpha = r1.w;
+    m.metallic = 0.0;
+    m.spec_weight = 0.0;
+    m.f0 = vec3(0.0);
+    if (kind_used(MAT_PBR) && m.kind == MAT_PBR) {
+        // Never a delta lobe: roughness 0 is the sharpest GGX lobe a float holds.
+        m.alpha = max(r1.w * r1.w, ALPHA_SMOOTH);
+        m.metallic = r1.x;
+        m.spec_weight = r1.y;
+        m.f0 = r3.rgb;
+        m.absorption = vec3(0.0);
+        m.ior = 1.5;
+    }
     if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
         // Energy conservation: diffuse + specular albedo at most 1 per channel.
         float s = max(max(m.albedo.r + m.specular.r, m.albedo.g + m.specular.g), m.albedo.b + m.specular.b);
@@ -77,6 +91,10 @@ bool is_rough_conductor(Material m) {
 }
 bool is_rough_dielectric(Material m) {
     return kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC && m.alpha >= ALPHA_SMOOTH;
+}
+
+bool is_pbr(Material m) {
+    return kind_used(MAT_PBR) && m.kind == MAT_PBR;
 }
 
 bool bsdf_is_delta(Material m) {
@@ -118,6 +136,37 @@ float fresnel_dielectric(float cos_i, float eta, out float cos_t) {
     float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     return 0.5 * (rs * rs + rp * rp);
+}
+
+// Probability that a metallic-roughness sample takes the specular (GGX) lobe rather
+// than the cosine one: the specular share of the reflectance at normal incidence, from
+// a quarter to nine tenths while the diffuse base reflects anything.
+float pbr_specular_weight(Material m) {
+    float s = luminance(mix(m.spec_weight * m.f0, m.albedo, m.metallic));
+    float d = (1.0 - m.metallic) * luminance(m.albedo) * (1.0 - m.spec_weight * max(max(m.f0.r, m.f0.g), m.f0.b));
+    if (d <= 0.0) return 1.0;
+    return clamp(s / (s + d), 0.25, 0.9);
+}
+
+// glTF 2.0's metallic-roughness BRDF (the specification's appendix B, with
+// KHR_materials_specular's weight and colour): the dielectric (1 - metallic) is a
+// GGX layer of Schlick reflectance Fr from f0 over a Lambert base that gets what the
+// layer's strongest channel does not reflect; the metal (metallic) the same GGX lobe
+// with Schlick's Fresnel from the base colour. The pdf mixes VNDF and cosine sampling.
+vec3 pbr_eval(Material m, vec3 n, vec3 wo, vec3 wi, float cos_i, out float pdf) {
+    pdf = 0.0;
+    float co = dot(n, wo);
+    if (cos_i <= 0.0 || co <= 0.0) return vec3(0.0);
+    vec3 h = normalize(wo + wi);
+    float oh = clamp(dot(wo, h), 0.0, 1.0);
+    vec3 fr = fresnel_schlick(oh, m.f0);
+    vec3 fm = fresnel_schlick(oh, m.albedo);
+    float d = ggx_d(dot(n, h), m.alpha);
+    float lobe = d * ggx_g2(co, cos_i, m.alpha) / (4.0 * co * cos_i);
+    float ps = pbr_specular_weight(m);
+    pdf = (1.0 - ps) * cos_i * INV_PI + ps * ggx_g1(co, m.alpha) * d / (4.0 * co);
+    float base = (1.0 - m.metallic) * (1.0 - m.spec_weight * max(max(fr.r, fr.g), fr.b));
+    return base * m.albedo * INV_PI + ((1.0 - m.metallic) * m.spec_weight * fr + m.metallic * fm) * lobe;
 }
 
 // The rough conductor's f at wi and the pdf of sampling wi (cos_i = n.wi).
@@ -172,6 +221,7 @@ vec3 bsdf_eval(Material m, vec3 n, vec3 wo, vec3 wi, bool front, out float pdf) 
     float cos_i = dot(n, wi);
     if (is_rough_conductor(m)) return conductor_eval(m, n, wo, wi, cos_i, pdf);
     if (is_rough_dielectric(m)) return dielectric_eval(m, n, wo, wi, cos_i, front, pdf);
+    if (is_pbr(m)) return pbr_eval(m, n, wo, wi, cos_i, pdf);
     if (kind_used(MAT_LAMBERT) && m.kind == MAT_LAMBERT) {
         if (cos_i <= 0.0) return vec3(0.0);
         pdf = cos_i * INV_PI;
@@ -240,6 +290,20 @@ bool bsdf_sample(Material m, vec3 n, vec3 wo, bool front, vec3 u, out vec3 wi, o
         vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
         if (!(pdf > 0.0)) return false;
         weight = f * abs(dot(n, wi)) / pdf;
+        return true;
+    }
+    if (is_pbr(m)) {
+        if (u.z < pbr_specular_weight(m)) {
+            vec3 h;
+            if (!sample_half_vector(m, n, wo, u.x, u.y, h)) return false;
+            wi = normalize(2.0 * dot(wo, h) * h - wo);
+        } else {
+            wi = cosine_direction(n, u.x, u.y);
+        }
+        if (dot(n, wi) <= 0.0) return false;
+        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
+        if (!(pdf > 0.0)) return false;
+        weight = f * dot(n, wi) / pdf;
         return true;
     }
     if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {

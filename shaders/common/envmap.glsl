@@ -9,14 +9,6 @@
 // The largest float below 1.
 const float ONE_MINUS_EPSILON = 0.99999994;
 
-float shading_float(uint base, uint k) {
-    return shading_row(base + (k >> 2u))[k & 3u];
-}
-
-uint shading_word(uint base, uint k) {
-    return floatBitsToUint(shading_row(base + (k >> 2u))[k & 3u]);
-}
-
 // Largest i in [0, n) with cdf(i) <= u, for the n + 1 non-decreasing floats of a CDF
 // at float index `first` of section `base` (cdf(0) = 0).
 uint cdf_search(uint base, uint first, uint n, float u) {

@@ -23,9 +23,12 @@ struct Pixel {
 // Material = 4 vec4 rows of the shading buffer:
 //   row 0: rgb colour (conductor: tint, or F0 with MAT_FLAG_SCHLICK), a = kind (uint bits)
 //   row 1: rgb specular (Phong) or eta (conductor), a = shininess (Phong) or GGX
-//          alpha = roughness^2 (conductor, dielectric)
-//   row 2: rgb emission, a = ior
-//   row 3: rgb absorption (glass, dielectric) or k (conductor), a = flags (uint
+//          alpha = roughness^2 (conductor, dielectric); metallic-roughness (MAT_PBR):
+//          metallic, specular weight, normal-map scale, roughness
+//   row 2: rgb emission, a = ior (MAT_PBR: uint bits, metallic-roughness texture + 1
+//          | normal texture + 1 << MAT_MAP_SHIFT)
+//   row 3: rgb absorption (glass, dielectric), k (conductor) or the dielectric
+//          layer's F0 (MAT_PBR), a = flags (uint
 //          bits): MAT_FLAG_TWO_SIDED, MAT_FLAG_SCHLICK, texture index + 1 from bit
 //          MAT_TEXTURE_SHIFT (0: none)
 // Light = 2 vec4 rows, after all materials:
@@ -91,6 +94,9 @@ void ray_at(uint i, out vec4 origin_tmin, out vec4 dir_tmax) {
 // The shading rows (materials, lights, the path integrator's tables), a texel buffer.
 layout(set = 0, binding = BINDING_SHADING) uniform usamplerBuffer shading_texels;
 vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int(k))); }
+// Word k (float or uint bits) of a section of the shading buffer, 4 words a row.
+float shading_float(uint base, uint k) { return shading_row(base + (k >> 2u))[k & 3u]; }
+uint shading_word(uint base, uint k) { return floatBitsToUint(shading_row(base + (k >> 2u))[k & 3u]); }
 // The pixel buffer opens with the dispatch header (`GpuDispatch`), which the host
 // writes before each dispatch (vkCmdUpdateBuffer). It is storage, not push constants,
 // because lavapipe compiles a shader again, at every dispatch, for the values of push

@@ -15,7 +15,7 @@
 //   emitters (tables.x): one row each: x primitive (uint bits), y CDF at its start,
 //     z its probability; params.env.z is the total power
 //   textures (tables.y): one row each: x first texel row (uint bits), y width, z height;
-//     texels 4 per row, each 0x00BBGGRR (sRGB), row-major from the top row
+//     texels 4 per row, each 0x00BBGGRR, row-major from the top row (common/textures.glsl)
 //   environment texels (tables.z): 2 per row, each two words packHalf2x16(r, g),
 //     packHalf2x16(b, 0), row-major from the top row (the +y pole)
 //   environment distribution (tables.w): floats 4 per row, the layout of
@@ -26,41 +26,6 @@
 #include "common/sampling.glsl"
 
 #include "common/envmap.glsl"
-
-// --- textures ----------------------------------------------------------------
-
-float srgb_to_linear(float c) {
-    return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
-}
-
-vec3 texel(uint base, uint w, uint x, uint y) {
-    uint word = shading_word(base, y * w + x);
-    vec3 c = vec3(float(word & 255u), float((word >> 8u) & 255u), float((word >> 16u) & 255u)) / 255.0;
-    return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
-}
-
-// Bilinear, repeat wrap, decoded to linear before filtering.
-vec3 texture_albedo(uint tex, vec2 uv) {
-    vec4 row = shading_row(params.tables.y + tex);
-    uint base = floatBitsToUint(row.x);
-    uint w = floatBitsToUint(row.y);
-    uint h = floatBitsToUint(row.z);
-    float x = (uv.x - floor(uv.x)) * float(w) - 0.5;
-    float y = (1.0 - (uv.y - floor(uv.y))) * float(h) - 0.5;
-    float fx = floor(x);
-    float fy = floor(y);
-    float ax = x - fx;
-    float ay = y - fy;
-    int ix = int(fx);
-    int iy = int(fy);
-    uint x0 = uint((ix % int(w) + int(w)) % int(w));
-    uint x1 = (x0 + 1u) % w;
-    uint y0 = uint((iy % int(h) + int(h)) % int(h));
-    uint y1 = (y0 + 1u) % h;
-    vec3 a = mix(texel(base, w, x0, y0), texel(base, w, x1, y0), ax);
-    vec3 b = mix(texel(base, w, x0, y1), texel(base, w, x1, y1), ax);
-    return mix(a, b, ay);
-}
 
 // --- area lights ---------------------------------------------------------------
 
@@ -210,11 +175,22 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     return pdf > 0.0 && (le.r > 0.0 || le.g > 0.0 || le.b > 0.0);
 }
 
-// The material at a hit with texture coordinates uv, its albedo textured.
+// The material at a hit with texture coordinates uv: its albedo textured and, for
+// metallic-roughness, roughness and metallic times the green and blue channels of its
+// metallic-roughness texture (the normal map bends the frame earlier, in `surface`).
 Material material_hit(uint mat, vec2 uv) {
     Material m = material_at(mat);
     if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
         m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
+    if (HAS_TEXTURES && is_pbr(m)) {
+        uint slot = floatBitsToUint(mat_row(mat, 2u).w) & ((1u << MAT_MAP_SHIFT) - 1u);
+        if (slot != 0u) {
+            vec3 t = texture_rgb(slot - 1u, uv, false);
+            float rough = mat_row(mat, 1u).w * t.g;
+            m.alpha = max(rough * rough, ALPHA_SMOOTH);
+            m.metallic *= t.b;
+        }
+    }
     return m;
 }
 

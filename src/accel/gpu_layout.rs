@@ -79,11 +79,15 @@ pub struct GpuMaterial {
     /// bytes 0..12 colour (albedo / tint), 12..16 kind as float-encoded integer bits
     /// (`f32::from_bits(kind)`) so the row stays a vec4
     pub color_kind: [f32; 4],
-    /// bytes 16..28 Phong specular colour, 28..32 shininess
+    /// bytes 16..28 Phong specular colour, 28..32 shininess (conductor: eta and GGX
+    /// alpha; dielectric: alpha in 28..32; metallic-roughness: metallic, specular
+    /// weight, normal scale, roughness)
     pub specular: [f32; 4],
-    /// bytes 32..44 emitted radiance, 44..48 index of refraction
+    /// bytes 32..44 emitted radiance, 44..48 index of refraction (metallic-roughness:
+    /// its map word, `MAT_MAP_SHIFT`)
     pub emission_ior: [f32; 4],
-    /// bytes 48..60 glass absorption per unit length, 60..64 flags as float-encoded
+    /// bytes 48..60 glass absorption per unit length (conductor: k; metallic-roughness:
+    /// the dielectric F0), 60..64 flags as float-encoded
     /// integer bits: bit 0 two-sided emission, bits 8.. texture index + 1 (0: none)
     pub absorption_flags: [f32; 4],
 }

@@ -226,6 +226,10 @@ pub const MAT_GLASS: u32 = 3;
 pub const MAT_EMISSIVE: u32 = 4;
 pub const MAT_CONDUCTOR: u32 = 5;
 pub const MAT_DIELECTRIC: u32 = 6;
+/// glTF 2.0's metallic-roughness material (docs/materials.md): rows 1 = (metallic,
+/// specular weight, normal-map scale, roughness), 2.w = metallic-roughness texture + 1
+/// | normal texture + 1 << MAT_MAP_SHIFT (uint bits), 3.rgb = the dielectric F0.
+pub const MAT_PBR: u32 = 7;
 /// Bit of a material's flags word (row 3, w): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Bit of a material's flags word: a conductor's Fresnel is Schlick's from its colour
@@ -233,6 +237,9 @@ pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 pub const MAT_FLAG_SCHLICK: u32 = 2;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
 pub const MAT_TEXTURE_SHIFT: u32 = 8;
+/// Shift of the normal texture index + 1 in a metallic-roughness material's map word
+/// (row 2, w); the metallic-roughness texture's index + 1 is below it.
+pub const MAT_MAP_SHIFT: u32 = 16;
 /// GGX alpha below which a conductor or dielectric is smooth (a delta lobe), as its
 /// f32 bits (shaders read `uintBitsToFloat(SMOOTH_ALPHA_BITS)`): 0.001, roughness
 /// 0.0316.
@@ -335,10 +342,12 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("MAT_EMISSIVE", MAT_EMISSIVE),
     ("MAT_CONDUCTOR", MAT_CONDUCTOR),
     ("MAT_DIELECTRIC", MAT_DIELECTRIC),
+    ("MAT_PBR", MAT_PBR),
     ("MAT_FLAG_TWO_SIDED", MAT_FLAG_TWO_SIDED),
     ("MAT_FLAG_SCHLICK", MAT_FLAG_SCHLICK),
     ("SMOOTH_ALPHA_BITS", SMOOTH_ALPHA_BITS),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
+    ("MAT_MAP_SHIFT", MAT_MAP_SHIFT),
     ("MIS_BOTH", MIS_BOTH),
     ("MIS_LIGHT", MIS_LIGHT),
     ("MIS_BSDF", MIS_BSDF),

@@ -11,7 +11,8 @@ use crate::math::{Hit, Ray};
 use crate::scene::Scene;
 
 /// The shading normal at a hit (interpolated vertex normals when all three are
-/// present, else the geometric normal; sphere: radial). Mirrors `surface` in trace.comp.
+/// present, else the geometric normal; sphere: radial). Mirrors `surface` in trace.comp,
+/// without normal maps (they bend the shading normal of `pbr` materials only).
 pub fn shading_normal(scene: &Scene, hit: &Hit, p: Vec3) -> Vec3 {
     let nt = scene.triangles.len() as u32;
     if hit.prim < nt {

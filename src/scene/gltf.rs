@@ -2,19 +2,21 @@
 //! crate: the default scene's node hierarchy flattened into world-space triangles,
 //! its materials mapped to arbor's, the first camera, and KHR_lights_punctual lights.
 //!
-//! Materials (metallic-roughness) map as follows, roughness and metallic being the
-//! factors (their textures are not read):
+//! Materials map as follows:
 //! - transmission (KHR_materials_transmission) of 0.5 or more: a rough dielectric of
-//!   the material's roughness, tinted by the base colour, with KHR_materials_ior's
-//!   index (default 1.5);
-//! - metallic of 0.5 or more: a rough conductor of the material's roughness, Schlick's
-//!   Fresnel from the base colour (its texture too), as glTF's metal;
-//! - roughness below 0.5: normalised Phong; specular = mix(0.04, base, metallic),
-//!   diffuse = base x (1 - metallic) x (1 - max(specular)), shininess 2/a^2 - 2 with
-//!   a = roughness^2 (at most 10,000);
-//! - otherwise Lambert with the base colour;
+//!   the material's roughness factor, tinted by the base colour, with
+//!   KHR_materials_ior's index (default 1.5);
+//! - otherwise arbor's metallic-roughness material (`MaterialKind::Pbr`, the
+//!   specification's appendix B): base colour (factor and texture), metallic and
+//!   roughness factors times the metallicRoughness texture's blue and green channels,
+//!   the normal texture and its scale; KHR_materials_ior and KHR_materials_specular
+//!   (factor and colour factor) set the dielectric layer's F0 and weight;
 //! - the emissive factor times KHR_materials_emissive_strength is the emission (an area
 //!   light); `doubleSided` makes it emit from both sides.
+//!
+//! Not read, and named in the scene's warnings: emissive textures, textures of a
+//! texture-coordinate set other than 0, and KHR_materials_specular's textures. The
+//! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
 //! (`scene::instance`), unless one of its materials emits (instances cannot be
@@ -113,16 +115,22 @@ pub fn load(path: &Path) -> Result<GltfScene> {
 }
 
 /// Extensions this loader reads; a file that uses others gets one warning naming them.
-const READ: [&str; 4] =
-    ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_emissive_strength"];
-
-/// Extensions a file may require: what this loader reads, and those whose absence
-/// only changes the look (the file stays valid glTF without them).
-const KNOWN_REQUIRED: [&str; 5] = [
+const READ: [&str; 5] = [
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
+    "KHR_materials_specular",
+];
+
+/// Extensions a file may require: what this loader reads, and those whose absence
+/// only changes the look (the file stays valid glTF without them).
+const KNOWN_REQUIRED: [&str; 6] = [
+    "KHR_lights_punctual",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_specular",
     "KHR_texture_transform",
 ];
 
@@ -166,10 +174,15 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         out.warnings.push(format!("{name}: arbor does not read the glTF extension(s) {}", unread.join(", ")));
     }
     // Materials and textures: one arbor material per glTF material, then the default.
-    let mut textures: Vec<Option<u32>> = vec![None; images.len()];
+    let mut textures = Slots { images: &images, slot: vec![None; images.len()], file: name, unread: Vec::new() };
     for m in document.materials() {
-        let mat = material(&m, &images, &mut textures, &mut out.mesh.textures, name)?;
+        let mat = material(&m, &mut textures, &mut out.mesh.textures)?;
         out.mesh.materials.push(mat);
+    }
+    if !textures.unread.is_empty() {
+        textures.unread.sort();
+        textures.unread.dedup();
+        out.warnings.push(format!("{name}: arbor does not read {}", textures.unread.join(", ")));
     }
     let default_material = out.mesh.materials.len() as u32;
     out.mesh.materials.push(Material::lambert("gltf default", Vec3::splat(0.8)));
@@ -370,58 +383,88 @@ fn add_mesh(
     Ok(())
 }
 
+/// The file's images as arbor textures, each converted once, when a material uses it.
+struct Slots<'a> {
+    images: &'a [gltf::image::Data],
+    /// Per image, its texture index once converted.
+    slot: Vec<Option<u32>>,
+    file: &'a str,
+    /// What materials have that is not read, for the warning.
+    unread: Vec<String>,
+}
+
+impl Slots<'_> {
+    /// The texture index of `info`'s image (None, with a note in `unread`, when it uses
+    /// a texture-coordinate set other than 0).
+    fn of(
+        &mut self,
+        info: Option<(gltf::Texture, u32)>,
+        what: &str,
+        textures: &mut Vec<Texture>,
+    ) -> std::result::Result<Option<u32>, String> {
+        let Some((tex, set)) = info else { return Ok(None) };
+        if set != 0 {
+            self.unread.push(format!("{what} textures of texture-coordinate set {set}"));
+            return Ok(None);
+        }
+        let image = tex.source().index();
+        if let Some(s) = self.slot.get(image).copied().flatten() {
+            return Ok(Some(s));
+        }
+        let data = self.images.get(image).ok_or_else(|| format!("image {image} is missing"))?;
+        textures.push(texture(data, &format!("{}#image{image}", self.file))?);
+        let s = (textures.len() - 1) as u32;
+        if let Some(d) = self.slot.get_mut(image) {
+            *d = Some(s);
+        }
+        Ok(Some(s))
+    }
+}
+
 /// An arbor material for a glTF material (the module docs give the mapping).
 fn material(
     m: &gltf::Material,
-    images: &[gltf::image::Data],
-    done: &mut [Option<u32>],
+    slots: &mut Slots,
     textures: &mut Vec<Texture>,
-    file: &str,
 ) -> std::result::Result<Material, String> {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
     let base = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
-    let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
     let rough = pbr.roughness_factor().clamp(0.0, 1.0);
     let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
     let name = m.name().map_or_else(|| format!("gltf material {}", m.index().unwrap_or(0)), str::to_string);
     let mut out = Material::lambert(&name, base);
+    out.roughness = rough;
+    let ior = m.ior().unwrap_or(1.5);
     if transmission >= 0.5 {
         out.kind = MaterialKind::Dielectric;
-        out.roughness = rough;
-        out.ior = m.ior().unwrap_or(1.5);
-    } else if metallic >= 0.5 {
-        // glTF's metal: GGX with Schlick's Fresnel from the base colour.
-        out.kind = MaterialKind::Conductor;
-        out.roughness = rough;
-    } else if rough < 0.5 {
-        let spec = Vec3::splat(0.04).lerp(base, metallic);
-        out.kind = MaterialKind::Phong;
-        out.specular = spec;
-        out.color = base * (1.0 - metallic) * (1.0 - spec.max_element());
-        let a = (rough * rough).max(1e-3);
-        out.shininess = (2.0 / (a * a) - 2.0).clamp(1.0, 10_000.0);
+        out.ior = ior;
+    } else {
+        out.kind = MaterialKind::Pbr;
+        out.metallic = pbr.metallic_factor().clamp(0.0, 1.0);
+        let (weight, colour) = m.specular().map_or((1.0, Vec3::ONE), |s| {
+            if s.specular_texture().is_some() || s.specular_color_texture().is_some() {
+                slots.unread.push("KHR_materials_specular textures".into());
+            }
+            (s.specular_factor(), Vec3::from(s.specular_color_factor()))
+        });
+        let f0 = super::scene_file::dielectric_f0(ior.max(1.0));
+        out.dielectric_f0 = (colour.max(Vec3::ZERO) * f0).min(Vec3::ONE);
+        out.specular_weight = weight.clamp(0.0, 1.0);
+        let mr = pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord()));
+        out.maps.metal_rough = slots.of(mr, "metallic-roughness", textures)?;
+        if let Some(n) = m.normal_texture() {
+            out.maps.normal = slots.of(Some((n.texture(), n.tex_coord())), "normal", textures)?;
+            out.maps.normal_scale = if n.scale().is_finite() { n.scale() } else { 1.0 };
+        }
     }
     out.emission = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
     out.two_sided = m.double_sided();
-    if let Some(info) = pbr.base_color_texture() {
-        if info.tex_coord() == 0 {
-            let image = info.texture().source().index();
-            let slot = match done.get(image).copied().flatten() {
-                Some(s) => s,
-                None => {
-                    let data = images.get(image).ok_or_else(|| format!("image {image} is missing"))?;
-                    textures.push(texture(data, &format!("{file}#image{image}"))?);
-                    let s = (textures.len() - 1) as u32;
-                    if let Some(d) = done.get_mut(image) {
-                        *d = Some(s);
-                    }
-                    s
-                }
-            };
-            out.texture = Some(slot);
-        }
+    if m.emissive_texture().is_some() && out.emission != Vec3::ZERO {
+        slots.unread.push("emissive textures (the emissive factor emits uniformly)".into());
     }
+    let base_tex = pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord()));
+    out.texture = slots.of(base_tex, "base colour", textures)?;
     Ok(out)
 }
 

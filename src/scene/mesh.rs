@@ -1,7 +1,7 @@
 //! Triangle mesh data as the loaders produce it, before it joins a scene.
 
 use crate::gpu::bindings::{
-    MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_GLASS, MAT_LAMBERT, MAT_MIRROR, MAT_PHONG,
+    MAT_CONDUCTOR, MAT_DIELECTRIC, MAT_EMISSIVE, MAT_GLASS, MAT_LAMBERT, MAT_MIRROR, MAT_PBR, MAT_PHONG,
 };
 use glam::Vec3;
 
@@ -20,11 +20,15 @@ pub enum MaterialKind {
     Conductor = MAT_CONDUCTOR,
     /// Rough glass: GGX microfacets that reflect and refract (Walter et al. 2007).
     Dielectric = MAT_DIELECTRIC,
+    /// glTF 2.0's metallic-roughness model: a GGX specular layer with Schlick's
+    /// Fresnel over a Lambert base, blended with a metal of F0 `color` by
+    /// [`Material::metallic`] (docs/materials.md).
+    Pbr = MAT_PBR,
 }
 
 impl MaterialKind {
     /// The last kind (the GPU's kind bits run from 0 to this).
-    pub const LAST: MaterialKind = MaterialKind::Dielectric;
+    pub const LAST: MaterialKind = MaterialKind::Pbr;
 }
 
 /// A conductor's complex index of refraction per RGB channel, eta + i k, relative to
@@ -66,6 +70,36 @@ pub struct Material {
     /// Diffuse albedo texture: an index into `Scene::textures` (the albedo multiplies
     /// `color`), or, in a `MeshData`, into `MeshData::textures`.
     pub texture: Option<u32>,
+    /// Metallic-roughness: how metallic, in [0, 1] (1: a conductor of F0 `color`).
+    pub metallic: f32,
+    /// Metallic-roughness: the dielectric layer's reflectance at normal incidence,
+    /// ((ior - 1) / (ior + 1))^2 (0.04 at 1.5) times KHR_materials_specular's colour,
+    /// at most 1 per channel.
+    pub dielectric_f0: Vec3,
+    /// Metallic-roughness: the dielectric layer's weight (KHR_materials_specular's
+    /// factor), in [0, 1].
+    pub specular_weight: f32,
+    /// Metallic-roughness: textures that modulate roughness and metallic, and bend
+    /// the shading normal.
+    pub maps: Maps,
+}
+
+/// A metallic-roughness material's textures (indices as [`Material::texture`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Maps {
+    /// Linear texture whose green channel multiplies the roughness and blue the
+    /// metallic factor (glTF's metallicRoughnessTexture).
+    pub metal_rough: Option<u32>,
+    /// Tangent-space normal map (linear, +x along u, +y along v).
+    pub normal: Option<u32>,
+    /// Scales the normal map's x and y.
+    pub normal_scale: f32,
+}
+
+impl Default for Maps {
+    fn default() -> Self {
+        Maps { metal_rough: None, normal: None, normal_scale: 1.0 }
+    }
 }
 
 impl Material {
@@ -84,7 +118,22 @@ impl Material {
             roughness: 0.0,
             complex_ior: None,
             texture: None,
+            metallic: 0.0,
+            dielectric_f0: Vec3::splat(0.04),
+            specular_weight: 1.0,
+            maps: Maps::default(),
         }
+    }
+
+    /// Every texture this material reads: albedo, then its maps.
+    pub fn textures(&self) -> impl Iterator<Item = u32> {
+        [self.texture, self.maps.metal_rough, self.maps.normal].into_iter().flatten()
+    }
+
+    /// The same material with every texture index mapped by `f`.
+    pub fn map_textures(&self, f: impl Fn(u32) -> u32) -> Material {
+        let maps = Maps { metal_rough: self.maps.metal_rough.map(&f), normal: self.maps.normal.map(&f), ..self.maps };
+        Material { texture: self.texture.map(&f), maps, ..self.clone() }
     }
 
     /// The GGX alpha of a conductor or dielectric: roughness squared.
@@ -97,6 +146,19 @@ impl Material {
     pub fn microfacet_error(&self) -> Option<String> {
         if !(0.0..=1.0).contains(&self.roughness) {
             return Some(format!("roughness {} is outside [0, 1]", self.roughness));
+        }
+        if !(0.0..=1.0).contains(&self.metallic) || !(0.0..=1.0).contains(&self.specular_weight) {
+            return Some(format!(
+                "metallic {} and specular weight {} must lie in [0, 1]",
+                self.metallic, self.specular_weight
+            ));
+        }
+        let f0 = self.dielectric_f0;
+        if !(f0.is_finite() && f0.min_element() >= 0.0 && f0.max_element() <= 1.0) {
+            return Some(format!("the dielectric F0 {f0} must lie in [0, 1] per channel"));
+        }
+        if !self.maps.normal_scale.is_finite() {
+            return Some(format!("the normal scale {} is not finite", self.maps.normal_scale));
         }
         let c = self.complex_ior?;
         let ok = c.eta.is_finite() && c.k.is_finite() && c.eta.min_element() > 0.0 && c.k.min_element() >= 0.0;
@@ -179,10 +241,12 @@ impl MeshData {
             return None;
         }
         let textured = match material {
-            Some(m) => m.texture.is_some().then_some(m),
-            None => {
-                self.tri_material.iter().filter_map(|&i| self.materials.get(i as usize)).find(|m| m.texture.is_some())
-            }
+            Some(m) => m.textures().next().is_some().then_some(m),
+            None => self
+                .tri_material
+                .iter()
+                .filter_map(|&i| self.materials.get(i as usize))
+                .find(|m| m.textures().next().is_some()),
         };
         textured.map(|m| {
             format!(

@@ -28,7 +28,7 @@ use glam::{Vec2, Vec3};
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
 pub use instance::{Instance, Instancing, Prototype};
-pub use mesh::{ComplexIor, Environment, Material, MaterialKind, MeshData, Texture};
+pub use mesh::{ComplexIor, Environment, Maps, Material, MaterialKind, MeshData, Texture};
 
 use crate::error::{Error, Result};
 use crate::math::Aabb;
@@ -69,6 +69,10 @@ pub const MAX_PRIMS: usize = 1 << 30;
 /// Largest image side accepted.
 pub const MAX_FILM_SIDE: u32 = 16384;
 
+/// A metallic-roughness material's map textures are 16-bit fields of one word
+/// (`MAT_MAP_SHIFT`): their indices stay below this.
+pub const MAX_MAP_INDEX: u32 = (1 << crate::gpu::bindings::MAT_MAP_SHIFT) - 1;
+
 /// A validated scene.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -97,7 +101,7 @@ pub struct Scene {
     pub width: u32,
     /// Image height renders default to.
     pub height: u32,
-    /// Texture images; `Material::texture` indexes this.
+    /// Texture images; `Material::texture` and `Material::maps` index this.
     pub textures: Vec<Texture>,
     /// Radiance of rays that leave the scene.
     pub background: Vec3,
@@ -221,11 +225,10 @@ impl SceneBuilder {
                 };
                 remap.push(at as u32);
             }
-            s.materials.extend(mesh.materials.iter().map(|m| Material {
-                // An index past the mesh's textures stays past the scene's: finish() reports it.
-                texture: m.texture.map(|i| remap.get(i as usize).copied().unwrap_or(u32::MAX)),
-                ..m.clone()
-            }));
+            // An index past the mesh's textures stays past the scene's: finish() reports it.
+            s.materials.extend(
+                mesh.materials.iter().map(|m| m.map_textures(|i| remap.get(i as usize).copied().unwrap_or(u32::MAX))),
+            );
         }
         for (k, tri) in mesh.triangles.iter().enumerate() {
             let [a, b, c] = tri.map(|i| i + base);
@@ -304,7 +307,13 @@ impl SceneBuilder {
             if let Some(what) = m.microfacet_error() {
                 return Err(err(format!("material {k} ('{}'): {what}", m.name)));
             }
-            if let Some(t) = m.texture.filter(|&t| t as usize >= s.textures.len()) {
+            if m.maps.metal_rough.into_iter().chain(m.maps.normal).any(|t| t >= MAX_MAP_INDEX) {
+                return Err(err(format!(
+                    "material {k} ('{}'): a map's texture index is {MAX_MAP_INDEX} or more",
+                    m.name
+                )));
+            }
+            if let Some(t) = m.textures().find(|&t| t as usize >= s.textures.len()) {
                 return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
             }
         }

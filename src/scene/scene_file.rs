@@ -214,6 +214,7 @@ struct MaterialDef {
     roughness: Option<f32>,
     eta: Option<[f32; 3]>,
     k: Option<[f32; 3]>,
+    metallic: Option<f32>,
 }
 
 #[derive(Deserialize)]
@@ -239,17 +240,25 @@ fn line_of(text: &str, offset: usize) -> usize {
 }
 
 /// A key given to a material type that has no use for it (so that a typo of type
-/// does not pass silently): roughness outside conductor and dielectric, eta and k
-/// outside conductor.
+/// does not pass silently): roughness outside conductor, dielectric and pbr, eta and k
+/// outside conductor, metallic outside pbr.
 fn misplaced_key(d: &MaterialDef) -> Option<String> {
-    let microfacet = matches!(d.kind, MaterialKind::Conductor | MaterialKind::Dielectric);
+    let microfacet = matches!(d.kind, MaterialKind::Conductor | MaterialKind::Dielectric | MaterialKind::Pbr);
     if d.roughness.is_some() && !microfacet {
-        return Some("roughness is for type = \"conductor\" or \"dielectric\"".into());
+        return Some("roughness is for type = \"conductor\", \"dielectric\" or \"pbr\"".into());
+    }
+    if d.metallic.is_some() && d.kind != MaterialKind::Pbr {
+        return Some("metallic is for type = \"pbr\"".into());
     }
     if (d.eta.is_some() || d.k.is_some()) && d.kind != MaterialKind::Conductor {
         return Some("eta and k are for type = \"conductor\" (a dielectric's index is ior)".into());
     }
     None
+}
+
+/// The reflectance at normal incidence of a dielectric of index `ior` in air.
+pub fn dielectric_f0(ior: f32) -> f32 {
+    ((ior - 1.0) / (ior + 1.0)).powi(2)
 }
 
 fn v3(a: [f32; 3]) -> Vec3 {
@@ -290,7 +299,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         }
         let base = Material::lambert(&d.name, Vec3::splat(0.7));
         let default_color = match d.kind {
-            MaterialKind::Lambert | MaterialKind::Phong => base.color,
+            MaterialKind::Lambert | MaterialKind::Phong | MaterialKind::Pbr => base.color,
             _ => Vec3::ONE,
         };
         if let Some(what) = misplaced_key(d) {
@@ -323,8 +332,10 @@ pub fn load(path: &Path) -> Result<Scene> {
             }),
             two_sided: d.two_sided,
             absorption: d.absorption.map(v3).unwrap_or(Vec3::ZERO),
-            roughness: d.roughness.unwrap_or(0.0),
+            roughness: d.roughness.unwrap_or(if d.kind == MaterialKind::Pbr { 0.5 } else { 0.0 }),
             complex_ior,
+            metallic: d.metallic.unwrap_or(0.0),
+            dielectric_f0: Vec3::splat(dielectric_f0(d.ior.unwrap_or(1.5))),
             ..base
         };
         let bad = !(mat.color.is_finite()

@@ -129,8 +129,9 @@ fn textures_materials_and_cameras_come_through() {
     assert_eq!(s.uvs.len(), s.positions.len());
     let used = s.tri_material[0] as usize;
     assert_eq!(s.materials[used].texture, Some(0));
-    // BoxTextured: metallic 0, roughness 1: Lambert.
-    assert_eq!(s.materials[used].kind, MaterialKind::Lambert);
+    // BoxTextured: metallic-roughness, metallic 0, roughness 1.
+    let m = &s.materials[used];
+    assert_eq!((m.kind, m.metallic, m.roughness), (MaterialKind::Pbr, 0.0, 1.0));
     assert!(!s.lights.is_empty(), "a default light when nothing lights the scene");
     // Cameras.gltf: its first camera is a perspective one with aspect 1.0.
     let c = load("cameras/Cameras.gltf");
@@ -247,8 +248,8 @@ fn shared_meshes_become_instances_and_a_node_scaled_to_nothing_stays_flat() {
     assert_eq!(mesh.triangles.len(), 3);
 }
 
-/// glTF's metals become rough conductors (Schlick's Fresnel from the base colour),
-/// transmissive materials rough dielectrics with KHR_materials_ior's index; an
+/// glTF's metals are metallic-roughness materials of metallic 1 (Schlick's Fresnel
+/// from the base colour), transmissive materials rough dielectrics with KHR_materials_ior's index; an
 /// extension the file uses but arbor does not read is named once in a warning, for
 /// the scene and for a mesh of a scene file.
 #[test]
@@ -281,7 +282,7 @@ fn metals_and_transmission_map_to_microfacet_materials() {
     let s = Scene::load(&path.display().to_string()).expect("loads");
     let by_name = |n: &str| s.materials.iter().find(|m| m.name == n).expect(n);
     let gold = by_name("gold");
-    assert_eq!((gold.kind, gold.roughness, gold.complex_ior), (MaterialKind::Conductor, 0.3, None));
+    assert_eq!((gold.kind, gold.roughness, gold.metallic), (MaterialKind::Pbr, 0.3, 1.0));
     assert!((gold.color - glam::Vec3::new(1.0, 0.77, 0.34)).length() < 1e-6, "F0 is the base colour");
     let frosted = by_name("frosted");
     assert_eq!((frosted.kind, frosted.roughness, frosted.ior), (MaterialKind::Dielectric, 0.4, 1.33));
@@ -297,4 +298,71 @@ fn metals_and_transmission_map_to_microfacet_materials() {
     std::fs::write(&toml, "[[mesh]]\nfile = \"materials.gltf\"\n[[mesh]]\nfile = \"materials.gltf\"\n").expect("toml");
     let t = Scene::load(&toml.display().to_string()).expect("loads");
     assert_eq!(t.warnings, s.warnings);
+}
+
+/// The metallic-roughness texture, the normal texture with its scale and
+/// KHR_materials_specular come through to the material; what is not read (an emissive
+/// texture, a texture of coordinate set 1, a specular texture) is named in one
+/// warning; a file whose textures need UVs it lacks is an error naming the material.
+#[test]
+fn metallic_roughness_maps_and_specular_come_through() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, px) in [("mr.png", [0u8, 128, 255, 255]), ("n.png", [128, 128, 255, 255]), ("e.png", [255, 0, 0, 255])] {
+        image::RgbaImage::from_pixel(2, 2, image::Rgba(px)).save(dir.path().join(name)).expect("png");
+    }
+    // A triangle: positions, then UVs.
+    let mut bin: Vec<u8> = Vec::new();
+    for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {
+        bin.extend_from_slice(&f.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("tri.bin"), &bin).expect("bin");
+    let gltf = |uvs: bool| {
+        let attributes = if uvs { r#"{"POSITION": 0, "TEXCOORD_0": 1}"# } else { r#"{"POSITION": 0}"# };
+        format!(
+            r#"{{
+      "asset": {{"version": "2.0"}},
+      "extensionsUsed": ["KHR_materials_specular", "KHR_materials_ior"],
+      "scenes": [{{"nodes": [0]}}],
+      "nodes": [{{"mesh": 0}}],
+      "images": [{{"uri": "mr.png"}}, {{"uri": "n.png"}}, {{"uri": "e.png"}}],
+      "textures": [{{"source": 0}}, {{"source": 1}}, {{"source": 2}}],
+      "materials": [{{
+        "name": "mapped",
+        "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0.8,
+                                 "roughnessFactor": 0.6, "metallicRoughnessTexture": {{"index": 0}},
+                                 "baseColorTexture": {{"index": 2, "texCoord": 1}}}},
+        "normalTexture": {{"index": 1, "scale": 0.5}},
+        "emissiveFactor": [1, 1, 1], "emissiveTexture": {{"index": 2}},
+        "extensions": {{"KHR_materials_specular": {{"specularFactor": 0.5, "specularColorFactor": [1, 0.5, 0.25],
+                                                   "specularTexture": {{"index": 0}}}},
+                       "KHR_materials_ior": {{"ior": 2.0}}}}
+      }}],
+      "meshes": [{{"primitives": [{{"attributes": {attributes}, "material": 0}}]}}],
+      "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}},
+                    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}],
+      "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 24}}],
+      "buffers": [{{"byteLength": 60, "uri": "tri.bin"}}]
+    }}"#
+        )
+    };
+    let path = dir.path().join("mapped.gltf");
+    std::fs::write(&path, gltf(true)).expect("gltf");
+    let s = Scene::load(&path.display().to_string()).expect("loads");
+    let m = s.materials.iter().find(|m| m.name == "mapped").expect("material");
+    assert_eq!((m.kind, m.metallic, m.roughness, m.specular_weight), (MaterialKind::Pbr, 0.8, 0.6, 0.5));
+    let f0 = (1.0f32 / 3.0).powi(2);
+    assert!((m.dielectric_f0 - glam::Vec3::new(1.0, 0.5, 0.25) * f0).length() < 1e-6, "{}", m.dielectric_f0);
+    let (mr, n) = (m.maps.metal_rough.expect("metallic-roughness"), m.maps.normal.expect("normal map"));
+    assert_eq!(s.textures[mr as usize].texels[0], [0, 128, 255, 255]);
+    assert_eq!(s.textures[n as usize].texels[0], [128, 128, 255, 255]);
+    assert_eq!(m.maps.normal_scale, 0.5);
+    assert_eq!(m.texture, None, "a base colour texture of set 1 is not read");
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    for what in ["emissive textures", "texture-coordinate set 1", "KHR_materials_specular textures"] {
+        assert!(s.warnings[0].contains(what), "{what}: {:?}", s.warnings);
+    }
+    std::fs::write(&path, gltf(false)).expect("gltf");
+    let e = Scene::load(&path.display().to_string()).expect_err("maps without UVs").to_string();
+    assert!(e.contains("'mapped'") && e.contains("texture coordinates"), "{e}");
 }

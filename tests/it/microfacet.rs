@@ -1,5 +1,5 @@
 //! The microfacet materials on the device, through `sample_probe.comp` (the kernels'
-//! own GLSL): each rough conductor and dielectric draws directions with the density
+//! own GLSL): each rough conductor, dielectric and metallic-roughness material draws directions with the density
 //! its evaluation reports (chi-square over the sphere, seeded), its mean sample weight
 //! is the reflectance its evaluation integrates to, it reflects no more than it
 //! receives, a white conductor loses more energy the rougher it is (single scattering)
@@ -26,6 +26,11 @@ fn conductor(name: &str, roughness: f32, ior: Option<ComplexIor>, color: Vec3) -
 
 fn dielectric(name: &str, roughness: f32) -> Material {
     Material { kind: MaterialKind::Dielectric, roughness, ior: 1.5, ..Material::lambert(name, Vec3::ONE) }
+}
+
+/// glTF's metallic-roughness material (F0 0.04, specular weight 1).
+fn pbr(name: &str, roughness: f32, metallic: f32, color: Vec3) -> Material {
+    Material { kind: MaterialKind::Pbr, roughness, metallic, ..Material::lambert(name, color) }
 }
 
 /// Shading rows of `materials` (material i + 1 is `materials[i]`; 0 is the default).
@@ -143,6 +148,8 @@ fn rough_conductors_and_dielectrics_sample_the_pdf_they_evaluate() {
         materials.push(conductor(&format!("gold {r}"), r, Some(GOLD), Vec3::ONE));
         materials.push(conductor(&format!("white {r}"), r, None, Vec3::ONE));
         materials.push(dielectric(&format!("rough glass {r}"), r));
+        materials.push(pbr(&format!("plastic {r}"), r, 0.0, Vec3::new(0.8, 0.5, 0.3)));
+        materials.push(pbr(&format!("half metal {r}"), r, 0.5, Vec3::new(0.95, 0.64, 0.54)));
     }
     let names: Vec<String> = materials.iter().map(|m| m.name.clone()).collect();
     let (ids, shading) = shading(materials);
@@ -231,8 +238,14 @@ fn rough_conductors_and_dielectrics_sample_the_pdf_they_evaluate() {
                 };
                 let (above, below) = g.above_below();
                 let energy = above + eta2 * below;
-                assert!(energy <= 1.0 + 0.01, "{what}: reflects and transmits {energy}");
-                eprintln!("{what}: mean weight {mean:.4}, integral {integral:.4}, chi-square {chi2:.1} over {df}");
+                // glTF's reference model gains energy at grazing incidence: its diffuse
+                // base loses only what the specular layer reflects about each half
+                // vector (docs/materials.md gives the figures).
+                let gain = if name.starts_with("plastic") || name.starts_with("half metal") { 0.06 } else { 0.01 };
+                assert!(energy <= 1.0 + gain, "{what}: reflects and transmits {energy}");
+                eprintln!(
+                    "{what}: mean weight {mean:.4}, integral {integral:.4}, energy {energy:.4}, chi-square {chi2:.1} over {df}"
+                );
                 if name.starts_with("white") {
                     white_loss.push((roughness[white_loss.len() / 3], theta, mean));
                 }
@@ -355,7 +368,7 @@ fn through_rough_glass_light_bsdf_and_mis_sampling_agree() {
     }
 }
 
-/// The Whitted preview lights rough conductors and dielectrics as the path tracer's
+/// The Whitted preview lights rough conductors, dielectrics and metallic-roughness as the path tracer's
 /// first bounce does (a point light, no ambient term, no other light): their image
 /// means agree.
 #[test]
@@ -364,11 +377,13 @@ fn whitted_lights_rough_surfaces_as_the_path_tracer_does() {
     let mut b = SceneBuilder::new("rough spheres");
     let gold = b.material(conductor("gold", 0.4, Some(GOLD), Vec3::ONE));
     let glass = b.material(dielectric("frosted", 0.3));
+    let plastic = b.material(pbr("plastic", 0.35, 0.2, Vec3::new(0.2, 0.5, 0.8)));
     let v = Vec3::new;
     let g = 3.0;
     b.mesh(&quad([v(-g, -1.0, g), v(g, -1.0, g), v(g, -1.0, -g), v(-g, -1.0, -g)]), 1.0, Vec3::ZERO, None);
     b.scene.spheres.push(Sphere { center: v(-0.6, -0.4, 0.0), radius: 0.6, material: gold });
     b.scene.spheres.push(Sphere { center: v(0.7, -0.5, 0.3), radius: 0.5, material: glass });
+    b.scene.spheres.push(Sphere { center: v(0.1, -0.7, 1.0), radius: 0.3, material: plastic });
     b.scene.lights.push(Light::Point { position: v(1.0, 2.5, 2.0), intensity: Vec3::splat(6.0) });
     b.scene.background = Vec3::ZERO;
     b.scene.ambient = 0.0;
@@ -382,10 +397,82 @@ fn whitted_lights_rough_surfaces_as_the_path_tracer_does() {
         let f = path::render(&ctx, &scene, &s);
         ctx.check_validation().expect("no validation errors");
         assert!(f.radiance.iter().flatten().all(|c| c.is_finite() && *c >= 0.0), "{integrator:?}: a bad pixel");
-        // The spheres' pixels (primitives 2 and 3 follow the floor's two triangles).
-        means.push(path::mean_and_error(&f, |k| f.prim[k] >= 2 && f.prim[k] < 4).0);
+        // The spheres' pixels (primitives 2 to 4 follow the floor's two triangles).
+        means.push(path::mean_and_error(&f, |k| f.prim[k] >= 2 && f.prim[k] < 5).0);
     }
     eprintln!("rough spheres, Whitted and path means: {means:?}");
     assert!(means[1] > 0.01, "the spheres are dark: {means:?}");
     assert!((means[0] - means[1]).abs() <= 0.03 * means[1], "Whitted {} vs path {}", means[0], means[1]);
+}
+
+/// A metallic-roughness quad seen head-on under a point light, `maps`: with textures
+/// of one texel value (roughness and metallic from the metallic-roughness map, the
+/// normal from the normal map) or, without, the factors and vertex normals those
+/// texels stand for. UVs are turned a quarter: u runs along +y, v along -x.
+fn mapped_quad(maps: Option<([u8; 4], [u8; 4])>, normal: Vec3) -> arbor::scene::Scene {
+    use arbor::scene::{Maps, Texture};
+    let v = Vec3::new;
+    let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
+    let uv = glam::Vec2::new;
+    mesh.uvs = Some(vec![uv(0.0, 1.0), uv(0.0, 0.0), uv(1.0, 0.0), uv(1.0, 1.0)]);
+    let mut m = pbr("mapped", 1.0, 1.0, Vec3::new(0.9, 0.6, 0.3));
+    match maps {
+        Some((mr, n)) => {
+            let one = |name: &str, t: [u8; 4]| Texture { name: name.into(), width: 2, height: 2, texels: vec![t; 4] };
+            mesh.textures = vec![one("metal-rough", mr), one("normal", n)];
+            m.maps = Maps { metal_rough: Some(0), normal: Some(1), normal_scale: 1.0 };
+            mesh.normals = Some(vec![Vec3::Z; 4]);
+        }
+        None => mesh.normals = Some(vec![normal; 4]),
+    }
+    mesh.materials = vec![m];
+    mesh.tri_material = vec![0, 0];
+    let mut b = SceneBuilder::new("mapped quad");
+    b.mesh(&mesh, 1.0, Vec3::ZERO, None);
+    b.scene.lights.push(Light::Point { position: v(1.5, -1.0, 2.0), intensity: Vec3::splat(4.0) });
+    b.scene.background = Vec3::ZERO;
+    b.scene.ambient = 0.0;
+    b.scene.camera = Camera { eye: v(0.0, 0.0, 3.0), look_at: Vec3::ZERO, up: Vec3::Y, vfov: 30.0 };
+    b.finish().expect("scene")
+}
+
+/// The metallic-roughness texture multiplies roughness (green) and metallic (blue),
+/// and the normal map bends the shading normal along the triangle's tangent frame
+/// (x where u grows, y where v grows): a quad textured with one texel value renders as
+/// the same quad with those factors and that normal given as its vertex normals, and
+/// differs from the quad with the map's normal left out.
+#[test]
+fn metallic_roughness_maps_act_as_their_factors_and_normals() {
+    let Some(ctx) = common::gpu() else { return };
+    let (mr, n) = ([0u8, 102, 191, 255], [200u8, 80, 220, 255]);
+    let c = |b: u8| f32::from(b) / 255.0 * 2.0 - 1.0;
+    // u along +y and v along -x: the map's x is +y, its y is -x.
+    let bent = Vec3::new(-c(n[1]), c(n[0]), c(n[2])).normalize();
+    let render = |scene: arbor::scene::Scene, factors: bool| {
+        let mut scene = scene;
+        if factors {
+            scene.materials.iter_mut().filter(|m| m.kind == MaterialKind::Pbr).for_each(|m| {
+                m.roughness = f32::from(mr[1]) / 255.0;
+                m.metallic = f32::from(mr[2]) / 255.0;
+            });
+        }
+        let mut s = path::settings(32, 32, 16);
+        s.max_depth = Some(2);
+        let f = path::render(&ctx, &scene, &s);
+        ctx.check_validation().expect("no validation errors");
+        f
+    };
+    let mapped = render(mapped_quad(Some((mr, n)), Vec3::Z), false);
+    let given = render(mapped_quad(None, bent), true);
+    let flat = render(mapped_quad(None, Vec3::Z), true);
+    let mean = |f: &arbor::render::Frame| path::mean_and_error(f, |k| f.prim[k] != u32::MAX).0;
+    let (a, b, c0) = (mean(&mapped), mean(&given), mean(&flat));
+    eprintln!("mapped {a}, factors and vertex normals {b}, unbent {c0}");
+    assert!(b > 0.01, "the quad is dark: {b}");
+    assert!((a - b).abs() <= 0.01 * b, "mapped {a} vs the factors and normals it stands for {b}");
+    assert!((c0 - b).abs() >= 0.1 * b, "the bent normal changes nothing ({c0} vs {b}): the test cannot tell");
+    // Pixel by pixel too: the normal AOV is the bent normal.
+    let k = 16 * 32 + 16;
+    let got = Vec3::from_slice(&mapped.normal[k]);
+    assert!((got - bent).length() < 1e-3, "normal AOV {got} vs {bent}");
 }

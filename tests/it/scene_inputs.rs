@@ -195,7 +195,9 @@ fn toml_conductor_and_dielectric_keys() {
              [[material]]\nname = \"copper\"\ntype = \"conductor\"\ncolor = [0.95, 0.64, 0.54]\n\
              [[material]]\nname = \"frosted\"\ntype = \"dielectric\"\nroughness = 0.2\nior = 1.33\n\
              absorption = [0.1, 0, 0]\n\
-             [[material]]\nname = \"clear\"\ntype = \"dielectric\"\nroughness = 0\n",
+             [[material]]\nname = \"clear\"\ntype = \"dielectric\"\nroughness = 0\n\
+             [[material]]\nname = \"brass\"\ntype = \"pbr\"\nmetallic = 0.9\nroughness = 0.4\nior = 2\n\
+             [[material]]\nname = \"plastic\"\ntype = \"pbr\"\n",
         )
         .display()
         .to_string(),
@@ -212,6 +214,12 @@ fn toml_conductor_and_dielectric_keys() {
     assert_eq!((frosted.kind, frosted.ior, frosted.absorption.x), (MaterialKind::Dielectric, 1.33, 0.1));
     assert!(!frosted.is_smooth_glass() && by_name("clear").is_smooth_glass());
     assert_eq!(by_name("clear").ior, 1.5, "the default ior");
+    let brass = by_name("brass");
+    assert_eq!((brass.kind, brass.metallic, brass.roughness), (MaterialKind::Pbr, 0.9, 0.4));
+    assert!((brass.dielectric_f0 - Vec3::splat(1.0 / 9.0)).length() < 1e-6, "F0 from ior 2");
+    let plastic = by_name("plastic");
+    assert_eq!((plastic.metallic, plastic.roughness, plastic.color), (0.0, 0.5, Vec3::splat(0.7)), "pbr defaults");
+    assert!((plastic.dielectric_f0 - Vec3::splat(0.04)).length() < 1e-6);
 
     for (table, want) in [
         ("type = \"conductor\"\nroughness = 1.5\n", "roughness 1.5 is outside [0, 1]"),
@@ -219,7 +227,10 @@ fn toml_conductor_and_dielectric_keys() {
         ("type = \"conductor\"\neta = [1, 1, 1]\n", "eta and k go together"),
         ("type = \"conductor\"\neta = [0, 1, 1]\nk = [1, 1, 1]\n", "must be > 0"),
         ("type = \"conductor\"\neta = [1, 1, 1]\nk = [-1, 1, 1]\n", "k"),
-        ("type = \"phong\"\nroughness = 0.5\n", "roughness is for type = \"conductor\" or \"dielectric\""),
+        ("type = \"phong\"\nroughness = 0.5\n", "roughness is for type = \"conductor\", \"dielectric\" or \"pbr\""),
+        ("type = \"conductor\"\nmetallic = 1\n", "metallic is for type = \"pbr\""),
+        ("type = \"pbr\"\nmetallic = 1.5\n", "metallic 1.5"),
+        ("type = \"pbr\"\nroughness = 2\n", "roughness 2 is outside [0, 1]"),
         ("type = \"dielectric\"\neta = [1, 1, 1]\nk = [0, 0, 0]\n", "a dielectric's index is ior"),
         ("type = \"metal\"\n", "metal"),
         ("type = \"conductor\"\nrougness = 0.5\n", "rougness"),

@@ -50,12 +50,20 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
                 (c.eta, m.alpha(), c.k)
             }
             (MaterialKind::Dielectric, _) => (Vec3::ZERO, m.alpha(), m.absorption),
+            // Metallic-roughness: roughness itself (its texture multiplies it first).
+            (MaterialKind::Pbr, _) => {
+                (Vec3::new(m.metallic, m.specular_weight, m.maps.normal_scale), m.roughness, m.dielectric_f0)
+            }
             _ => (m.specular, m.shininess, m.absorption),
+        };
+        let ior = match m.kind {
+            MaterialKind::Pbr => f32::from_bits(map_word(m)),
+            _ => m.ior,
         };
         let g = GpuMaterial {
             color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(m.kind as u32)],
             specular: [specular.x, specular.y, specular.z, shininess],
-            emission_ior: [m.emission.x, m.emission.y, m.emission.z, m.ior],
+            emission_ior: [m.emission.x, m.emission.y, m.emission.z, ior],
             absorption_flags: [absorption.x, absorption.y, absorption.z, f32::from_bits(material_flags(m))],
         };
         shading.extend([g.color_kind, g.specular, g.emission_ior, g.absorption_flags]);
@@ -80,6 +88,13 @@ fn material_flags(m: &crate::scene::Material) -> u32 {
     let schlick = if m.kind == MaterialKind::Conductor && m.complex_ior.is_none() { MAT_FLAG_SCHLICK } else { 0 };
     let tex = m.texture.map_or(0, |t| (t + 1) << MAT_TEXTURE_SHIFT);
     sides | schlick | tex
+}
+
+/// A metallic-roughness material's map word (row 2, w): metallic-roughness texture
+/// + 1, normal texture + 1 from MAT_MAP_SHIFT (0: none).
+fn map_word(m: &crate::scene::Material) -> u32 {
+    let slot = |t: Option<u32>| t.map_or(0, |t| t + 1);
+    slot(m.maps.metal_rough) | slot(m.maps.normal) << MAT_MAP_SHIFT
 }
 
 /// The buffers bound to one kernel, kept alive while it runs.

@@ -185,6 +185,16 @@ pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
         h.f32(m.ior);
         h.u32(u32::from(m.two_sided));
         h.u32(m.texture.map_or(u32::MAX, |t| t));
+        let c = m.complex_ior.unwrap_or(crate::scene::ComplexIor { eta: glam::Vec3::ZERO, k: glam::Vec3::ZERO });
+        for v in [c.eta, c.k, m.dielectric_f0] {
+            h.vec3(v);
+        }
+        for v in [m.roughness, m.metallic, m.specular_weight, m.maps.normal_scale] {
+            h.f32(v);
+        }
+        for t in [m.maps.metal_rough, m.maps.normal] {
+            h.u32(t.map_or(u32::MAX, |t| t));
+        }
     }
     h.u32(scene.textures.len() as u32);
     for t in &scene.textures {
