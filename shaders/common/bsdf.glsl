@@ -272,54 +272,6 @@ bool bsdf_sample(Material m, vec3 n, vec3 wo, bool front, vec3 u, out vec3 wi, o
         weight = m.albedo;
         return true;
     }
-    if (is_rough_conductor(m) || is_rough_dielectric(m)) {
-        vec3 h;
-        if (!sample_half_vector(m, n, wo, u.x, u.y, h)) return false;
-        float oh = dot(wo, h);
-        float ct;
-        float F = is_rough_conductor(m) ? 1.0 : fresnel_dielectric(oh, front ? m.ior : 1.0 / m.ior, ct);
-        if (u.z < F) {
-            wi = normalize(2.0 * oh * h - wo);
-            if (dot(n, wi) <= 0.0) return false;
-        } else {
-            float eta = front ? m.ior : 1.0 / m.ior;
-            wi = normalize(-wo / eta + (oh / eta - ct) * h);
-            if (dot(n, wi) >= 0.0) return false;
-            transmit = true;
-        }
-        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
-        if (!(pdf > 0.0)) return false;
-        weight = f * abs(dot(n, wi)) / pdf;
-        return true;
-    }
-    if (is_pbr(m)) {
-        if (u.z < pbr_specular_weight(m)) {
-            vec3 h;
-            if (!sample_half_vector(m, n, wo, u.x, u.y, h)) return false;
-            wi = normalize(2.0 * dot(wo, h) * h - wo);
-        } else {
-            wi = cosine_direction(n, u.x, u.y);
-        }
-        if (dot(n, wi) <= 0.0) return false;
-        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
-        if (!(pdf > 0.0)) return false;
-        weight = f * dot(n, wi) / pdf;
-        return true;
-    }
-    if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
-        float ps = phong_specular_weight(m);
-        if (u.z < ps) {
-            vec3 r = 2.0 * dot(n, wo) * n - wo;
-            wi = around(normalize(r), pow(u.x, 1.0 / (m.shininess + 1.0)), u.y);
-        } else {
-            wi = cosine_direction(n, u.x, u.y);
-        }
-        if (dot(n, wi) <= 0.0) return false;
-        vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
-        if (pdf <= 0.0) return false;
-        weight = f * dot(n, wi) / pdf;
-        return true;
-    }
     if ((kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || is_smooth_conductor(m)) {
         wi = normalize(2.0 * dot(n, wo) * n - wo);
         delta = true;
@@ -347,7 +299,46 @@ bool bsdf_sample(Material m, vec3 n, vec3 wo, bool front, vec3 u, out vec3 wi, o
         weight = m.albedo / (eta * eta);
         return true;
     }
-    return false;
+    // The lobes that are not deltas draw wi, then one evaluation gives f and the pdf
+    // (one inlined copy of bsdf_eval instead of one per kind: a smaller kernel).
+    if (is_rough_conductor(m) || is_rough_dielectric(m)) {
+        vec3 h;
+        if (!sample_half_vector(m, n, wo, u.x, u.y, h)) return false;
+        float oh = dot(wo, h);
+        float ct;
+        float F = is_rough_conductor(m) ? 1.0 : fresnel_dielectric(oh, front ? m.ior : 1.0 / m.ior, ct);
+        if (u.z < F) {
+            wi = normalize(2.0 * oh * h - wo);
+        } else {
+            float eta = front ? m.ior : 1.0 / m.ior;
+            wi = normalize(-wo / eta + (oh / eta - ct) * h);
+            transmit = true;
+        }
+    } else if (is_pbr(m)) {
+        vec3 h;
+        if (u.z >= pbr_specular_weight(m)) {
+            wi = cosine_direction(n, u.x, u.y);
+        } else if (sample_half_vector(m, n, wo, u.x, u.y, h)) {
+            wi = normalize(2.0 * dot(wo, h) * h - wo);
+        } else {
+            return false;
+        }
+    } else if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
+        if (u.z < phong_specular_weight(m)) {
+            vec3 r = 2.0 * dot(n, wo) * n - wo;
+            wi = around(normalize(r), pow(u.x, 1.0 / (m.shininess + 1.0)), u.y);
+        } else {
+            wi = cosine_direction(n, u.x, u.y);
+        }
+    } else {
+        return false;
+    }
+    float c = dot(n, wi);
+    if (transmit ? c >= 0.0 : c <= 0.0) return false;
+    vec3 f = bsdf_eval(m, n, wo, wi, front, pdf);
+    if (!(pdf > 0.0)) return false;
+    weight = f * abs(c) / pdf;
+    return true;
 }
 
 #endif
