@@ -239,7 +239,9 @@ fn compile(
     });
     opts.set_warnings_as_errors();
     for (k, v) in bindings::SHADER_DEFINES {
-        opts.add_macro_definition(k, Some(&v.to_string()));
+        // Past i32::MAX a decimal literal needs its `u` (0xffffffff is no int).
+        let text = if *v > i32::MAX as u32 { format!("{v}u") } else { v.to_string() };
+        opts.add_macro_definition(k, Some(&text));
     }
     for (k, v) in defines {
         opts.add_macro_definition(k, Some(v));

@@ -28,8 +28,8 @@ layout(std430, set = 0, binding = BINDING_BUILD_OUT_INDICES) writeonly buffer Ou
 
 const uint ROOT = BUILD_EMIT_ROOT;
 const uint TOP = BUILD_EMIT_TOP;
-const uint LEAF_REF = 0x80000000u;
-const uint EMPTY_REF = 0xffffffffu;
+const uint LEAF_REF = BVH_LEAF_REF;
+const uint EMPTY_REF = BVH_EMPTY_REF;
 const uint HIDDEN = 0x80000000u;
 
 const uint UNFINALIZED = BUILD_EMIT_UNFINALIZED;

@@ -42,8 +42,8 @@ const uint COUNT = BUILD_WIDE_COUNT;
 const uint SCAN = BUILD_WIDE_SCAN;
 const uint NUMBER = BUILD_WIDE_NUMBER;
 const uint WRITE = BUILD_WIDE_WRITE;
-const uint LEAF_REF = 0x80000000u;
-const uint EMPTY_REF = 0xffffffffu;
+const uint LEAF_REF = BVH_LEAF_REF;
+const uint EMPTY_REF = BVH_EMPTY_REF;
 layout(constant_id = SPEC_WIDE_WIDTH) const uint W = 4u;
 
 uint half_list() { return pc.n / 2u + 1u; }

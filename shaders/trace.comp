@@ -17,7 +17,7 @@ layout(local_size_x = WORKGROUP_SIZE) in;
 layout(constant_id = SPEC_LIGHTS) const uint LIGHT_COUNT = 0u;
 layout(constant_id = SPEC_MAX_DEPTH) const uint MAX_DEPTH = 8u;
 layout(constant_id = SPEC_STACK_SIZE) const uint STACK_SIZE = 1u;
-// The steps one trace may take: the dispatch header's (dispatch_limits.x), read once
+// The steps one trace may take: the dispatch header's (DISPATCH_TRACE_STEPS), read once
 // by main(). A specialization constant would make each budget a pipeline of its own.
 uint TREE_STEPS = 0u;
 #ifndef BRUTE_UNROLL
@@ -275,7 +275,7 @@ float glass_fresnel(vec3 dir, vec3 n, float eta) {
 void whitted_main() {
     uint local;
     if (!job_begin(local)) return;
-    uint slot = local - dispatch_chunk.x;
+    uint slot = local - DISPATCH_BASE;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
     uint i = at.y;
@@ -285,7 +285,7 @@ void whitted_main() {
     if (pixel_behind(out_px)) return;
 
     g_rays = 0u;
-    for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {
+    for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {
         sample_start();
         uint rng = rng_init(pixel, s, params.counts.z);
         // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
@@ -417,7 +417,7 @@ void whitted_main() {
 void probe_main() {
     uint local;
     if (!job_begin(local)) return;
-    uint slot = local - dispatch_chunk.x;
+    uint slot = local - DISPATCH_BASE;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
     sample_start();
@@ -467,7 +467,7 @@ void probe_main() {
 void batch_main() {
     uint local;
     if (!job_begin(local)) return;
-    uint slot = local - dispatch_chunk.x;
+    uint slot = local - DISPATCH_BASE;
     sample_start();
     vec4 origin_tmin, dir_tmax;
     ray_at(slot, origin_tmin, dir_tmax);
@@ -489,14 +489,14 @@ void batch_main() {
 }
 
 void main() {
-    TREE_STEPS = dispatch_limits.x;
+    TREE_STEPS = DISPATCH_TRACE_STEPS;
     batch_main();
 }
 #else
 // One integrator a module (TRACE_ENTRY, src/gpu/bindings.rs TRACE_ENTRIES): the others'
 // code is not in it for the driver to compile and throw away.
 void main() {
-    TREE_STEPS = dispatch_limits.x;
+    TREE_STEPS = DISPATCH_TRACE_STEPS;
 #if TRACE_ENTRY == INTEGRATOR_PATH
     path_main();
 #elif TRACE_ENTRY == INTEGRATOR_PROBE

@@ -27,9 +27,9 @@ layout(push_constant) uniform BuildPush {
 } pc;
 
 const uint NONE = 0xffffffffu;
-const uint LEAF_FLAG = 0x80000000u;
+const uint LEAF_FLAG = BUILD_LEAF_FLAG;
 const uint COLLAPSED = 0x80000000u;
-const uint MAX_LEAF = 8u;
+const uint MAX_LEAF = BVH_MAX_LEAF;
 
 // Linear workgroup index of a 2D dispatch (Context::grid_for).
 uint group_index() {

@@ -6,8 +6,8 @@
 
 #include "common/accel_texels.glsl"
 
-const uint BVH_LEAF = 0x80000000u;
-const uint BVH_EMPTY = 0xffffffffu;
+const uint BVH_LEAF = BVH_LEAF_REF;
+const uint BVH_EMPTY = BVH_EMPTY_REF;
 const float BVH_T_MARGIN = 1e-5;
 
 // Tests the primitives of leaf reference `ref` (first << 3 | count - 1), each a step of

@@ -103,27 +103,42 @@ uint shading_word(uint base, uint k) { return floatBitsToUint(shading_row(base +
 // constants and uniforms that its branches and loops depend on (docs/kernels.md, "Per-dispatch
 // values live in storage").
 layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
-    uvec4 dispatch_range;  // 0  first pixel, pixel count, first sample, end sample
-    uvec4 dispatch_chunk;  // 16 x: first pixel held by this buffer, y: resumed part, z: pass,
-                           //    w: samples stopped (common/resume.glsl)
-    uvec4 dispatch_window; // 32 x, y: window origin, z: width, w: sample that starts from zero
-    uvec4 dispatch_limits; // 48 x: steps one trace may take (TREE_STEPS in trace.comp), y, z, w: 0
+    uvec4 dispatch_range;  // 0  first, count, sample_begin, sample_end
+    uvec4 dispatch_chunk;  // 16 base, resumed, pass, counter (DispatchChunk; copied back)
+    uvec4 dispatch_window; // 32 window_left, window_top, window_width, zero_sample
+    uvec4 dispatch_limits; // 48 trace_steps (TREE_STEPS in trace.comp), then 0, 0, 0
     Pixel pixels[];        // 64
 };
+
+// The header's words by name (`GpuDispatch` and `DispatchChunk` in
+// src/accel/gpu_layout.rs, whose fields these are).
+#define DISPATCH_FIRST dispatch_range.x         // first pixel (a resume list pass: first job)
+#define DISPATCH_COUNT dispatch_range.y         // pixels (or jobs)
+#define DISPATCH_SAMPLE_BEGIN dispatch_range.z  // first sample
+#define DISPATCH_SAMPLE_END dispatch_range.w    // end sample (exclusive)
+#define DISPATCH_BASE dispatch_chunk.x          // first pixel held by this buffer
+#define DISPATCH_RESUMED dispatch_chunk.y       // 1: a resumed part
+#define DISPATCH_PASS dispatch_chunk.z          // PASS_TRACE or a resume pass
+#define DISPATCH_COUNTER dispatch_chunk.w       // samples stopped / jobs handed on (copied back)
+#define DISPATCH_WINDOW_LEFT dispatch_window.x
+#define DISPATCH_WINDOW_TOP dispatch_window.y
+#define DISPATCH_WINDOW_WIDTH dispatch_window.z
+#define DISPATCH_ZERO_SAMPLE dispatch_window.w  // the sample at which pixels start from zero
+#define DISPATCH_TRACE_STEPS dispatch_limits.x  // steps one trace may take
 
 // The pixel of the full image that window-relative pixel `local` is (the random
 // numbers are keyed by it, so a crop renders exactly what the whole image would), and
 // its column and row.
 uvec3 window_pixel(uint local) {
-    uint i = dispatch_window.x + local % dispatch_window.z;
-    uint j = dispatch_window.y + local / dispatch_window.z;
+    uint i = DISPATCH_WINDOW_LEFT + local % DISPATCH_WINDOW_WIDTH;
+    uint j = DISPATCH_WINDOW_TOP + local / DISPATCH_WINDOW_WIDTH;
     return uvec3(j * params.dims.x + i, i, j);
 }
 
 // The pixel's state before this dispatch's samples: zero at the window's first sample,
 // else what earlier dispatches (or a resumed part, uploaded by the host) left.
 Pixel pixel_start(uint slot) {
-    if (dispatch_chunk.y == 0u && dispatch_chunk.z == PASS_TRACE && dispatch_range.z == dispatch_window.w) {
+    if (DISPATCH_RESUMED == 0u && DISPATCH_PASS == PASS_TRACE && DISPATCH_SAMPLE_BEGIN == DISPATCH_ZERO_SAMPLE) {
         Pixel p;
         p.radiance = vec4(0.0);
         p.normal_depth = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
@@ -134,12 +149,12 @@ Pixel pixel_start(uint slot) {
     return pixels[slot];
 }
 
-// The first sample of this dispatch the pixel lacks. A resumed pixel (dispatch_chunk.y
-// set), and one the resume kernel continues (dispatch_chunk.z, common/resume.glsl),
+// The first sample of this dispatch the pixel lacks. A resumed pixel (DISPATCH_RESUMED
+// set), and one the resume kernel continues (DISPATCH_PASS, common/resume.glsl),
 // holds samples from the window's first one up to its count already.
 uint sample_begin(Pixel p) {
-    if (dispatch_chunk.y == 0u && dispatch_chunk.z == PASS_TRACE) return dispatch_range.z;
-    return max(dispatch_range.z, dispatch_window.w + uint(p.radiance.w));
+    if (DISPATCH_RESUMED == 0u && DISPATCH_PASS == PASS_TRACE) return DISPATCH_SAMPLE_BEGIN;
+    return max(DISPATCH_SAMPLE_BEGIN, DISPATCH_ZERO_SAMPLE + uint(p.radiance.w));
 }
 
 #endif

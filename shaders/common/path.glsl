@@ -256,7 +256,7 @@ vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool fr
 void path_main() {
     uint local;
     if (!job_begin(local)) return;
-    uint slot = local - dispatch_chunk.x;
+    uint slot = local - DISPATCH_BASE;
     uvec3 at = window_pixel(local);
     uint pixel = at.x;
     uint i = at.y;
@@ -266,7 +266,7 @@ void path_main() {
     if (pixel_behind(out_px)) return;
 
     g_rays = 0u;
-    for (uint s = sample_begin(out_px); s < dispatch_range.w; s++) {
+    for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {
         sample_start();
         uint rng = rng_init(pixel, s, params.counts.z);
         Ray r;

@@ -3,7 +3,7 @@
 //
 // A trace that reaches its step budget (TREE_STEPS) stops its sample. The trace kernel
 // (RESUME_PASS false) then leaves the pixel holding the samples before that one and
-// counts it in the dispatch header (dispatch_chunk.w); it saves nothing, so none of
+// counts it in the dispatch header (DISPATCH_COUNTER); it saves nothing, so none of
 // this file's saving code is in it. The resume kernel (RESUME_PASS true: the same
 // variant with this constant set) runs that sample again: the first resume pass over
 // the dispatch's pixels (PASS_SWEEP) takes those behind, later passes take a job list.
@@ -76,8 +76,8 @@ bool trace_suspend() {
     }
     if (!g_suspended) {
         g_suspended = true;
-        uint j = atomicAdd(dispatch_chunk.w, 1u);
-        uint list = dispatch_chunk.z == PASS_LIST0 ? 1u : 0u;
+        uint j = atomicAdd(DISPATCH_COUNTER, 1u);
+        uint list = DISPATCH_PASS == PASS_LIST0 ? 1u : 0u;
         resume_pool[list * RESUME_JOBS + j] = g_local;
         if (j < RESUME_RECORDS) g_out = 2u * RESUME_JOBS + (list * RESUME_RECORDS + j) * RECORD_WORDS;
     }

@@ -185,16 +185,16 @@ bool trace_any_coherent(Ray r) {
 // has one (the host runs the jobs with a record in a dispatch of their own, first).
 bool job_begin(out uint local) {
     uint gid = gl_GlobalInvocationID.x;
-    local = dispatch_range.x + gid;
-    if (gid >= dispatch_range.y) return false;
+    local = DISPATCH_FIRST + gid;
+    if (gid >= DISPATCH_COUNT) return false;
 #ifdef ACCEL_RESUMABLE
-    if (RESUME_PASS && dispatch_chunk.z == PASS_SWEEP) {
-        uint held = uint(pixels[local - dispatch_chunk.x].radiance.w);
-        bool behind = INTEGRATOR == 2u ? held == 0u : dispatch_window.w + held < dispatch_range.w;
+    if (RESUME_PASS && DISPATCH_PASS == PASS_SWEEP) {
+        uint held = uint(pixels[local - DISPATCH_BASE].radiance.w);
+        bool behind = INTEGRATOR == 2u ? held == 0u : DISPATCH_ZERO_SAMPLE + held < DISPATCH_SAMPLE_END;
         if (!behind) return false;
     } else if (RESUME_PASS) {
-        uint list = dispatch_chunk.z == PASS_LIST0 ? 0u : 1u;
-        uint job = dispatch_range.x + gid;
+        uint list = DISPATCH_PASS == PASS_LIST0 ? 0u : 1u;
+        uint job = DISPATCH_FIRST + gid;
         local = resume_pool[list * RESUME_JOBS + job];
         if (job < RESUME_RECORDS) {
             g_in = 2u * RESUME_JOBS + (list * RESUME_RECORDS + job) * RECORD_WORDS;
@@ -234,8 +234,8 @@ uint job_rays() { return g_suspended ? g_rays_before : g_rays; }
 // dispatch brings it to the dispatch's end, its samples still summed in index order.
 bool pixel_behind(Pixel p) {
 #ifdef ACCEL_RESUMABLE
-    if (!RESUME_PASS && dispatch_window.w + uint(p.radiance.w) < dispatch_range.z) {
-        atomicAdd(dispatch_chunk.w, 1u);
+    if (!RESUME_PASS && DISPATCH_ZERO_SAMPLE + uint(p.radiance.w) < DISPATCH_SAMPLE_BEGIN) {
+        atomicAdd(DISPATCH_COUNTER, 1u);
         return true;
     }
 #endif
@@ -246,7 +246,7 @@ bool pixel_behind(Pixel p) {
 // resume kernel counted its jobs as it gave them out).
 void job_end() {
 #ifdef ACCEL_RESUMABLE
-    if (!RESUME_PASS && g_suspended) atomicAdd(dispatch_chunk.w, 1u);
+    if (!RESUME_PASS && g_suspended) atomicAdd(DISPATCH_COUNTER, 1u);
 #endif
 }
 

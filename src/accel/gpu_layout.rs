@@ -176,23 +176,51 @@ pub struct GpuParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct GpuDispatch {
-    /// first pixel (linear index, row-major from the top row) of this dispatch,
-    /// pixel count, first sample, end sample (exclusive)
-    pub range: [u32; 4],
-    /// first pixel held by the pixel buffer (the chunk base); 1 for a resumed part
-    /// (its pixels continue uploaded sums); the pass (`PASS_TRACE`, or a resume pass,
-    /// shaders/common/resume.glsl); the samples stopped, counted by the kernel
-    pub chunk: [u32; 4],
-    /// the window of the image being rendered (`--crop`, a tile shard): left column,
-    /// top row, width; then the sample at which the pixels start from zero
-    /// (`u32::MAX`: never, a resumed render continues from uploaded sums). Pixel
-    /// indices of `range` and `chunk` count row-major inside the window.
-    pub window: [u32; 4],
-    /// the steps (nodes + primitive tests) one trace may take before it stops and is
-    /// resumed (`TREE_STEPS`; 0 for brute force, whose loops need no budget), then 0,
-    /// 0, 0. Not a specialization constant: every budget would be a pipeline of its
-    /// own (a render with `--trace-steps` next to one without compiled twice).
-    pub limits: [u32; 4],
+    /// bytes 0..4: first pixel of this dispatch (a resume list pass: first job);
+    /// pixel indices count row-major inside the window
+    pub first: u32,
+    /// bytes 4..8: pixels (or jobs) it covers
+    pub count: u32,
+    /// bytes 8..12: first sample
+    pub sample_begin: u32,
+    /// bytes 12..16: end sample (exclusive)
+    pub sample_end: u32,
+    /// bytes 16..32: the part the kernel writes; copied back after every dispatch
+    pub chunk: DispatchChunk,
+    /// bytes 32..36: the window of the image being rendered (`--crop`, a tile
+    /// shard): left column
+    pub window_left: u32,
+    /// bytes 36..40: the window's top row
+    pub window_top: u32,
+    /// bytes 40..44: the window's width
+    pub window_width: u32,
+    /// bytes 44..48: the sample at which pixels start from zero (`u32::MAX`: never, a
+    /// resumed render continues from uploaded sums)
+    pub zero_sample: u32,
+    /// bytes 48..52: the steps (nodes + primitive tests) one trace may take before it
+    /// stops and is resumed (`TREE_STEPS`; 0 for brute force, whose loops need no
+    /// budget). Not a specialization constant: every budget would be a pipeline of
+    /// its own (a render with `--trace-steps` next to one without compiled twice).
+    pub trace_steps: u32,
+    /// bytes 52..64: 0
+    pub unused: [u32; 3],
+}
+
+/// Bytes 16..32 of the dispatch header (`dispatch_chunk` in layout.glsl): what the
+/// ring copies back after every dispatch (`gpu::COPY_BACK_BYTES`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct DispatchChunk {
+    /// first pixel held by the pixel buffer (the chunk base)
+    pub base: u32,
+    /// 1 for a resumed part (its pixels continue uploaded sums)
+    pub resumed: u32,
+    /// the pass: `PASS_TRACE`, or a resume pass (shaders/common/resume.glsl)
+    pub pass: u32,
+    /// counted by the kernel: samples stopped (a trace pass) or jobs handed to the
+    /// next list (a resume list pass); the host sets it to the list's split point
+    /// before the second half of a split pass
+    pub counter: u32,
 }
 
 /// Head of the grid's node buffer, before the cell starts. GLSL twin: the `GridCells`
@@ -249,6 +277,10 @@ pub struct GpuBuildPush {
 
 const _: () = assert!(std::mem::size_of::<GpuBuildPush>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuDispatch>() == 64);
+const _: () = assert!(std::mem::offset_of!(GpuDispatch, chunk) == 16 && std::mem::size_of::<DispatchChunk>() == 16);
+const _: () = assert!(std::mem::offset_of!(GpuDispatch, window_left) == 32);
+const _: () = assert!(std::mem::offset_of!(GpuDispatch, trace_steps) == 48);
+const _: () = assert!(std::mem::size_of::<DispatchChunk>() as u64 == crate::gpu::COPY_BACK_BYTES);
 
 /// Bytes before the first [`GpuPixel`] of the pixel buffer: one [`GpuDispatch`].
 pub const PIXEL_HEADER_BYTES: u64 = std::mem::size_of::<GpuDispatch>() as u64;

@@ -57,6 +57,16 @@ pub const BINDING_BUILD_LEVELS: u32 = 12;
 pub const BINDING_BUILD_WIDE: u32 = 13;
 /// Build, wide collapse: the wide nodes in the `bvh4` / `bvh8` layout.
 pub const BINDING_BUILD_WIDE_NODES: u32 = 14;
+/// The binary BVH's child references, as the CPU and GPU builders write them and the
+/// trace kernels read them (`accel::bvh::{LEAF_REF, EMPTY_REF}`): a leaf is
+/// `BVH_LEAF_REF | first << 3 | count - 1` (at most `BVH_MAX_LEAF` primitives), a
+/// missing child `BVH_EMPTY_REF`.
+pub const BVH_LEAF_REF: u32 = 0x8000_0000;
+pub const BVH_EMPTY_REF: u32 = 0xffff_ffff;
+pub const BVH_MAX_LEAF: u32 = 8;
+/// Flag of a canonical binary node's left word marking a leaf (`accel::bvh::LEAF_FLAG`;
+/// the GPU builders' `LEAF_FLAG`).
+pub const BUILD_LEAF_FLAG: u32 = 0x8000_0000;
 /// Header words: centroid box min xyz and max xyz as order-preserving uints.
 pub const BUILD_HDR_CMIN: u32 = 0;
 pub const BUILD_HDR_CMAX: u32 = 3;
@@ -332,6 +342,10 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("PASS_LIST0", PASS_LIST0),
     ("PASS_LIST1", PASS_LIST1),
     ("OVERFLOW_FLAG", OVERFLOW_FLAG),
+    ("BVH_LEAF_REF", BVH_LEAF_REF),
+    ("BVH_EMPTY_REF", BVH_EMPTY_REF),
+    ("BVH_MAX_LEAF", BVH_MAX_LEAF),
+    ("BUILD_LEAF_FLAG", BUILD_LEAF_FLAG),
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),
     ("INST_ENTRY_STEPS", INST_ENTRY_STEPS),

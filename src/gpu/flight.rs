@@ -22,7 +22,8 @@ use super::kernel::{barrier_all, check_update, record_dispatch, Kernel};
 use super::timing::Placement;
 use crate::error::{Error, Result};
 
-/// Bytes each submission copies back.
+/// Bytes each submission copies back: the trace kernels' `DispatchChunk`
+/// (src/accel/gpu_layout.rs asserts the two agree).
 pub const COPY_BACK_BYTES: u64 = 16;
 
 /// Most submissions a ring holds.

@@ -25,7 +25,7 @@ mod timing;
 
 pub use buffer::{Buffer, BufferKind};
 pub use context::{Context, ContextOptions, DeviceInfo};
-pub use flight::{DispatchRing, Landed, MAX_DEPTH as MAX_IN_FLIGHT};
+pub use flight::{DispatchRing, Landed, COPY_BACK_BYTES, MAX_DEPTH as MAX_IN_FLIGHT};
 pub use kernel::{BindingDesc, BindingKind, Kernel, KernelCacheStats, Step};
 pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 

@@ -87,14 +87,45 @@ fn storage(binding: u32, name: &'static str) -> BindingDesc {
 pub enum Target {
     /// A binary BVH from this builder (`lbvh`, `trbvh`).
     Binary(BvhBuilder),
-    /// The binary tree of `source` collapsed into `width`-wide nodes (4: `bvh4`, 8:
-    /// `bvh8`).
+    /// The binary tree of `source` collapsed into `width`-wide nodes (`bvh4`, `bvh8`).
     Wide {
         /// The binary builder.
         source: BvhBuilder,
         /// Children per node.
-        width: u32,
+        width: Width,
     },
+}
+
+/// Children per node of a wide target: the two layouts the collapse writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Width {
+    /// `bvh4`.
+    Four,
+    /// `bvh8`.
+    Eight,
+}
+
+impl Width {
+    /// Children per node.
+    pub fn children(self) -> u32 {
+        match self {
+            Width::Four => 4,
+            Width::Eight => 8,
+        }
+    }
+
+    /// Its collapse kernel in `GpuBuilder::wide`.
+    fn index(self) -> usize {
+        usize::from(self == Width::Eight)
+    }
+
+    /// 16-byte texels of one node in its layout.
+    fn texels(self) -> u64 {
+        (match self {
+            Width::Four => Bvh4::TEXELS,
+            Width::Eight => Bvh8::TEXELS,
+        }) as u64
+    }
 }
 
 impl Target {
@@ -104,8 +135,8 @@ impl Target {
         match kind {
             AccelKind::Lbvh => Some(Target::Binary(BvhBuilder::Lbvh)),
             AccelKind::Trbvh => Some(Target::Binary(BvhBuilder::Trbvh)),
-            AccelKind::Bvh4 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: 4 }),
-            AccelKind::Bvh8 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: 8 }),
+            AccelKind::Bvh4 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: Width::Four }),
+            AccelKind::Bvh8 => Some(Target::Wide { source: BvhBuilder::Trbvh, width: Width::Eight }),
             _ => None,
         }
     }
@@ -115,8 +146,16 @@ impl Target {
         match self {
             Target::Binary(BvhBuilder::Lbvh) => AccelKind::Lbvh,
             Target::Binary(_) => AccelKind::Trbvh,
-            Target::Wide { width: 8, .. } => AccelKind::Bvh8,
-            Target::Wide { .. } => AccelKind::Bvh4,
+            Target::Wide { width: Width::Eight, .. } => AccelKind::Bvh8,
+            Target::Wide { width: Width::Four, .. } => AccelKind::Bvh4,
+        }
+    }
+
+    /// Children per node: 2 for a binary tree.
+    pub fn width(self) -> u32 {
+        match self {
+            Target::Binary(_) => 2,
+            Target::Wide { width, .. } => width.children(),
         }
     }
 
@@ -359,7 +398,10 @@ impl GpuBuilder {
     /// Builds `target` for `scene` on the GPU and keeps it there. Phases: the host's
     /// upload of the geometry, each GPU phase (from timestamps, named `gpu ...`), and
     /// the host's read of the header (with, for a wide tree, the allocation of its
-    /// nodes); `build_ms` is the wall clock of all.
+    /// nodes); `build_ms` is the wall clock of all. The stages: the binary tree's
+    /// steps ([`GpuBuilder::binary_steps`]), for a wide target the collapse's plan
+    /// ([`GpuBuilder::wide_plan_steps`]), one submission of them, the header read, and
+    /// for a wide target the write of its nodes ([`GpuBuilder::write_wide`]).
     pub fn build_target(
         &mut self,
         ctx: &Context,
@@ -378,119 +420,32 @@ impl GpuBuilder {
         if n > MAX_BVH_PRIMS || 2 * n as u64 - 1 > u64::from(u32::MAX / 2) {
             return Err(Error::Failed(format!("{n} primitives: the GPU build handles at most {MAX_BVH_PRIMS}")));
         }
-        let width = match target {
-            Target::Wide { width, .. } => width,
-            Target::Binary(_) => 2,
-        };
-        let wk = usize::from(width == 8);
+        let width = target.width();
+        if width > 2 && n as u64 / 2 > 65_535 * u64::from(BUILD_GROUP) {
+            return Err(Error::Failed(format!("{n} primitives: the GPU's wide collapse handles at most 33M")));
+        }
         let start = Instant::now();
         let mut phases = Vec::new();
         let mut t = Instant::now();
         let b = self.buffers(ctx, scene, width > 2)?;
         super::lap(&mut phases, "upload geometry", &mut t);
         self.bind(ctx, scene, &b)?;
-        let n32 = n as u32;
         let costs = SahCosts::default();
-        let push = |a: u32, bb: u32| Push {
-            n: n32,
-            a,
-            b: bb,
+        let base = Push {
+            n: n as u32,
+            a: 0,
+            b: 0,
             c: 0,
             ct: costs.traversal,
             ci: costs.intersect,
             keep: KEEP_FACTOR,
             d: width,
         };
-        let bytes = |p: Push| bytemuck::bytes_of(&p).to_vec();
-        let groups = |threads: u64, size: u32| ctx.grid_for(threads.div_ceil(u64::from(size)));
-        let blocks = (n as u64).div_ceil(TILE);
-        let geo = geometry(scene);
-        let bounds_k = &self.bounds[&geo];
-        let mut steps = vec![
-            Step::Dispatch {
-                kernel: bounds_k,
-                push: bytes(push(scene.triangles.len() as u32, 0)),
-                groups: groups(n as u64, BUILD_GROUP * BUILD_BOUNDS_ITEMS)?,
-            },
-            Step::Mark("gpu bounds"),
-            Step::Dispatch { kernel: &self.morton, push: bytes(push(0, 0)), groups: groups(n as u64, BUILD_GROUP)? },
-            Step::Mark("gpu morton"),
-        ];
-        let tiles = ctx.grid_for(blocks)?;
-        for pass in 0..4u32 {
-            let p = bytes(push(8 * pass, blocks as u32));
-            steps.push(Step::Dispatch { kernel: &self.hist[pass as usize % 2], push: p.clone(), groups: tiles });
-            let mut scan = push(0, 0);
-            scan.n = (256 * blocks) as u32;
-            steps.push(Step::Dispatch { kernel: &self.scan, push: bytes(scan), groups: [1, 1, 1] });
-            steps.push(Step::Dispatch { kernel: &self.scatter[pass as usize % 2], push: p, groups: tiles });
-        }
-        steps.push(Step::Mark("gpu sort"));
-        let leaves = groups(n as u64, self.fit_group)?;
-        let round_names: Vec<String> = (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect();
-        steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(0, 0)), groups: leaves });
-        steps.push(Step::Mark("gpu hierarchy + fit"));
-        let inner = groups(n as u64 - 1, BUILD_GROUP)?;
-        let collapse = if builder == BvhBuilder::Trbvh {
-            for (round, name) in round_names.iter().enumerate() {
-                let gamma = tp.gamma(round as u32);
-                let p = push(gamma, tp.leaves as u32);
-                steps.extend(by_height(&self.levels, &self.treelet, &b.levels, inner, gamma, p));
-                steps.push(Step::Mark(name));
-            }
-            BUILD_FINALIZE_COLLAPSE
-        } else {
-            0
-        };
-        // trbvh: the collapse and output-node counts bottom-up; this leaves every inner
-        // node listed by height for the emit pass. The LBVH collapses nothing, so a
-        // subtree of k primitives has k - 1 inner nodes: it only lists the nodes.
-        let unfinalized = if collapse != 0 {
-            steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, push(collapse, 0)));
-            steps.push(Step::Mark("gpu collapse"));
-            0
-        } else {
-            steps.extend(schedule(&self.levels, inner, 0, push(0, 0)));
-            steps.push(Step::Mark("gpu schedule"));
-            BUILD_EMIT_UNFINALIZED
-        };
-        let emit = |mode: u32| push(mode, unfinalized);
-        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(emit(BUILD_EMIT_ROOT)), groups: [1, 1, 1] });
-        steps.extend(per_height(&self.emit, &b.levels, emit(BUILD_EMIT_TOP), true));
-        steps.push(Step::Mark("gpu emit"));
-        // The wide collapse's plan: mark the wide nodes from the top, then number them.
-        let wide_blocks = (n as u64).div_ceil(WIDE_BLOCK);
-        let wide_grid = ctx.grid_for(wide_blocks)?;
-        let mark_name = format!("gpu {width}-wide: mark");
-        let plan_name = format!("gpu {width}-wide: number");
-        if width > 2 {
-            if n as u64 / 2 > 65_535 * u64::from(BUILD_GROUP) {
-                return Err(Error::Failed(format!("{n} primitives: the GPU's wide collapse handles at most 33M")));
-            }
-            let wb = wide_blocks as u32;
-            steps.push(Step::Dispatch {
-                kernel: &self.wide[wk],
-                push: bytes(push(BUILD_WIDE_SEED, wb)),
-                groups: groups(n as u64, BUILD_GROUP)?,
-            });
-            // One indirect dispatch per wide level (a wide tree is no deeper than its
-            // binary tree, which the traversal limits to MAX_BVH_DEPTH).
-            let levels_at = wide_words(n as u64) - u64::from(4 * BUILD_LV_SLOTS);
-            for level in 0..MAX_BVH_DEPTH {
-                steps.push(Step::DispatchIndirect {
-                    kernel: &self.wide[wk],
-                    push: bytes(Push { c: level, ..push(BUILD_WIDE_MARK, wb) }),
-                    args: &b.wide,
-                    offset: (levels_at + u64::from(BUILD_LV_SLOTS + 3 * level)) * 4,
-                });
-            }
-            steps.push(Step::Mark(&mark_name));
-            for (mode, grid) in
-                [(BUILD_WIDE_COUNT, wide_grid), (BUILD_WIDE_SCAN, [1, 1, 1]), (BUILD_WIDE_NUMBER, wide_grid)]
-            {
-                steps.push(Step::Dispatch { kernel: &self.wide[wk], push: bytes(push(mode, wb)), groups: grid });
-            }
-            steps.push(Step::Mark(&plan_name));
+        let names = StageNames::new(width, tp);
+        let restructure = (builder == BvhBuilder::Trbvh).then_some(tp);
+        let mut steps = self.binary_steps(ctx, scene, &b, base, restructure, &names)?;
+        if let Target::Wide { width, .. } = target {
+            steps.extend(self.wide_plan_steps(ctx, &b, base, width, &names)?);
         }
         let gpu = ctx.run_steps(&format!("build {}", target.kind()), &steps)?;
         drop(steps);
@@ -502,59 +457,176 @@ impl GpuBuilder {
         t = Instant::now();
         let header: Vec<u32> = ctx.read_storage_pod(&b.header, 0, BUILD_HDR_WORDS as usize)?;
         check_header(&header, n)?;
-        let binary_nodes = u64::from(header[BUILD_HDR_NODES as usize]);
         let Buffers { out_nodes, out_indices, wide, geometry, .. } = b;
-        if width == 2 {
-            super::lap(&mut phases, "read header", &mut t);
-            let depth = header[BUILD_HDR_DEPTH as usize];
-            return Ok(DeviceTree::new(
-                target.kind(),
-                builder,
-                (out_nodes, out_indices, geometry),
-                binary_nodes,
-                depth,
-                n,
-                scene.bounds(),
-                (start.elapsed().as_secs_f64() * 1e3, phases),
-            ));
-        }
-        let count = u64::from(header[BUILD_HDR_WIDE_NODES as usize]);
-        let depth = header[BUILD_HDR_WIDE_DEPTH as usize];
-        if count == 0 || count > binary_nodes || depth > MAX_BVH_DEPTH {
-            return Err(Error::Vulkan {
-                what: "GPU build".into(),
-                result: format!("{count} {width}-wide nodes of depth {depth} from {binary_nodes} binary nodes"),
-            });
-        }
-        let texels = if width == 8 { Bvh8::TEXELS } else { Bvh4::TEXELS } as u64;
-        let wide_nodes = ctx.create_buffer("accel_nodes", count * texels * 16, crate::gpu::BufferKind::Storage)?;
-        ctx.bind(&mut self.wide[wk], BINDING_BUILD_WIDE_NODES, &wide_nodes)?;
-        super::lap(&mut phases, "read header, allocate the wide nodes", &mut t);
-        let write_name = format!("gpu {width}-wide: write");
-        let steps = [
-            Step::Dispatch {
-                kernel: &self.wide[wk],
-                push: bytes(push(BUILD_WIDE_WRITE, wide_blocks as u32)),
-                groups: groups(count, BUILD_GROUP)?,
-            },
-            Step::Mark(&write_name),
-        ];
-        let gpu = ctx.run_steps(&format!("build {} (write)", target.kind()), &steps)?;
-        if gpu.is_empty() {
-            super::lap(&mut phases, "gpu write (no timestamps)", &mut t);
-        }
-        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
-        drop((out_nodes, wide));
+        let (nodes, count, depth) = match target {
+            Target::Binary(_) => {
+                super::lap(&mut phases, "read header", &mut t);
+                let count = u64::from(header[BUILD_HDR_NODES as usize]);
+                (out_nodes, count, header[BUILD_HDR_DEPTH as usize])
+            }
+            Target::Wide { width, .. } => {
+                let tree = self.write_wide(ctx, target.kind(), width, &header, base, &names, (&mut phases, &mut t))?;
+                drop((out_nodes, wide));
+                tree
+            }
+        };
         Ok(DeviceTree::new(
             target.kind(),
             builder,
-            (wide_nodes, out_indices, geometry),
+            (nodes, out_indices, geometry),
             count,
             depth,
             n,
             scene.bounds(),
             (start.elapsed().as_secs_f64() * 1e3, phases),
         ))
+    }
+
+    /// The binary tree's steps: bounds, Morton codes, the radix sort, the hierarchy
+    /// and its boxes, the restructuring rounds and collapse of `restructure` (trbvh;
+    /// None: the LBVH's schedule), and the emit of the output nodes.
+    fn binary_steps<'a>(
+        &'a self,
+        ctx: &Context,
+        scene: &Scene,
+        b: &'a Buffers,
+        base: Push,
+        restructure: Option<&TreeletParams>,
+        names: &'a StageNames,
+    ) -> Result<Vec<Step<'a>>> {
+        let n = u64::from(base.n);
+        let push = |a: u32, bb: u32| Push { a, b: bb, ..base };
+        let blocks = n.div_ceil(TILE);
+        let bounds_k = &self.bounds[&geometry(scene)];
+        let mut steps = vec![
+            Step::Dispatch {
+                kernel: bounds_k,
+                push: bytes(push(scene.triangles.len() as u32, 0)),
+                groups: groups(ctx, n, BUILD_GROUP * BUILD_BOUNDS_ITEMS)?,
+            },
+            Step::Mark("gpu bounds"),
+            Step::Dispatch { kernel: &self.morton, push: bytes(push(0, 0)), groups: groups(ctx, n, BUILD_GROUP)? },
+            Step::Mark("gpu morton"),
+        ];
+        let tiles = ctx.grid_for(blocks)?;
+        for pass in 0..4u32 {
+            let p = bytes(push(8 * pass, blocks as u32));
+            steps.push(Step::Dispatch { kernel: &self.hist[pass as usize % 2], push: p.clone(), groups: tiles });
+            let scan = Push { n: (256 * blocks) as u32, ..push(0, 0) };
+            steps.push(Step::Dispatch { kernel: &self.scan, push: bytes(scan), groups: [1, 1, 1] });
+            steps.push(Step::Dispatch { kernel: &self.scatter[pass as usize % 2], push: p, groups: tiles });
+        }
+        steps.push(Step::Mark("gpu sort"));
+        let leaves = groups(ctx, n, self.fit_group)?;
+        steps.push(Step::Dispatch { kernel: &self.fit, push: bytes(push(0, 0)), groups: leaves });
+        steps.push(Step::Mark("gpu hierarchy + fit"));
+        let inner = groups(ctx, n - 1, BUILD_GROUP)?;
+        // trbvh: the restructuring rounds, then the collapse and output-node counts
+        // bottom-up; this leaves every inner node listed by height for the emit pass.
+        // The LBVH collapses nothing, so a subtree of k primitives has k - 1 inner
+        // nodes: it only lists the nodes.
+        let unfinalized = if let Some(tp) = restructure {
+            for (round, name) in names.rounds.iter().enumerate() {
+                let gamma = tp.gamma(round as u32);
+                let p = push(gamma, tp.leaves as u32);
+                steps.extend(by_height(&self.levels, &self.treelet, &b.levels, inner, gamma, p));
+                steps.push(Step::Mark(name));
+            }
+            let p = push(BUILD_FINALIZE_COLLAPSE, 0);
+            steps.extend(by_height(&self.levels, &self.finalize, &b.levels, inner, 0, p));
+            steps.push(Step::Mark("gpu collapse"));
+            0
+        } else {
+            steps.extend(schedule(&self.levels, inner, 0, push(0, 0)));
+            steps.push(Step::Mark("gpu schedule"));
+            BUILD_EMIT_UNFINALIZED
+        };
+        let emit = |mode: u32| push(mode, unfinalized);
+        steps.push(Step::Dispatch { kernel: &self.emit, push: bytes(emit(BUILD_EMIT_ROOT)), groups: [1, 1, 1] });
+        steps.extend(per_height(&self.emit, &b.levels, emit(BUILD_EMIT_TOP), true));
+        steps.push(Step::Mark("gpu emit"));
+        Ok(steps)
+    }
+
+    /// The wide collapse's plan: mark the wide nodes from the top (one indirect
+    /// dispatch per wide level), then count, scan and number them.
+    fn wide_plan_steps<'a>(
+        &'a self,
+        ctx: &Context,
+        b: &'a Buffers,
+        base: Push,
+        width: Width,
+        names: &'a StageNames,
+    ) -> Result<Vec<Step<'a>>> {
+        let n = u64::from(base.n);
+        let wb = n.div_ceil(WIDE_BLOCK) as u32;
+        let wide_grid = ctx.grid_for(u64::from(wb))?;
+        let kernel = &self.wide[width.index()];
+        let push = |mode: u32| Push { a: mode, b: wb, ..base };
+        let mut steps =
+            vec![Step::Dispatch { kernel, push: bytes(push(BUILD_WIDE_SEED)), groups: groups(ctx, n, BUILD_GROUP)? }];
+        // A wide tree is no deeper than its binary tree, which the traversal limits to
+        // MAX_BVH_DEPTH.
+        let levels_at = wide_words(n) - u64::from(4 * BUILD_LV_SLOTS);
+        for level in 0..MAX_BVH_DEPTH {
+            steps.push(Step::DispatchIndirect {
+                kernel,
+                push: bytes(Push { c: level, ..push(BUILD_WIDE_MARK) }),
+                args: &b.wide,
+                offset: (levels_at + u64::from(BUILD_LV_SLOTS + 3 * level)) * 4,
+            });
+        }
+        steps.push(Step::Mark(&names.mark));
+        for (mode, grid) in
+            [(BUILD_WIDE_COUNT, wide_grid), (BUILD_WIDE_SCAN, [1, 1, 1]), (BUILD_WIDE_NUMBER, wide_grid)]
+        {
+            steps.push(Step::Dispatch { kernel, push: bytes(push(mode)), groups: grid });
+        }
+        steps.push(Step::Mark(&names.number));
+        Ok(steps)
+    }
+
+    /// The wide tree's last stage, after the header read: its node count and depth
+    /// checked, its nodes allocated and written. Returns them, their count and depth.
+    #[allow(clippy::too_many_arguments)]
+    fn write_wide(
+        &mut self,
+        ctx: &Context,
+        kind: AccelKind,
+        width: Width,
+        header: &[u32],
+        base: Push,
+        names: &StageNames,
+        (phases, t): (&mut Vec<Phase>, &mut Instant),
+    ) -> Result<(Buffer, u64, u32)> {
+        let binary_nodes = u64::from(header[BUILD_HDR_NODES as usize]);
+        let count = u64::from(header[BUILD_HDR_WIDE_NODES as usize]);
+        let depth = header[BUILD_HDR_WIDE_DEPTH as usize];
+        let w = width.children();
+        if count == 0 || count > binary_nodes || depth > MAX_BVH_DEPTH {
+            return Err(Error::Vulkan {
+                what: "GPU build".into(),
+                result: format!("{count} {w}-wide nodes of depth {depth} from {binary_nodes} binary nodes"),
+            });
+        }
+        let nodes = ctx.create_buffer("accel_nodes", count * width.texels() * 16, crate::gpu::BufferKind::Storage)?;
+        ctx.bind(&mut self.wide[width.index()], BINDING_BUILD_WIDE_NODES, &nodes)?;
+        super::lap(phases, "read header, allocate the wide nodes", t);
+        let wb = u64::from(base.n).div_ceil(WIDE_BLOCK) as u32;
+        let steps = [
+            Step::Dispatch {
+                kernel: &self.wide[width.index()],
+                push: bytes(Push { a: BUILD_WIDE_WRITE, b: wb, ..base }),
+                groups: groups(ctx, count, BUILD_GROUP)?,
+            },
+            Step::Mark(&names.write),
+        ];
+        let gpu = ctx.run_steps(&format!("build {kind} (write)"), &steps)?;
+        if gpu.is_empty() {
+            super::lap(phases, "gpu write (no timestamps)", t);
+        }
+        phases.extend(gpu.into_iter().map(|(name, ms)| Phase { name, ms, detail: None }));
+        Ok((nodes, count, depth))
     }
 
     fn bind(&mut self, ctx: &Context, scene: &Scene, b: &Buffers) -> Result<()> {
@@ -612,6 +684,37 @@ impl GpuBuilder {
 /// Words of the wide collapse's buffer for `n` primitives (shaders/build_wide.comp):
 /// a word per output node, the block counts, two level lists of n / 2 + 1, and per
 /// level a count and three dispatch arguments.
+/// The names of the build's timed phases that are built at run time (a `Step::Mark`
+/// borrows its name for as long as the steps live).
+struct StageNames {
+    /// trbvh's restructuring rounds (none for the LBVH).
+    rounds: Vec<String>,
+    mark: String,
+    number: String,
+    write: String,
+}
+
+impl StageNames {
+    fn new(width: u32, tp: &TreeletParams) -> StageNames {
+        StageNames {
+            rounds: (0..tp.rounds).map(|r| format!("gpu restructure round {}", r + 1)).collect(),
+            mark: format!("gpu {width}-wide: mark"),
+            number: format!("gpu {width}-wide: number"),
+            write: format!("gpu {width}-wide: write"),
+        }
+    }
+}
+
+/// A push constant's bytes.
+fn bytes(p: Push) -> Vec<u8> {
+    bytemuck::bytes_of(&p).to_vec()
+}
+
+/// Workgroups for `threads` threads, `size` a group.
+fn groups(ctx: &Context, threads: u64, size: u32) -> Result<[u32; 3]> {
+    ctx.grid_for(threads.div_ceil(u64::from(size)))
+}
+
 fn wide_words(n: u64) -> u64 {
     n + n.div_ceil(WIDE_BLOCK) + 2 * (n / 2 + 1) + u64::from(4 * BUILD_LV_SLOTS)
 }
@@ -653,11 +756,11 @@ fn empty_tree(ctx: &Context, scene: &Scene, target: Target, tp: &TreeletParams) 
     let bin = Bvh::build_with(scene, target.source(), tp);
     let (words, count, depth): (Vec<u8>, u64, u32) = match target {
         Target::Binary(_) => (bytemuck::cast_slice(&bin.nodes).to_vec(), bin.nodes.len() as u64, bin.depth),
-        Target::Wide { width: 8, .. } => {
+        Target::Wide { width: Width::Eight, .. } => {
             let w = Bvh8::collapse(&bin);
             (bytemuck::cast_slice(&w.nodes).to_vec(), w.node_count() as u64, w.depth)
         }
-        Target::Wide { .. } => {
+        Target::Wide { width: Width::Four, .. } => {
             let w = Bvh4::collapse(&bin);
             (bytemuck::cast_slice(&w.nodes).to_vec(), w.node_count() as u64, w.depth)
         }

@@ -48,15 +48,15 @@ pub mod treelet;
 pub mod wide;
 
 /// Most primitives in one leaf (3 bits of the child reference).
-pub const MAX_LEAF: usize = 8;
+pub const MAX_LEAF: usize = crate::gpu::bindings::BVH_MAX_LEAF as usize;
 /// Deepest tree (inner nodes on a path) the kernel's stack is allowed to hold.
 pub const MAX_BVH_DEPTH: u32 = 128;
 /// Most primitives a BVH can index (28 bits of the child reference).
 pub const MAX_BVH_PRIMS: usize = 1 << 28;
 /// Child reference flag: a leaf.
-pub const LEAF_REF: u32 = 0x8000_0000;
+pub const LEAF_REF: u32 = crate::gpu::bindings::BVH_LEAF_REF;
 /// Child reference of a missing child.
-pub const EMPTY_REF: u32 = 0xffff_ffff;
+pub const EMPTY_REF: u32 = crate::gpu::bindings::BVH_EMPTY_REF;
 /// Relative margin of the box test against the best hit so far: a box entered within
 /// it of the best t is still visited, so ties at equal t resolve as brute force does
 /// (the same margin as the kd-tree's, see `kdtree::T_MARGIN`).
@@ -131,7 +131,7 @@ impl PrimRefs {
 }
 
 /// Flag of [`BNode::left`] marking a leaf.
-pub const LEAF_FLAG: u32 = 0x8000_0000;
+pub const LEAF_FLAG: u32 = crate::gpu::bindings::BUILD_LEAF_FLAG;
 
 /// A node of the canonical binary BVH. Inner: `left`, `right` are node indices.
 /// Leaf: `left` = `LEAF_FLAG | first`, `right` = count, a range of [`Binary::prims`].

@@ -27,15 +27,15 @@ use std::time::Instant;
 use self::pacing::Sizer;
 use self::resume::{ResumeTotals, Resumer};
 use super::Frame;
-use crate::accel::gpu_layout::{GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
+use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
 use crate::error::Result;
-use crate::gpu::bindings::WORKGROUP_SIZE;
+use crate::gpu::bindings::{PASS_TRACE, WORKGROUP_SIZE};
 use crate::gpu::{Buffer, Context, DispatchRing, Kernel};
 
 pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
 
-/// Byte of the dispatch header the trace kernel counts stopped samples in
-/// (`GpuDispatch::chunk`, whose last word it is; copied back after every dispatch).
+/// Byte of the dispatch header the ring copies back after every dispatch
+/// (`GpuDispatch::chunk`, whose `counter` is the samples the trace kernel stopped).
 const HEADER_COUNTERS: u64 = std::mem::offset_of!(GpuDispatch, chunk) as u64;
 
 /// The image's pixels and samples, and how much of it the device holds at once.
@@ -72,10 +72,17 @@ impl Waves {
     fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32), tree_steps: u32) -> GpuDispatch {
         let [x0, y0, w] = self.window;
         GpuDispatch {
-            range: [first as u32, n as u32, s, s_end],
-            chunk: [chunk as u32, u32::from(self.resumed), 0, 0],
-            window: [x0, y0, w, self.first_sample],
-            limits: [tree_steps, 0, 0, 0],
+            first: first as u32,
+            count: n as u32,
+            sample_begin: s,
+            sample_end: s_end,
+            chunk: DispatchChunk { base: chunk as u32, resumed: u32::from(self.resumed), pass: PASS_TRACE, counter: 0 },
+            window_left: x0,
+            window_top: y0,
+            window_width: w,
+            zero_sample: self.first_sample,
+            trace_steps: tree_steps,
+            unused: [0; 3],
         }
     }
 }
@@ -144,7 +151,7 @@ impl Flight<'_, '_> {
     /// Submits the dispatch of `header` (`units` pixel-samples); [`Flight::make_room`]
     /// came first.
     fn submit(&mut self, header: GpuDispatch, units: u64) -> Result<()> {
-        let [first, n, s, s_end] = header.range;
+        let (first, n, s, s_end) = (header.first, header.count, header.sample_begin, header.sample_end);
         let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
         let groups = n.div_ceil(WORKGROUP_SIZE);
         self.ring.submit(
@@ -175,7 +182,7 @@ impl Flight<'_, '_> {
         if let Some(ms) = landed.gpu_ms {
             self.totals.lengths_ms.push(ms);
         }
-        let stopped = landed.words[3];
+        let stopped = bytemuck::cast::<[u32; 4], DispatchChunk>(landed.words).counter;
         self.resumer.settle(self.pixel_buf, p.header, stopped, &mut self.totals.gpu_ms)?;
         self.totals.resumes = self.resumer.totals;
         self.done += p.units;

@@ -11,7 +11,7 @@
 
 use super::kernel::Variant;
 use super::upload::{self, Bound};
-use crate::accel::gpu_layout::GpuDispatch;
+use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch};
 use crate::accel::GpuImage;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
@@ -139,8 +139,9 @@ impl<'a> Resumer<'a> {
     /// Samples the last dispatch stopped, or the jobs the last resume pass gave out
     /// (the header's counter).
     fn count(&self, pixel_buf: &Buffer) -> Result<u32> {
-        let chunk = self.ctx.read_storage_pod::<u32>(pixel_buf, std::mem::offset_of!(GpuDispatch, chunk) as u64, 4)?;
-        Ok(chunk[3])
+        let at = std::mem::offset_of!(GpuDispatch, chunk) as u64;
+        let chunk = self.ctx.read_storage_pod::<DispatchChunk>(pixel_buf, at, 1)?;
+        Ok(chunk.first().map_or(0, |c| c.counter))
     }
 
     fn kernel(&mut self) -> Result<&Kernel> {
@@ -170,10 +171,10 @@ impl<'a> Resumer<'a> {
     /// One resume dispatch of `header` running `jobs` jobs, its time added to `gpu_ms`;
     /// the header's counter after it.
     fn dispatch(&mut self, pixel_buf: &Buffer, h: &GpuDispatch, jobs: u32, gpu_ms: &mut Option<f64>) -> Result<u32> {
-        let groups = h.range[1].div_ceil(WORKGROUP_SIZE);
-        let label = match h.chunk[2] {
-            PASS_SWEEP => format!("resume: pixels {}+{}", h.range[0], h.range[1]),
-            _ => format!("resume: jobs {}+{}", h.range[0], h.range[1]),
+        let groups = h.count.div_ceil(WORKGROUP_SIZE);
+        let label = match h.chunk.pass {
+            PASS_SWEEP => format!("resume: pixels {}+{}", h.first, h.count),
+            _ => format!("resume: jobs {}+{}", h.first, h.count),
         };
         let ctx = self.ctx;
         let kernel = self.kernel()?;
@@ -206,8 +207,8 @@ impl<'a> Resumer<'a> {
         }
         self.totals.samples += u64::from(stopped);
         let mut h = header;
-        h.chunk[2] = PASS_SWEEP;
-        h.chunk[3] = 0;
+        h.chunk.pass = PASS_SWEEP;
+        h.chunk.counter = 0;
         let mut jobs = self.dispatch(pixel_buf, &h, stopped, gpu_ms)?;
         let mut pass = PASS_LIST0;
         let mut passes = 1u32;
@@ -222,15 +223,15 @@ impl<'a> Resumer<'a> {
                 ));
             }
             let held = jobs.min(self.shape.records);
-            h.chunk[2] = pass;
-            h.chunk[3] = 0;
-            h.range[0] = 0;
-            h.range[1] = held;
+            h.chunk.pass = pass;
+            h.chunk.counter = 0;
+            h.first = 0;
+            h.count = held;
             let mut next = self.dispatch(pixel_buf, &h, held, gpu_ms)?;
             if jobs > held {
-                h.chunk[3] = next;
-                h.range[0] = held;
-                h.range[1] = jobs - held;
+                h.chunk.counter = next;
+                h.first = held;
+                h.count = jobs - held;
                 next = self.dispatch(pixel_buf, &h, jobs - held, gpu_ms)?;
             }
             jobs = next;
