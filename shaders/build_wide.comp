@@ -237,14 +237,14 @@ void main() {
     if (j >= hdr[BUILD_HDR_WIDE_NODES]) return;
     open_kids(wide[lists() + j]);
     uint row = W / 4u;
-    uint base = j * 7u * row;
+    uint base = j * WIDE_NODE_PLANES * row;
     [[unroll]] for (uint k = 0u; k < W; k++) {
         uint r = kref[k];
         if ((r & LEAF_REF) == 0u) r = wide[r];
         // Empty slots: EMPTY_REF with an all-zero box (open_kids cleared them).
-        uint planes[7] = uint[7](floatBitsToUint(klo[k].x), floatBitsToUint(klo[k].y), floatBitsToUint(klo[k].z),
+        uint planes[WIDE_NODE_PLANES] = uint[WIDE_NODE_PLANES](floatBitsToUint(klo[k].x), floatBitsToUint(klo[k].y), floatBitsToUint(klo[k].z),
             floatBitsToUint(khi[k].x), floatBitsToUint(khi[k].y), floatBitsToUint(khi[k].z), r);
-        [[unroll]] for (uint p = 0u; p < 7u; p++) {
+        [[unroll]] for (uint p = 0u; p < WIDE_NODE_PLANES; p++) {
             wide_nodes[4u * (base + p * row + k / 4u) + k % 4u] = planes[p];
         }
     }

@@ -30,7 +30,7 @@ bool bvh4_traverse(Ray r, inout Hit h, bool any_hit) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
             g_nodes += 1u;
-            uint base = 7u * cur;
+            uint base = WIDE_NODE_PLANES * cur;
             vec4 lx = uintBitsToFloat(node_texel(base));
             vec4 ly = uintBitsToFloat(node_texel(base + 1u));
             vec4 lz = uintBitsToFloat(node_texel(base + 2u));

@@ -11,7 +11,7 @@ void wide8_keys(uint node, Ray r, vec3 inv, float limit,
                 out float k4, out float k5, out float k6, out float k7,
                 out uint r0, out uint r1, out uint r2, out uint r3,
                 out uint r4, out uint r5, out uint r6, out uint r7) {
-    uint base = 14u * node;
+    uint base = WIDE_NODE_PLANES * 2u * node;
     vec4 lxa = uintBitsToFloat(node_texel(base)), lxb = uintBitsToFloat(node_texel(base + 1u));
     vec4 lya = uintBitsToFloat(node_texel(base + 2u)), lyb = uintBitsToFloat(node_texel(base + 3u));
     vec4 lza = uintBitsToFloat(node_texel(base + 4u)), lzb = uintBitsToFloat(node_texel(base + 5u));

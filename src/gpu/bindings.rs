@@ -67,6 +67,10 @@ pub const BVH_MAX_LEAF: u32 = 8;
 /// Flag of a canonical binary node's left word marking a leaf (`accel::bvh::LEAF_FLAG`;
 /// the GPU builders' `LEAF_FLAG`).
 pub const BUILD_LEAF_FLAG: u32 = 0x8000_0000;
+/// Planes of a `bvh4` / `bvh8` node (lo x, y, z, hi x, y, z, child reference), each
+/// one word per child: `WIDE_NODE_PLANES * width / 4` texels a node (`WideBvh::TEXELS`,
+/// written by build_wide.comp, read by the trace kernels).
+pub const WIDE_NODE_PLANES: u32 = 7;
 /// Header words: centroid box min xyz and max xyz as order-preserving uints.
 pub const BUILD_HDR_CMIN: u32 = 0;
 pub const BUILD_HDR_CMAX: u32 = 3;
@@ -346,6 +350,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BVH_EMPTY_REF", BVH_EMPTY_REF),
     ("BVH_MAX_LEAF", BVH_MAX_LEAF),
     ("BUILD_LEAF_FLAG", BUILD_LEAF_FLAG),
+    ("WIDE_NODE_PLANES", WIDE_NODE_PLANES),
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),
     ("INST_ENTRY_OWN", INST_ENTRY_OWN),
     ("INST_ENTRY_STEPS", INST_ENTRY_STEPS),

@@ -97,7 +97,7 @@ impl<const W: usize> WideBvh<W> {
     /// Texels per row of the layout.
     const ROW: usize = W / 4;
     /// Texels per node.
-    pub const TEXELS: usize = 7 * W / 4;
+    pub const TEXELS: usize = crate::gpu::bindings::WIDE_NODE_PLANES as usize * W / 4;
 
     /// The structure's name (`bvh4`, `bvh8`).
     pub fn name() -> &'static str {
