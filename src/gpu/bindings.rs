@@ -168,7 +168,7 @@ pub const SPEC_LIGHTS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
 /// Traversal stack entries (tree depth + 1).
 pub const SPEC_STACK_SIZE: u32 = 2;
-// 3 was SPEC_TREE_STEPS, now in the dispatch header (`GpuDispatch::limits`).
+// 3 was SPEC_TREE_STEPS, now in the dispatch header (`GpuDispatch::trace_steps`).
 // 4 was SPEC_BRUTE_UNROLL, now a define per kernel (BRUTE_UNROLL_FACTORS).
 /// Ray/triangle test: 0 watertight (Woop et al. 2013), 1 fast (Moller-Trumbore).
 pub const SPEC_INTERSECT: u32 = 5;
@@ -279,7 +279,7 @@ pub const RESUME_LOOPS_PER_TRACE: u64 = 8;
 /// axis) after the step into an instance (INST_ENTRY_STEPS) must fit, or its traces
 /// could not advance.
 pub const MIN_FORCED_TRACE_STEPS: u32 = 48;
-/// Passes of the trace kernel (`GpuDispatch::chunk[2]`): the samples of a pixel range;
+/// Passes of the trace kernel (`DispatchChunk::pass`): the samples of a pixel range;
 /// the resume kernel over that range, for pixels behind (job list 0 out); over job
 /// list 0 (list 1 out); over list 1 (list 0 out).
 pub const PASS_TRACE: u32 = 0;

@@ -35,12 +35,7 @@ pub fn render_with(
     accel: &Accel,
     progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
-    match settings.integrator {
-        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, accel, progress),
-        Integrator::Path => {
-            super::path::render_with(ctx, scene, settings, accel, super::path::Control::progress_only(progress))
-        }
-    }
+    run(ctx, scene, settings, accel, super::path::Control::progress_only(progress))
 }
 
 /// Builds the structure and renders with `control`: progress, and for the path
@@ -54,8 +49,19 @@ pub fn render_controlled(
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
     let accel = Accel::build_on(ctx, settings.accel, scene, &settings.params)?;
+    run(ctx, scene, settings, &accel, control)
+}
+
+/// The settings' integrator over `accel` (the one place that chooses it).
+fn run(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    accel: &Accel,
+    control: super::path::Control<'_>,
+) -> Result<(Frame, RenderStats)> {
     match settings.integrator {
-        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, &accel, control.progress),
-        Integrator::Path => super::path::render_with(ctx, scene, settings, &accel, control),
+        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, accel, control.progress),
+        Integrator::Path => super::path::render_with(ctx, scene, settings, accel, control),
     }
 }

@@ -472,12 +472,32 @@ fn material(
 fn texture(d: &gltf::image::Data, name: &str) -> std::result::Result<Texture, String> {
     use gltf::image::Format;
     let n = d.width as usize * d.height as usize;
-    let texels: Vec<[u8; 4]> = match d.format {
-        Format::R8G8B8A8 => d.pixels.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]).collect(),
-        Format::R8G8B8 => d.pixels.chunks_exact(3).map(|p| [p[0], p[1], p[2], 255]).collect(),
-        Format::R8 => d.pixels.iter().map(|&v| [v, v, v, 255]).collect(),
-        Format::R8G8 => d.pixels.chunks_exact(2).map(|p| [p[0], p[0], p[0], p[1]]).collect(),
-        other => return Err(format!("{name}: image format {other:?} is not supported (8-bit images only)")),
+    // 16-bit channels (native-endian words, as the image decoder gives them) rounded
+    // to 8 bits: normal and metallic-roughness maps are often 16-bit PNGs.
+    let narrowed: Vec<u8>;
+    let (px, channels) = match d.format {
+        Format::R8 => (&d.pixels[..], 1),
+        Format::R8G8 => (&d.pixels[..], 2),
+        Format::R8G8B8 => (&d.pixels[..], 3),
+        Format::R8G8B8A8 => (&d.pixels[..], 4),
+        Format::R16 | Format::R16G16 | Format::R16G16B16 | Format::R16G16B16A16 => {
+            let to8 = |c: &[u8]| ((u32::from(u16::from_ne_bytes([c[0], c[1]])) * 255 + 32_767) / 65_535) as u8;
+            narrowed = d.pixels.chunks_exact(2).map(to8).collect();
+            let channels = match d.format {
+                Format::R16 => 1,
+                Format::R16G16 => 2,
+                Format::R16G16B16 => 3,
+                _ => 4,
+            };
+            (&narrowed[..], channels)
+        }
+        other => return Err(format!("{name}: image format {other:?} is not supported (8- and 16-bit images only)")),
+    };
+    let texels: Vec<[u8; 4]> = match channels {
+        1 => px.iter().map(|&v| [v, v, v, 255]).collect(),
+        2 => px.chunks_exact(2).map(|p| [p[0], p[0], p[0], p[1]]).collect(),
+        3 => px.chunks_exact(3).map(|p| [p[0], p[1], p[2], 255]).collect(),
+        _ => px.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]).collect(),
     };
     if texels.len() != n || n == 0 {
         return Err(format!("{name}: the image has {} texels for {}x{}", texels.len(), d.width, d.height));

@@ -307,14 +307,14 @@ impl SceneBuilder {
             if let Some(what) = m.microfacet_error() {
                 return Err(err(format!("material {k} ('{}'): {what}", m.name)));
             }
+            if let Some(t) = m.textures().find(|&t| t as usize >= s.textures.len()) {
+                return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
+            }
             if m.maps.metal_rough.into_iter().chain(m.maps.normal).any(|t| t >= MAX_MAP_INDEX) {
                 return Err(err(format!(
                     "material {k} ('{}'): a map's texture index is {MAX_MAP_INDEX} or more",
                     m.name
                 )));
-            }
-            if let Some(t) = m.textures().find(|&t| t as usize >= s.textures.len()) {
-                return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
             }
         }
         for (k, t) in s.textures.iter().enumerate() {

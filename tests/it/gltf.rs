@@ -300,16 +300,19 @@ fn metals_and_transmission_map_to_microfacet_materials() {
     assert_eq!(t.warnings, s.warnings);
 }
 
-/// The metallic-roughness texture, the normal texture with its scale and
-/// KHR_materials_specular come through to the material; what is not read (an emissive
+/// The metallic-roughness texture, the normal texture (a 16-bit PNG) with its scale
+/// and KHR_materials_specular come through to the material; what is not read (an emissive
 /// texture, a texture of coordinate set 1, a specular texture) is named in one
 /// warning; a file whose textures need UVs it lacks is an error naming the material.
 #[test]
 fn metallic_roughness_maps_and_specular_come_through() {
     let dir = tempfile::tempdir().expect("tempdir");
-    for (name, px) in [("mr.png", [0u8, 128, 255, 255]), ("n.png", [128, 128, 255, 255]), ("e.png", [255, 0, 0, 255])] {
+    for (name, px) in [("mr.png", [0u8, 128, 255, 255]), ("e.png", [255, 0, 0, 255])] {
         image::RgbaImage::from_pixel(2, 2, image::Rgba(px)).save(dir.path().join(name)).expect("png");
     }
+    // The normal map in 16 bits per channel, as many are: rounded to 8.
+    let n16 = image::ImageBuffer::from_pixel(2, 2, image::Rgba([32_896u16, 32_896, 65_535, 65_535]));
+    n16.save(dir.path().join("n.png")).expect("16-bit png");
     // A triangle: positions, then UVs.
     let mut bin: Vec<u8> = Vec::new();
     for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {

@@ -681,9 +681,6 @@ impl GpuBuilder {
     }
 }
 
-/// Words of the wide collapse's buffer for `n` primitives (shaders/build_wide.comp):
-/// a word per output node, the block counts, two level lists of n / 2 + 1, and per
-/// level a count and three dispatch arguments.
 /// The names of the build's timed phases that are built at run time (a `Step::Mark`
 /// borrows its name for as long as the steps live).
 struct StageNames {
@@ -715,6 +712,9 @@ fn groups(ctx: &Context, threads: u64, size: u32) -> Result<[u32; 3]> {
     ctx.grid_for(threads.div_ceil(u64::from(size)))
 }
 
+/// Words of the wide collapse's buffer for `n` primitives (shaders/build_wide.comp):
+/// a word per output node, the block counts, two level lists of n / 2 + 1, and per
+/// level a count and three dispatch arguments.
 fn wide_words(n: u64) -> u64 {
     n + n.div_ceil(WIDE_BLOCK) + 2 * (n / 2 + 1) + u64::from(4 * BUILD_LV_SLOTS)
 }

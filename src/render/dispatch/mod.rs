@@ -178,7 +178,7 @@ impl Flight<'_, '_> {
         self.last_landed = Some(now);
         let ms = landed.gpu_ms.unwrap_or_else(|| now.duration_since(busy_from).as_secs_f64() * 1e3);
         self.sizer.measured(p.units, ms);
-        self.totals.gpu_ms = add(self.totals.gpu_ms, landed.gpu_ms);
+        self.totals.gpu_ms = add_ms(self.totals.gpu_ms, landed.gpu_ms);
         if let Some(ms) = landed.gpu_ms {
             self.totals.lengths_ms.push(ms);
         }
@@ -354,7 +354,9 @@ fn run_chunks(
     Ok(false)
 }
 
-fn add(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+/// The sum of two GPU times, or None when either is unknown (no timestamps): the one
+/// way dispatches, resume passes and ray batches add up their milliseconds.
+pub(crate) fn add_ms(a: Option<f64>, b: Option<f64>) -> Option<f64> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a + b),
         _ => None,

@@ -9,6 +9,7 @@
 //! and sum them in the same order. The pool's layout and the kernel side:
 //! `shaders/common/resume.glsl`.
 
+use super::add_ms;
 use super::kernel::Variant;
 use super::upload::{self, Bound};
 use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch};
@@ -179,8 +180,8 @@ impl<'a> Resumer<'a> {
         let ctx = self.ctx;
         let kernel = self.kernel()?;
         let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(h), [groups, 1, 1], &label)?;
-        *gpu_ms = add(*gpu_ms, ms);
-        self.totals.gpu_ms = add(self.totals.gpu_ms, ms);
+        *gpu_ms = add_ms(*gpu_ms, ms);
+        self.totals.gpu_ms = add_ms(self.totals.gpu_ms, ms);
         self.totals.dispatches += 1;
         self.totals.jobs += u64::from(jobs);
         self.count(pixel_buf)
@@ -239,12 +240,5 @@ impl<'a> Resumer<'a> {
             passes += 1;
         }
         Ok(())
-    }
-}
-
-fn add(a: Option<f64>, b: Option<f64>) -> Option<f64> {
-    match (a, b) {
-        (Some(a), Some(b)) => Some(a + b),
-        _ => None,
     }
 }

@@ -254,10 +254,7 @@ impl<'a> RayTracer<'a> {
                 Ok(Next::Continue)
             })?;
             stats.dispatches += totals.dispatches;
-            stats.gpu_ms = match (stats.gpu_ms, totals.gpu_ms) {
-                (Some(a), Some(b)) => Some(a + b),
-                _ => None,
-            };
+            stats.gpu_ms = crate::render::dispatch::add_ms(stats.gpu_ms, totals.gpu_ms);
         }
         stats.resumed = resumer.totals.samples;
         stats.resume_dispatches = resumer.totals.dispatches;
