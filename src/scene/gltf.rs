@@ -448,7 +448,7 @@ fn material(
             }
             (s.specular_factor(), Vec3::from(s.specular_color_factor()))
         });
-        let f0 = super::scene_file::dielectric_f0(ior.max(1.0));
+        let f0 = super::mesh::dielectric_f0(ior.max(1.0));
         out.dielectric_f0 = (colour.max(Vec3::ZERO) * f0).min(Vec3::ONE);
         out.specular_weight = weight.clamp(0.0, 1.0);
         let mr = pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord()));

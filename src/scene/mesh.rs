@@ -84,6 +84,11 @@ pub struct Material {
     pub maps: Maps,
 }
 
+/// The reflectance at normal incidence of a dielectric of index `ior` in air.
+pub fn dielectric_f0(ior: f32) -> f32 {
+    ((ior - 1.0) / (ior + 1.0)).powi(2)
+}
+
 /// A metallic-roughness material's textures (indices as [`Material::texture`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Maps {

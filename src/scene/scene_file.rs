@@ -256,11 +256,6 @@ fn misplaced_key(d: &MaterialDef) -> Option<String> {
     None
 }
 
-/// The reflectance at normal incidence of a dielectric of index `ior` in air.
-pub fn dielectric_f0(ior: f32) -> f32 {
-    ((ior - 1.0) / (ior + 1.0)).powi(2)
-}
-
 fn v3(a: [f32; 3]) -> Vec3 {
     Vec3::from_array(a)
 }
@@ -335,7 +330,7 @@ pub fn load(path: &Path) -> Result<Scene> {
             roughness: d.roughness.unwrap_or(if d.kind == MaterialKind::Pbr { 0.5 } else { 0.0 }),
             complex_ior,
             metallic: d.metallic.unwrap_or(0.0),
-            dielectric_f0: Vec3::splat(dielectric_f0(d.ior.unwrap_or(1.5))),
+            dielectric_f0: Vec3::splat(super::mesh::dielectric_f0(d.ior.unwrap_or(1.5))),
             ..base
         };
         let bad = !(mat.color.is_finite()

@@ -13,6 +13,16 @@ fn model(rel: &str) -> PathBuf {
     Path::new(MODELS).join(rel)
 }
 
+/// The end of a glTF JSON whose mesh 0 reads accessor 0: one triangle (0,0,0), (1,0,0),
+/// (0,1,0) in an embedded buffer, and the closing brace.
+const ONE_TRIANGLE: &str = r#"
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36,
+                   "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
+    }"#;
+
 fn have_models() -> bool {
     let ok = model("BoxTextured-glTF/BoxTextured.gltf").exists();
     if !ok {
@@ -223,15 +233,11 @@ fn shared_meshes_become_instances_and_a_node_scaled_to_nothing_stays_flat() {
         {"mesh": 0, "translation": [2, 0, 0], "rotation": [0, 0, 0.7071068, 0.7071068]}
       ],
       "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                     "min": [0, 0, 0], "max": [1, 1, 0]}],
-      "bufferViews": [{"buffer": 0, "byteLength": 36}],
-      "buffers": [{"byteLength": 36,
-                   "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
-    }"#;
+"#;
+    let json = [json, ONE_TRIANGLE].concat();
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("shared.gltf");
-    std::fs::write(&path, json).expect("gltf");
+    std::fs::write(&path, &json).expect("gltf");
     let s = Scene::load(&path.display().to_string()).expect("loads");
     let inst = s.instancing.as_ref().expect("instances");
     assert_eq!((inst.prototypes.len(), inst.instances.len()), (1, 2));
@@ -270,15 +276,11 @@ fn metals_and_transmission_map_to_microfacet_materials() {
       ],
       "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]},
                  {"primitives": [{"attributes": {"POSITION": 0}, "material": 1}]}],
-      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                     "min": [0, 0, 0], "max": [1, 1, 0]}],
-      "bufferViews": [{"buffer": 0, "byteLength": 36}],
-      "buffers": [{"byteLength": 36,
-                   "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
-    }"#;
+"#;
+    let json = [json, ONE_TRIANGLE].concat();
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("materials.gltf");
-    std::fs::write(&path, json).expect("gltf");
+    std::fs::write(&path, &json).expect("gltf");
     let s = Scene::load(&path.display().to_string()).expect("loads");
     let by_name = |n: &str| s.materials.iter().find(|m| m.name == n).expect(n);
     let gold = by_name("gold");
