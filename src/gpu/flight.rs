@@ -6,9 +6,14 @@
 //! submissions in the order it made them ([`DispatchRing::land_oldest`]): their GPU
 //! time and copied words, and their span on the timeline.
 //!
+//! The header is written in the submission (vkCmdUpdateBuffer), not passed as push
+//! constants: lavapipe compiles a shader again, at every dispatch, for the push-constant
+//! and uniform values its control flow depends on, and leaves values read from storage
+//! alone.
+//!
 //! Ordering: submissions to one queue start in order, and every submission opens with
-//! a global barrier (as [`Context::dispatch_after_write`] does), which orders it after
-//! everything submitted before it, ring or not. So the header a kernel reads is its own
+//! a global barrier (as [`Context::dispatch`] does), which orders it after everything
+//! submitted before it, ring or not. So the header a kernel reads is its own
 //! and the pixels it reads are those the dispatches before it left.
 
 use std::collections::VecDeque;

@@ -535,33 +535,6 @@ impl Context {
         })
     }
 
-    /// [`Context::dispatch`] with `data` first written into `buffer` at byte `offset`,
-    /// in the same submission and inside its timestamps (vkCmdUpdateBuffer, then a full
-    /// barrier). For per-dispatch values a kernel branches or loops on: lavapipe
-    /// compiles a shader again, at every dispatch, for the push-constant and uniform
-    /// values its control flow depends on; values read from storage are left alone.
-    pub fn dispatch_after_write(
-        &self,
-        kernel: &Kernel,
-        buffer: &Buffer,
-        offset: u64,
-        data: &[u8],
-        groups: [u32; 3],
-        label: &str,
-    ) -> Result<Option<f64>> {
-        self.check_dispatch(kernel, &[], groups)?;
-        check_update(kernel, buffer, offset, data)?;
-        let work = Work::new("dispatch").arg("kernel", kernel.name.as_str()).arg("groups", groups[0]);
-        self.submit_as(work, label, |dev, cb| {
-            barrier_all(dev, cb);
-            // SAFETY: recording scope; `buffer` is live, created with TRANSFER_DST
-            // (every storage buffer is), and the range was checked above.
-            unsafe { dev.cmd_update_buffer(cb, buffer.raw, offset, data) };
-            barrier_all(dev, cb);
-            record_dispatch(dev, cb, kernel, &[], groups);
-        })
-    }
-
     /// Workgroup counts covering `groups` workgroups in a 2D grid within the device
     /// limits (x first); kernels recover the linear index as
     /// `gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x` and skip past the end.

@@ -178,6 +178,63 @@ impl LoopBounds {
     }
 }
 
+/// What a kernel runs: an integrator's entry point of `trace.comp` (its
+/// `SPEC_INTEGRATOR` value and module suffix, [`TRACE_ENTRIES`]), or the ray-batch
+/// kernel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Entry {
+    /// The Whitted integrator (`trace_*.whitted`).
+    Whitted,
+    /// The path tracer (`trace_*.path`).
+    Path,
+    /// The benchmark's probe: camera rays, and one bounce with `SPEC_DIFFUSE_PROBE`
+    /// (`trace_*.probe`).
+    Probe,
+    /// Ray batches (`rays_*`): one trace a job, resumed as the probe's.
+    Rays,
+}
+
+impl Entry {
+    /// The value of `SPEC_INTEGRATOR` the kernel is specialised with.
+    pub fn spec(self) -> u32 {
+        match self {
+            Entry::Whitted => INTEGRATOR_WHITTED,
+            Entry::Path => INTEGRATOR_PATH,
+            // The resume sweep finds a stopped ray by its zero count, as a probe's
+            // (shaders/common/resume_trace.glsl).
+            Entry::Probe | Entry::Rays => INTEGRATOR_PROBE,
+        }
+    }
+
+    /// The kernel family's name prefix: `trace` or `rays`.
+    pub fn prefix(self) -> &'static str {
+        match self {
+            Entry::Rays => "rays",
+            _ => "trace",
+        }
+    }
+
+    /// The SPIR-V module of the variant named `name`: the variant itself for ray
+    /// batches, `name.<entry>` for the trace kernel's integrators.
+    fn module(self, name: &str) -> Result<String> {
+        if self == Entry::Rays {
+            return Ok(name.to_string());
+        }
+        let integrator = self.spec();
+        let entry = TRACE_ENTRIES.iter().find(|e| e.1 == integrator).map(|e| e.0);
+        let entry = entry.ok_or_else(|| Error::Failed(format!("no trace entry point {integrator}")))?;
+        Ok(format!("{name}.{entry}"))
+    }
+
+    /// What one unit of the loop's work is, in messages: a pixel or a ray.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Entry::Rays => "rays",
+            _ => "pixels",
+        }
+    }
+}
+
 /// A trace kernel variant with its SPIR-V and bindings, before specialization.
 #[derive(Debug)]
 pub struct Variant {
@@ -187,14 +244,13 @@ pub struct Variant {
 }
 
 impl Variant {
-    /// `<prefix>_<family>_<geometry>` for `image`'s structure family and the scene's
-    /// geometry (or every buffer with [`KernelChoice::General`]), with `_x8` or `_x32`
-    /// for brute force's unrolled loops (`bounds.unroll`). A trace kernel's module is
-    /// that name and the entry point of the integrator `spec` specializes
-    /// (`.whitted`, `.path` or `.probe`, [`TRACE_ENTRIES`]).
+    /// `<prefix>_<family>_<geometry>` for `entry`'s kernel ([`Entry::prefix`]),
+    /// `image`'s structure family and the scene's geometry (or every buffer with
+    /// [`KernelChoice::General`]), with `_x8` or `_x32` for brute force's unrolled
+    /// loops (`bounds.unroll`). A trace kernel's module is that name and the entry
+    /// point's suffix (`.whitted`, `.path` or `.probe`, [`TRACE_ENTRIES`]).
     pub fn new(
-        prefix: &str,
-        spec: &[(u32, u32)],
+        entry: Entry,
         scene: &Scene,
         choice: KernelChoice,
         image: &GpuImage,
@@ -202,16 +258,8 @@ impl Variant {
     ) -> Result<Variant> {
         let geometry = kernel_geometry(scene, choice);
         let unrolled = if bounds.unroll > 1 { format!("_x{}", bounds.unroll) } else { String::new() };
-        let name = format!("{prefix}_{}_{geometry}{unrolled}", image.family);
-        let module = match prefix {
-            "trace" => {
-                let integrator = spec.iter().find(|s| s.0 == SPEC_INTEGRATOR).map_or(INTEGRATOR_WHITTED, |s| s.1);
-                let entry = TRACE_ENTRIES.iter().find(|e| e.1 == integrator).map(|e| e.0);
-                let entry = entry.ok_or_else(|| Error::Failed(format!("no trace entry point {integrator}")))?;
-                format!("{name}.{entry}")
-            }
-            _ => name.clone(),
-        };
+        let name = format!("{}_{}_{geometry}{unrolled}", entry.prefix(), image.family);
+        let module = entry.module(&name)?;
         let spirv = crate::gpu::spirv::get(&module)
             .ok_or_else(|| Error::Failed(format!("no kernel '{module}' was compiled")))?;
         let mut bindings = trace_bindings(image.family, geometry);
@@ -231,16 +279,23 @@ pub fn chunk_pixels(ctx: &Context, total_pixels: u64, most: u64) -> u64 {
     total_pixels.min(most).min(fits.max(1))
 }
 
-/// Refuses a render in which `overflow` pixels ran out of traversal steps (families
-/// that cannot resume a trace).
-pub fn check_overflow(ctx: &Context, scene: &Scene, bounds: &LoopBounds, overflow: u64) -> Result<()> {
+/// Refuses a loop in which `overflow` pixels (or rays: `entry`'s unit) ran out of
+/// traversal steps, in a family that cannot resume a trace.
+pub fn check_overflow(
+    ctx: &Context,
+    scene: &Scene,
+    (bounds, entry): (&LoopBounds, Entry),
+    overflow: u64,
+) -> Result<()> {
     if overflow == 0 {
         return Ok(());
     }
+    let result = if entry == Entry::Rays { "no hits are returned" } else { "nothing was written" };
     Err(Error::scene(
         scene.name.clone(),
         format!(
-            "{overflow} pixels needed more than {} traversal steps per ray (the per-trace budget on {}); their results would be wrong, so nothing was written",
+            "{overflow} {} needed more than {} traversal steps per ray (the per-trace budget on {}) in a structure that cannot resume a trace; their results would be wrong, so {result}",
+            entry.unit(),
             bounds.steps,
             ctx.info().name
         ),

@@ -1,8 +1,12 @@
 //! The render loop, one way through for every kernel: [`prepare`] chooses and
 //! specialises the kernel, uploads the scene and structure and bounds the loops; [`run`]
-//! traces the image in chunks of pixels held on the device, each chunk in sample waves
-//! (all its pixels reach the same sample count after each wave), each wave in
-//! dispatches sized by [`pacing`] and kept in flight on a [`DispatchRing`].
+//! traces the work in chunks of pixels (or rays) held on the device, each chunk in
+//! sample waves (all its pixels reach the same sample count after each wave), each
+//! wave in dispatches sized by [`pacing`] and kept in flight on one [`DispatchRing`].
+//! The loop owns a chunk from end to end: the upload of its input, the dispatches and
+//! their resume passes, the readback, the overflow count and the totals. An integrator
+//! says only what a chunk's input is and what to do with its pixels, in a
+//! [`WavePolicy`] (renders: [`readback::FrameWaves`]; ray batches their own).
 //!
 //! The host waits only where it needs a result: when the ring is full (the oldest
 //! dispatch lands: its GPU time sizes the next ones, its counters say whether traces
@@ -26,10 +30,9 @@ use std::time::Instant;
 
 use self::pacing::Sizer;
 use self::resume::{ResumeTotals, Resumer};
-use super::Frame;
-use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch, GpuPixel, PIXEL_HEADER_BYTES};
-use crate::error::Result;
-use crate::gpu::bindings::{PASS_TRACE, WORKGROUP_SIZE};
+use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch, GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
+use crate::error::{Error, Result};
+use crate::gpu::bindings::{OVERFLOW_FLAG, PASS_TRACE, WORKGROUP_SIZE};
 use crate::gpu::{Buffer, Context, DispatchRing, Kernel};
 
 pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
@@ -38,7 +41,8 @@ pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
 /// (`GpuDispatch::chunk`, whose `counter` is the samples the trace kernel stopped).
 const HEADER_COUNTERS: u64 = std::mem::offset_of!(GpuDispatch, chunk) as u64;
 
-/// The image's pixels and samples, and how much of it the device holds at once.
+/// The image's pixels (or a batch's rays) and samples, and how much of it the device
+/// holds at once.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Waves {
     pub total_pixels: u64,
@@ -97,6 +101,11 @@ pub struct DispatchTotals {
     pub dispatches: u32,
     /// Traces resumed after running out of steps, and the passes that did it.
     pub resumes: ResumeTotals,
+    /// Pixels (or rays) whose trace ran out of steps in a family that cannot resume
+    /// one, counted when their chunk was read back the last time.
+    pub overflow: u64,
+    /// Whether the loop stopped before its end (its policy said [`Next::Stop`]).
+    pub stopped: bool,
     /// GPU milliseconds of each trace dispatch, in order (empty without timestamps).
     pub lengths_ms: Vec<f64>,
     /// Host wall time of the loop, first submission to last landing.
@@ -114,13 +123,13 @@ struct Pending {
     units: u64,
 }
 
-/// The dispatches in flight of one loop, and what they have cost so far. Wave
-/// callbacks get it to [`Flight::settle`] before they read pixels.
-pub struct Flight<'r, 'a> {
+/// The dispatches in flight of one loop, and what they have cost so far.
+struct Flight<'r, 'a> {
     ctx: &'a Context,
     kernel: &'r Kernel,
     resumer: &'r mut Resumer<'a>,
     pixel_buf: &'r Buffer,
+    ray_buf: Option<&'r Buffer>,
     ring: DispatchRing<'a>,
     pending: VecDeque<Pending>,
     sizer: &'r mut Sizer,
@@ -192,11 +201,43 @@ impl Flight<'_, '_> {
 
     /// Waits until every dispatch submitted so far has landed (and its stopped
     /// samples are resumed): the pixels then hold what they were given.
-    pub fn settle(&mut self) -> Result<()> {
+    fn settle(&mut self) -> Result<()> {
         while !self.pending.is_empty() {
             self.land()?;
         }
         Ok(())
+    }
+
+    /// Writes a chunk's input where the kernel reads it, once the dispatches of the
+    /// chunk before have landed.
+    fn upload(&mut self, input: ChunkInput) -> Result<()> {
+        match input {
+            ChunkInput::None => Ok(()),
+            ChunkInput::Pixels(pixels) => {
+                self.settle()?;
+                self.ctx.write_storage(self.pixel_buf, PIXEL_HEADER_BYTES, bytemuck::cast_slice(&pixels))
+            }
+            ChunkInput::Rays(rays) => {
+                self.settle()?;
+                let buf = self.ray_buf.ok_or_else(|| Error::Failed("the kernel has no ray buffer".into()))?;
+                self.ctx.write_storage(buf, 0, bytemuck::cast_slice(&rays))
+            }
+        }
+    }
+
+    /// Reads the chunk of `wave` back once its dispatches have landed and gives its
+    /// pixels to `policy`; at the chunk's end (`wave.complete`), counts those that ran
+    /// out of steps.
+    fn read(&mut self, policy: &mut dyn WavePolicy, wave: Wave) -> Result<Next> {
+        self.settle()?;
+        let pixels = {
+            let _span = crate::timeline::span("readback", || format!("read back pixels {}+{}", wave.first, wave.len));
+            self.ctx.read_storage_pod::<GpuPixel>(self.pixel_buf, PIXEL_HEADER_BYTES, wave.len as usize)?
+        };
+        if wave.complete {
+            self.totals.overflow += pixels.iter().filter(|p| p.prim_cost[3] & OVERFLOW_FLAG != 0).count() as u64;
+        }
+        policy.pixels(wave, &pixels)
     }
 
     /// Counts `units` pixel-samples as done without tracing them (a chunk whose share
@@ -206,25 +247,30 @@ impl Flight<'_, '_> {
     }
 }
 
-/// Writes the chunk's starting pixel states from `resume` (a resumed render).
-fn upload_chunk(ctx: &Context, pixel_buf: &Buffer, resume: Option<&Frame>, first: u64, len: u64) -> Result<()> {
-    let Some(f) = resume else { return Ok(()) };
-    let pixels: Vec<GpuPixel> = (first..first + len).map(|k| f.gpu_pixel(k as usize)).collect();
-    ctx.write_storage(pixel_buf, PIXEL_HEADER_BYTES, bytemuck::cast_slice(&pixels))
+/// What a chunk starts from, written before its first dispatch.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChunkInput {
+    /// Nothing: the pixels start from zero.
+    None,
+    /// The pixels' states (a resumed render's sums).
+    Pixels(Vec<GpuPixel>),
+    /// The rays of a batch, one a pixel.
+    Rays(Vec<GpuRay>),
 }
 
-/// What a loop does after a sample wave: go on, or stop the whole render
-/// (interrupted) or only this chunk (its share of the time budget is spent).
+/// What a loop does after a sample wave: go on, read the chunk's pixels so far and
+/// then go on (a checkpoint), or stop the whole render (interrupted) or only this
+/// chunk (its share of the time budget is spent).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Next {
     Continue,
+    ReadBack,
     NextChunk,
     Stop,
 }
 
 /// A sample wave just submitted: the chunk's first pixel and length, the samples its
-/// pixels will hold, and whether the chunk is complete (then every dispatch has
-/// landed, and its pixels can be read back).
+/// pixels will hold, and whether it is the chunk's last (its pixels are final).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Wave {
     pub first: u64,
@@ -233,18 +279,35 @@ pub struct Wave {
     pub complete: bool,
 }
 
-/// What one loop is given: the kernel and its resumer, the pixel buffer, the pixels and
-/// samples, the sizer, the ring's depth and a resumed part's pixels.
+/// What an integrator tells the loop: a chunk's input, what comes after each wave, and
+/// what to do with the pixels the loop reads back. The loop does the rest.
+pub trait WavePolicy {
+    /// The input of the chunk of `len` pixels from `first`, before its first dispatch.
+    fn input(&mut self, first: u64, len: u64) -> Result<ChunkInput>;
+
+    /// After a wave that is not its chunk's last.
+    fn after_wave(&mut self, _wave: Wave) -> Result<Next> {
+        Ok(Next::Continue)
+    }
+
+    /// The chunk's pixels, once every dispatch so far has landed: at its end
+    /// (`wave.complete`, the returned [`Next`] then only stops the loop or not), or
+    /// when [`WavePolicy::after_wave`] asked for them ([`Next::ReadBack`] then goes on).
+    fn pixels(&mut self, wave: Wave, pixels: &[GpuPixel]) -> Result<Next>;
+}
+
+/// What one loop is given: the kernel and its resumer, the pixel buffer (and a ray
+/// buffer for batches), the pixels and samples, the sizer and the ring's depth.
 pub struct LoopInput<'r, 'a> {
     pub ctx: &'a Context,
     pub kernel: &'r Kernel,
     pub resumer: &'r mut Resumer<'a>,
     pub pixel_buf: &'r Buffer,
+    pub ray_buf: Option<&'r Buffer>,
     pub waves: Waves,
     pub sizer: &'r mut Sizer,
     pub in_flight: u32,
     pub target_ms: f64,
-    pub resume: Option<&'r Frame>,
     /// The steps one trace may take (`LoopBounds::steps`, the header's `limits`).
     pub tree_steps: u32,
 }
@@ -256,17 +319,24 @@ impl std::fmt::Debug for LoopInput<'_, '_> {
 }
 
 /// Runs the kernel (and its resume passes) over every pixel and sample of `waves`,
-/// sample waves outermost within each chunk. `progress(done, total)` counts
-/// pixel-samples as dispatches land. After each wave is submitted,
-/// `wave_done(flight, wave)` decides what comes next ([`Flight::settle`] first if it
-/// reads pixels); it is called once more with `complete` when a chunk ends early.
-/// Returns the totals and whether the render stopped before its end.
+/// sample waves outermost within each chunk, on one ring. `progress(done, total)`
+/// counts pixel-samples as dispatches land; `policy` gives each chunk's input, says
+/// what follows each wave and takes the pixels read back (at the end of each chunk,
+/// also one that ends early). Returns the totals, with the pixels that ran out of
+/// steps and whether the loop stopped before its end.
 pub fn run(
     input: LoopInput<'_, '_>,
     progress: &mut dyn FnMut(u64, u64),
-    mut wave_done: impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
-) -> Result<(DispatchTotals, bool)> {
-    let LoopInput { ctx, kernel, resumer, pixel_buf, waves, sizer, in_flight, target_ms, resume, tree_steps } = input;
+    policy: &mut dyn WavePolicy,
+) -> Result<DispatchTotals> {
+    let LoopInput { ctx, kernel, resumer, pixel_buf, ray_buf, waves, sizer, in_flight, target_ms, tree_steps } = input;
+    if waves.total_pixels > u64::from(u32::MAX) {
+        return Err(Error::Usage(format!(
+            "{} pixels or rays in one loop, more than the dispatch header's 32-bit indices hold ({}); trace them in parts",
+            waves.total_pixels,
+            u32::MAX
+        )));
+    }
     let span = crate::timeline::span("trace", || "trace");
     span.arg("pixels", waves.total_pixels);
     span.arg("samples", waves.spp);
@@ -278,6 +348,7 @@ pub fn run(
         kernel,
         resumer,
         pixel_buf,
+        ray_buf,
         ring: ctx.dispatch_ring(in_flight)?,
         pending: VecDeque::new(),
         sizer,
@@ -288,30 +359,22 @@ pub fn run(
         totals: DispatchTotals { gpu_ms: Some(0.0), target_ms, ..Default::default() },
         tree_steps,
     };
-    let stopped = run_chunks(&mut flight, &waves, resume, &mut wave_done)?;
+    let stopped = run_chunks(&mut flight, &waves, policy)?;
     flight.settle()?;
     let mut totals = std::mem::take(&mut flight.totals);
     totals.loop_ms = start.elapsed().as_secs_f64() * 1e3;
+    totals.stopped = stopped;
     span.arg("dispatches", totals.dispatches);
-    Ok((totals, stopped))
+    Ok(totals)
 }
 
-fn run_chunks(
-    flight: &mut Flight<'_, '_>,
-    waves: &Waves,
-    resume: Option<&Frame>,
-    wave_done: &mut impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
-) -> Result<bool> {
+fn run_chunks(flight: &mut Flight<'_, '_>, waves: &Waves, policy: &mut dyn WavePolicy) -> Result<bool> {
     let end = waves.first_sample + waves.spp;
     let mut chunk_start = 0u64;
     while chunk_start < waves.total_pixels {
         let len = waves.chunk_pixels.min(waves.total_pixels - chunk_start);
-        if resume.is_some() {
-            // The pixel buffer is about to be overwritten: the last chunk's dispatches
-            // have landed (its readback waited for them).
-            flight.settle()?;
-            upload_chunk(flight.ctx, flight.pixel_buf, resume, chunk_start, len)?;
-        }
+        let input = policy.input(chunk_start, len)?;
+        flight.upload(input)?;
         let mut s = waves.first_sample;
         while s < end {
             flight.make_room()?;
@@ -326,24 +389,27 @@ fn run_chunks(
                 p += n;
             }
             s = s_end;
-            if s == end {
-                flight.settle()?;
-            }
             let wave = Wave { first: chunk_start, len, samples: s, complete: s == end };
-            match wave_done(flight, wave)? {
-                Next::Continue => {}
+            let next = if wave.complete {
+                flight.read(policy, wave)?
+            } else {
+                match policy.after_wave(wave)? {
+                    Next::ReadBack => flight.read(policy, wave)?,
+                    next => next,
+                }
+            };
+            match next {
+                Next::Continue | Next::ReadBack => {}
                 Next::NextChunk => {
                     if s < end {
-                        flight.settle()?;
-                        wave_done(flight, Wave { complete: true, ..wave })?;
+                        flight.read(policy, Wave { complete: true, ..wave })?;
                         flight.skip(len * u64::from(end - s));
                     }
                     break;
                 }
                 Next::Stop => {
                     if s < end {
-                        flight.settle()?;
-                        wave_done(flight, Wave { complete: true, ..wave })?;
+                        flight.read(policy, Wave { complete: true, ..wave })?;
                     }
                     return Ok(chunk_start + len < waves.total_pixels || s < end);
                 }

@@ -7,11 +7,12 @@
 
 use std::time::Instant;
 
-use super::kernel::{self, LoopBounds, Variant};
+use super::kernel::{self, Entry, LoopBounds, Variant};
 use super::pacing::{Pacing, Sizer};
+use super::readback::{FrameWaves, Steer};
 use super::resume::Resumer;
 use super::upload::{self, Bound, GpuScene};
-use super::{DispatchTotals, Flight, LoopInput, Next, PacingChoice, Wave, Waves};
+use super::{DispatchTotals, LoopInput, PacingChoice, WavePolicy, Waves};
 use crate::accel::gpu_layout::GpuParams;
 use crate::accel::{Accel, GpuImage};
 use crate::error::{Error, Result};
@@ -72,13 +73,14 @@ impl RenderSettings {
 
 /// What an integrator asks of the loop.
 pub struct Request {
-    /// The kernel's entry: `trace` (the integrators and probes) or `rays` (batches).
-    pub prefix: &'static str,
+    /// What the kernel runs: an integrator, the probe or ray batches.
+    pub entry: Entry,
     /// Traces one sample may run (each gets its share of the loop limit).
     pub traces: u64,
     /// Rays one sample typically costs, to size dispatches from the structure's cost.
     pub rays_per_sample: u64,
-    /// The integrator's own specialization constants (lights, depth, entry, tables).
+    /// The integrator's own specialization constants (lights, depth, tables; the loop
+    /// adds the entry's).
     pub spec: Vec<(u32, u32)>,
     /// The uniform parameters.
     pub params: GpuParams,
@@ -100,7 +102,7 @@ pub type Fit = Box<dyn Fn(&dyn Fn(u64) -> bool) -> (u64, Vec<(u32, u32)>)>;
 impl std::fmt::Debug for Request {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Request")
-            .field("prefix", &self.prefix)
+            .field("entry", &self.entry)
             .field("traces", &self.traces)
             .field("spec", &self.spec)
             .field("fit", &self.fit.is_some())
@@ -113,6 +115,7 @@ pub struct Prepared<'a> {
     pub ctx: &'a Context,
     pub scene: &'a Scene,
     pub image: GpuImage<'a>,
+    pub entry: Entry,
     pub variant: Variant,
     pub spec: Vec<(u32, u32)>,
     pub bounds: LoopBounds,
@@ -171,10 +174,12 @@ impl<'a> Prepared<'a> {
         }
         let traces = request.traces;
         let bounds = LoopBounds::new(ctx, scene, &image, traces, settings.trace_steps)?;
-        let mut variant = Variant::new(request.prefix, &request.spec, scene, settings.kernel, &image, &bounds)?;
+        let entry = request.entry;
+        let mut variant = Variant::new(entry, scene, settings.kernel, &image, &bounds)?;
         variant.bindings.extend(request.extra_bindings);
         let most_samples = bounds.samples_within_limit(ctx, scene, traces)?;
         let mut spec = request.spec;
+        spec.push((SPEC_INTEGRATOR, entry.spec()));
         spec.extend(shared_spec(scene, settings, &image));
         let compile = Instant::now();
         let mut kernel = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
@@ -195,6 +200,7 @@ impl<'a> Prepared<'a> {
             scene,
             cost_per_sample: image.cost_per_ray.saturating_mul(request.rays_per_sample.max(1)),
             image,
+            entry,
             variant,
             spec,
             bounds,
@@ -215,7 +221,7 @@ impl<'a> Prepared<'a> {
     }
 
     /// The resume passes of this kernel (created only if a trace stops).
-    pub fn resumer(&self) -> Result<Resumer<'_>> {
+    fn resumer(&self) -> Result<Resumer<'_>> {
         Resumer::new(
             self.ctx,
             self.resume_records,
@@ -228,52 +234,57 @@ impl<'a> Prepared<'a> {
         )
     }
 
-    /// Runs the loop ([`super::run`]) over `waves`.
-    pub fn run<'x>(
-        &'x self,
-        (resumer, sizer): (&mut Resumer<'x>, &mut Sizer),
+    /// Runs the loop ([`super::run`]) over `waves` with `policy`, and its resume passes;
+    /// then checks the validation layer and refuses work whose traces ran out of steps
+    /// in a family that cannot resume them.
+    pub fn run(
+        &self,
+        sizer: &mut Sizer,
         waves: Waves,
-        resume: Option<&Frame>,
         progress: &mut dyn FnMut(u64, u64),
-        wave_done: impl FnMut(&mut Flight<'_, '_>, Wave) -> Result<Next>,
-    ) -> Result<(DispatchTotals, bool)> {
+        policy: &mut dyn WavePolicy,
+    ) -> Result<DispatchTotals> {
+        let mut resumer = self.resumer()?;
         let input = LoopInput {
             ctx: self.ctx,
             kernel: &self.kernel,
-            resumer,
+            resumer: &mut resumer,
             pixel_buf: self.bound.pixels(),
+            ray_buf: self.bound.rays(),
             waves,
             sizer,
             in_flight: self.pacing.in_flight,
             target_ms: self.pacing.target_ms,
-            resume,
             tree_steps: self.bounds.steps as u32,
         };
-        super::run(input, progress, wave_done)
+        let totals = super::run(input, progress, policy)?;
+        drop(resumer);
+        self.ctx.check_validation()?;
+        kernel::check_overflow(self.ctx, self.scene, (&self.bounds, self.entry), totals.overflow)?;
+        Ok(totals)
     }
 
-    /// The figures of a render that started at `start`: after the validation layer's
-    /// and the step budget's checks (`overflow` pixels ran out of steps in a family
-    /// that cannot resume).
-    pub fn finish(
+    /// Renders `settings`' window and samples into a frame, `steer` deciding between
+    /// waves; the render's figures. The set-up and end every integrator shares.
+    pub fn render(
         &self,
         (settings, accel): (&RenderSettings, &Accel),
-        frame: &Frame,
-        totals: &DispatchTotals,
-        (overflow, start): (u64, Instant),
-    ) -> Result<RenderStats> {
-        self.ctx.check_validation()?;
-        self.check_overflow(overflow)?;
+        sizer: &mut Sizer,
+        progress: &mut dyn FnMut(u64, u64),
+        steer: &mut dyn Steer,
+    ) -> Result<(Frame, RenderStats)> {
+        let start = Instant::now();
+        let win = settings.window();
+        let frame = Frame::new(win.width(), win.height())?;
+        let mut policy = FrameWaves { frame, resume: settings.resume.as_deref(), steer };
+        let totals = self.run(sizer, Waves::new(settings, self.chunk_pixels), progress, &mut policy)?;
+        let frame = policy.frame;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
         let (name, names) = (self.variant.name.clone(), self.bound.names.clone());
         let build = accel.stats(self.scene);
-        let mut stats = RenderStats::new(self.ctx, self.scene, settings, frame, build, name, names, totals, wall_ms);
+        let mut stats = RenderStats::new(self.ctx, self.scene, settings, &frame, build, name, names, &totals, wall_ms);
         stats.kernel_ms = self.kernel_ms + totals.resumes.kernel_ms;
-        Ok(stats)
-    }
-
-    /// Refuses a render in which `overflow` pixels ran out of traversal steps.
-    pub fn check_overflow(&self, overflow: u64) -> Result<()> {
-        kernel::check_overflow(self.ctx, self.scene, &self.bounds, overflow)
+        stats.interrupted = totals.stopped;
+        Ok((frame, stats))
     }
 }

@@ -1,10 +1,11 @@
-//! Readback and accumulation: a chunk of `GpuPixel`s from the pixel buffer into the
-//! frame (radiance averaged over samples, the AOVs of the pixel-centre camera ray).
+//! Accumulation: the `GpuPixel`s the loop read back into the frame (radiance
+//! averaged over samples, the AOVs of the pixel-centre camera ray), and the wave
+//! policy every render shares ([`FrameWaves`]).
 
-use crate::accel::gpu_layout::{GpuPixel, PIXEL_HEADER_BYTES};
+use super::{ChunkInput, Next, Wave, WavePolicy};
+use crate::accel::gpu_layout::GpuPixel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::OVERFLOW_FLAG;
-use crate::gpu::{Buffer, Context};
 use crate::render::Frame;
 
 impl Frame {
@@ -36,7 +37,7 @@ impl Frame {
         })
     }
 
-    /// Pixel `k`'s state as the kernel holds it (what [`read_chunk`] read), for
+    /// Pixel `k`'s state as the kernel holds it (what [`Frame::store`] took), for
     /// resuming: bit for bit the sums and AOVs, without the overflow flag.
     pub fn gpu_pixel(&self, k: usize) -> GpuPixel {
         let [r, g, b] = self.sum[k];
@@ -51,7 +52,7 @@ impl Frame {
     }
 
     /// Sets the mean radiance and the variance of pixel `k` from its sums and sample
-    /// count (as [`read_chunk`] does).
+    /// count (as [`Frame::store`] does).
     pub fn finish_pixel(&mut self, k: usize) {
         let n = self.samples[k] as f32;
         let inv = if n > 0.0 { 1.0 / n } else { 0.0 };
@@ -61,6 +62,25 @@ impl Frame {
         let mean = 0.2126 * r + 0.7152 * gg + 0.0722 * b;
         // Variance of the mean: (E[y^2] - E[y]^2) / (n - 1), from the sums.
         self.variance[k] = if n > 1.0 { ((self.sum_y2[k] * inv - mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 };
+    }
+
+    /// Takes the pixels the loop read back, from pixel `first` on, dividing radiance
+    /// sums by each pixel's sample count.
+    pub fn store(&mut self, first: u64, pixels: &[GpuPixel]) {
+        for (k, g) in pixels.iter().enumerate() {
+            let idx = first as usize + k;
+            self.samples[idx] = g.radiance[3] as u32;
+            self.sum[idx] = [g.radiance[0], g.radiance[1], g.radiance[2]];
+            self.sum_y2[idx] = g.albedo_m2[3];
+            self.finish_pixel(idx);
+            self.albedo[idx] = [g.albedo_m2[0], g.albedo_m2[1], g.albedo_m2[2]];
+            self.normal[idx] = [g.normal_depth[0], g.normal_depth[1], g.normal_depth[2]];
+            self.depth[idx] = g.normal_depth[3];
+            self.prim[idx] = g.prim_cost[0];
+            self.nodes[idx] = g.prim_cost[1];
+            self.tests[idx] = g.prim_cost[2];
+            self.rays[idx] = g.prim_cost[3] & !OVERFLOW_FLAG;
+        }
     }
 }
 
@@ -72,30 +92,54 @@ fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
     Some(out)
 }
 
-/// Reads `len` pixels of the chunk in `pixel_buf` into `frame` from pixel `first`,
-/// dividing radiance sums by the pixel's sample count. Returns how many pixels ran
-/// out of traversal steps.
-pub fn read_chunk(ctx: &Context, pixel_buf: &Buffer, frame: &mut Frame, first: u64, len: u64) -> Result<u64> {
-    let _span = crate::timeline::span("readback", || format!("read back pixels {first}+{len}"));
-    let size = std::mem::size_of::<GpuPixel>();
-    let bytes = ctx.read_storage(pixel_buf, PIXEL_HEADER_BYTES, len * size as u64)?;
-    let mut overflow = 0u64;
-    for (k, g) in bytes.chunks_exact(size).map(bytemuck::pod_read_unaligned::<GpuPixel>).enumerate() {
-        let idx = first as usize + k;
-        frame.samples[idx] = g.radiance[3] as u32;
-        frame.sum[idx] = [g.radiance[0], g.radiance[1], g.radiance[2]];
-        frame.sum_y2[idx] = g.albedo_m2[3];
-        frame.finish_pixel(idx);
-        frame.albedo[idx] = [g.albedo_m2[0], g.albedo_m2[1], g.albedo_m2[2]];
-        frame.normal[idx] = [g.normal_depth[0], g.normal_depth[1], g.normal_depth[2]];
-        frame.depth[idx] = g.normal_depth[3];
-        frame.prim[idx] = g.prim_cost[0];
-        frame.nodes[idx] = g.prim_cost[1];
-        frame.tests[idx] = g.prim_cost[2];
-        frame.rays[idx] = g.prim_cost[3] & !OVERFLOW_FLAG;
-        if g.prim_cost[3] & OVERFLOW_FLAG != 0 {
-            overflow += 1;
-        }
+/// What a render's integrator says between waves: the path integrator interrupts,
+/// writes checkpoints and keeps a time budget; the Whitted integrator says nothing
+/// (`()`).
+pub trait Steer {
+    /// After a wave that is not its chunk's last: [`Next::ReadBack`] gives the frame
+    /// the chunk's pixels so far and then asks [`Steer::stored`].
+    fn wave(&mut self, _wave: Wave) -> Next {
+        Next::Continue
     }
-    Ok(overflow)
+
+    /// After the frame took a chunk's pixels: at the chunk's end (`wave.complete`), or
+    /// after [`Next::ReadBack`].
+    fn stored(&mut self, _frame: &Frame, _wave: Wave) -> Result<Next> {
+        Ok(Next::Continue)
+    }
+}
+
+impl Steer for () {}
+
+/// The wave policy of a render: each chunk starts from the resumed part's pixels
+/// (or zero), and its pixels go into the frame; `steer` decides the rest.
+pub struct FrameWaves<'s> {
+    pub frame: Frame,
+    /// A resumed part's image, whose sums the pixels start from.
+    pub resume: Option<&'s Frame>,
+    pub steer: &'s mut dyn Steer,
+}
+
+impl std::fmt::Debug for FrameWaves<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameWaves").field("resumed", &self.resume.is_some()).finish_non_exhaustive()
+    }
+}
+
+impl WavePolicy for FrameWaves<'_> {
+    fn input(&mut self, first: u64, len: u64) -> Result<ChunkInput> {
+        Ok(match self.resume {
+            Some(f) => ChunkInput::Pixels((first..first + len).map(|k| f.gpu_pixel(k as usize)).collect()),
+            None => ChunkInput::None,
+        })
+    }
+
+    fn after_wave(&mut self, wave: Wave) -> Result<Next> {
+        Ok(self.steer.wave(wave))
+    }
+
+    fn pixels(&mut self, wave: Wave, pixels: &[GpuPixel]) -> Result<Next> {
+        self.frame.store(wave.first, pixels);
+        self.steer.stored(&self.frame, wave)
+    }
 }

@@ -8,15 +8,23 @@
 //! pixels of a dispatch hold all its samples when it returns, as without a budget,
 //! and sum them in the same order. The pool's layout and the kernel side:
 //! `shaders/common/resume.glsl`.
+//!
+//! The passes are submitted as the trace dispatches are (a [`DispatchRing`]), and the
+//! header's counter comes back with each. The ring is the resumer's own, of one: the
+//! trace dispatches submitted behind the one that stopped are still in flight on the
+//! loop's, and land after these passes. The host waits for each pass: the count it
+//! gives out sizes the next one and splits it in two (the jobs that hold a record
+//! first), and bounds the passes ([`MAX_PASSES`]). An indirect dispatch would size one
+//! pass without the host, but not split it.
 
-use super::add_ms;
 use super::kernel::Variant;
 use super::upload::{self, Bound};
+use super::{add_ms, HEADER_COUNTERS};
 use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch};
 use crate::accel::GpuImage;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
-use crate::gpu::{Buffer, BufferKind, Context, Kernel};
+use crate::gpu::{Buffer, BufferKind, Context, DispatchRing, Kernel};
 
 /// Bytes of trace records the pool holds at most (two halves), besides its job lists.
 /// More pixels stopped in one pass than the records fit run their sample again from
@@ -76,6 +84,14 @@ impl PoolShape {
     }
 }
 
+/// The resume kernel, the pool its records live in, and the ring of one its passes
+/// are submitted on.
+struct Passes<'a> {
+    kernel: Kernel,
+    _pool: Buffer,
+    ring: DispatchRing<'a>,
+}
+
 /// Runs the resume passes of a render's trace dispatches.
 pub struct Resumer<'a> {
     ctx: &'a Context,
@@ -90,8 +106,8 @@ pub struct Resumer<'a> {
     /// Trace results a record logs.
     log: u32,
     steps: u64,
-    /// The resume kernel and its pool, once needed.
-    kernel: Option<(Kernel, Buffer)>,
+    /// The resume kernel, its pool and the ring its passes go through, once needed.
+    kernel: Option<Passes<'a>>,
     pub totals: ResumeTotals,
 }
 
@@ -137,15 +153,7 @@ impl<'a> Resumer<'a> {
         })
     }
 
-    /// Samples the last dispatch stopped, or the jobs the last resume pass gave out
-    /// (the header's counter).
-    fn count(&self, pixel_buf: &Buffer) -> Result<u32> {
-        let at = std::mem::offset_of!(GpuDispatch, chunk) as u64;
-        let chunk = self.ctx.read_storage_pod::<DispatchChunk>(pixel_buf, at, 1)?;
-        Ok(chunk.first().map_or(0, |c| c.counter))
-    }
-
-    fn kernel(&mut self) -> Result<&Kernel> {
+    fn passes(&mut self) -> Result<&mut Passes<'a>> {
         if self.kernel.is_none() {
             let start = std::time::Instant::now();
             let s = self.shape;
@@ -160,31 +168,33 @@ impl<'a> Resumer<'a> {
             let name = format!("{}.resume", self.variant.name);
             let mut kernel = self.ctx.create_kernel(&name, self.variant.spirv, &self.variant.bindings, &spec, 0)?;
             upload::bind_again(self.ctx, &mut kernel, &self.variant.bindings, self.bound, (BINDING_RESUME, &pool))?;
+            let ring = self.ctx.dispatch_ring(1)?;
             self.totals.kernel_ms += start.elapsed().as_secs_f64() * 1e3;
-            self.kernel = Some((kernel, pool));
+            self.kernel = Some(Passes { kernel, _pool: pool, ring });
         }
-        match &self.kernel {
-            Some((k, _)) => Ok(k),
-            None => Err(Error::Failed("no resume kernel".into())),
-        }
+        self.kernel.as_mut().ok_or_else(|| Error::Failed("no resume kernel".into()))
     }
 
     /// One resume dispatch of `header` running `jobs` jobs, its time added to `gpu_ms`;
-    /// the header's counter after it.
+    /// the header's counter after it (the ring copies it back).
     fn dispatch(&mut self, pixel_buf: &Buffer, h: &GpuDispatch, jobs: u32, gpu_ms: &mut Option<f64>) -> Result<u32> {
         let groups = h.count.div_ceil(WORKGROUP_SIZE);
         let label = match h.chunk.pass {
             PASS_SWEEP => format!("resume: pixels {}+{}", h.first, h.count),
             _ => format!("resume: jobs {}+{}", h.first, h.count),
         };
-        let ctx = self.ctx;
-        let kernel = self.kernel()?;
-        let ms = ctx.dispatch_after_write(kernel, pixel_buf, 0, bytemuck::bytes_of(h), [groups, 1, 1], &label)?;
-        *gpu_ms = add_ms(*gpu_ms, ms);
-        self.totals.gpu_ms = add_ms(self.totals.gpu_ms, ms);
+        let passes = self.passes()?;
+        let header = (0, bytemuck::bytes_of(h));
+        passes.ring.submit(&passes.kernel, pixel_buf, header, [groups, 1, 1], HEADER_COUNTERS, &label)?;
+        let landed = passes
+            .ring
+            .land_oldest()?
+            .ok_or_else(|| Error::Failed(format!("the resume pass '{label}' did not land")))?;
+        *gpu_ms = add_ms(*gpu_ms, landed.gpu_ms);
+        self.totals.gpu_ms = add_ms(self.totals.gpu_ms, landed.gpu_ms);
         self.totals.dispatches += 1;
         self.totals.jobs += u64::from(jobs);
-        self.count(pixel_buf)
+        Ok(bytemuck::cast::<[u32; 4], DispatchChunk>(landed.words).counter)
     }
 
     /// After the trace dispatch of `header` (its GPU time already in `gpu_ms`), which

@@ -20,9 +20,11 @@ use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
+use crate::render::dispatch::kernel::Entry;
 use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::readback::Steer;
 use crate::render::dispatch::upload::GpuScene;
-use crate::render::dispatch::{Next, Waves};
+use crate::render::dispatch::{Next, Wave};
 use crate::render::{Frame, RenderSettings, RenderStats};
 use crate::scene::{Material, Scene};
 
@@ -256,7 +258,6 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
         (SPEC_LIGHTS, scene.lights.len() as u32),
         (SPEC_MAX_DEPTH, max_depth(scene, settings)),
         (SPEC_DIFFUSE_PROBE, 0),
-        (SPEC_INTEGRATOR, INTEGRATOR_PATH),
         (SPEC_EMITTERS, ex.emitter_count),
         (SPEC_ENV_WIDTH, ex.env_size.0),
         (SPEC_ENV_HEIGHT, ex.env_size.1.max(1)),
@@ -316,12 +317,12 @@ pub fn render_with(
     control: Control<'_>,
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
-    let Control { mut progress, interrupted, mut checkpoint } = control;
+    let Control { mut progress, interrupted, checkpoint } = control;
     let mut gs = GpuScene::new(scene);
     let ex = extras(scene, gs.shading.len() as u32, true)?;
     gs.shading.extend_from_slice(&ex.rows);
     let request = Request {
-        prefix: "trace",
+        entry: Entry::Path,
         traces: traces_per_sample(scene, settings, &ex),
         rays_per_sample: rays_per_sample(scene, settings, &ex),
         spec: specialization(scene, settings, &ex),
@@ -332,50 +333,69 @@ pub fn render_with(
         fit: None,
     };
     let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
-    let start = Instant::now();
-    let total_pixels = settings.window().pixels();
     let mut sizer = prep.sizer(settings.spp);
     // Short waves keep a time budget, an interruption and checkpoints responsive.
     if settings.time_budget.is_some() || checkpoint.is_some() {
         sizer.limit_samples(4);
     }
-    let waves = Waves::new(settings, prep.chunk_pixels);
-    let win = settings.window();
-    let mut frame = Frame::new(win.width(), win.height())?;
-    let mut overflow = 0u64;
-    let mut last_checkpoint = Instant::now();
-    let mut chunk_started = Instant::now();
-    let mut resumer = prep.resumer()?;
-    let pixels = prep.bound.pixels();
-    let (totals, stopped) =
-        prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut *progress, |flight, wave| {
-            let (first, len) = (wave.first, wave.len);
-            if wave.complete {
-                overflow += crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
-                chunk_started = Instant::now();
-                return Ok(if interrupted() { Next::Stop } else { Next::Continue });
+    let mut steer = Steering {
+        interrupted,
+        checkpoint,
+        budget: settings.time_budget.map(|b| (b, settings.window().pixels())),
+        last_checkpoint: Instant::now(),
+        chunk_started: Instant::now(),
+    };
+    prep.render((settings, accel), &mut sizer, &mut *progress, &mut steer)
+}
+
+/// What the path integrator says between waves: stop when interrupted, a checkpoint
+/// every so often, and the next chunk once this one's share of the time budget is
+/// spent.
+struct Steering<'a> {
+    interrupted: Box<dyn Fn() -> bool + 'a>,
+    checkpoint: Option<(f64, CheckpointWriter<'a>)>,
+    /// The time budget (seconds) and the pixels it is shared among.
+    budget: Option<(f64, u64)>,
+    last_checkpoint: Instant,
+    chunk_started: Instant,
+}
+
+impl Steering<'_> {
+    /// The next chunk once this one (of `len` pixels) has spent its share of the budget.
+    fn within_budget(&self, len: u64) -> Next {
+        match self.budget {
+            Some((budget, total))
+                if self.chunk_started.elapsed().as_secs_f64() >= budget * len as f64 / total as f64 =>
+            {
+                Next::NextChunk
             }
-            if interrupted() {
-                return Ok(Next::Stop);
+            _ => Next::Continue,
+        }
+    }
+}
+
+impl Steer for Steering<'_> {
+    fn wave(&mut self, wave: Wave) -> Next {
+        if (self.interrupted)() {
+            return Next::Stop;
+        }
+        if let Some((every, _)) = &self.checkpoint {
+            if self.last_checkpoint.elapsed().as_secs_f64() >= *every {
+                return Next::ReadBack;
             }
-            if let Some((every, write)) = checkpoint.as_mut() {
-                if last_checkpoint.elapsed().as_secs_f64() >= *every {
-                    flight.settle()?;
-                    overflow += crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, first, len)?;
-                    write(&frame)?;
-                    last_checkpoint = Instant::now();
-                }
-            }
-            if let Some(budget) = settings.time_budget {
-                let share = budget * len as f64 / total_pixels as f64;
-                if chunk_started.elapsed().as_secs_f64() >= share {
-                    return Ok(Next::NextChunk);
-                }
-            }
-            Ok(Next::Continue)
-        })?;
-    drop(resumer);
-    let mut stats = prep.finish((settings, accel), &frame, &totals, (overflow, start))?;
-    stats.interrupted = stopped;
-    Ok((frame, stats))
+        }
+        self.within_budget(wave.len)
+    }
+
+    fn stored(&mut self, frame: &Frame, wave: Wave) -> Result<Next> {
+        if wave.complete {
+            self.chunk_started = Instant::now();
+            return Ok(if (self.interrupted)() { Next::Stop } else { Next::Continue });
+        }
+        if let Some((_, write)) = self.checkpoint.as_mut() {
+            write(frame)?;
+            self.last_checkpoint = Instant::now();
+        }
+        Ok(self.within_budget(wave.len))
+    }
 }

@@ -1,10 +1,12 @@
 //! Ray batches on the device: arbitrary rays in, closest hits out, through any
 //! structure arbor builds (and the driver's, `rayquery`, where the device has ray
-//! queries). The rays go through the render loop's parts: the `rays_<family>_<geometry>`
-//! variant of `trace.comp` ([`crate::render::kernel`]), [`crate::render::upload`] (the scene, the
-//! structure, a pixel buffer that holds one hit per ray and a ray buffer),
-//! [`crate::render::dispatch`] (dispatches sized to the work budget, each followed by the resume
-//! passes of the traces that ran out of steps) and a readback of the hits.
+//! queries). The rays go through the render loop as a render's pixels do: the
+//! `rays_<family>_<geometry>` variant of `trace.comp` ([`crate::render::kernel`]),
+//! [`crate::render::upload`] (the scene, the structure, a pixel buffer that holds one
+//! hit per ray and a ray buffer), and [`crate::render::dispatch`] (chunks of rays
+//! uploaded in turn, dispatches sized to the work budget on one ring, each followed by
+//! the resume passes of the traces that ran out of steps, and each chunk read back);
+//! a batch's [`WavePolicy`] gives the loop its rays and takes the hits.
 //!
 //! Results are exact: a trace that runs out of its step budget is resumed
 //! ([`crate::render::resume`]) and ends where it would have without one; a family that
@@ -13,18 +15,18 @@
 
 use std::time::Instant;
 
-use crate::accel::gpu_layout::{GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
+use crate::accel::gpu_layout::{GpuPixel, GpuRay};
 use crate::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
-use crate::render::dispatch::kernel::base_params;
+use crate::render::dispatch::kernel::{base_params, Entry};
 use crate::render::dispatch::pacing::Sizer;
 use crate::render::dispatch::prepare::{LoopSettings, Prepared, Request};
 use crate::render::dispatch::upload::GpuScene;
-use crate::render::dispatch::{Next, Waves};
+use crate::render::dispatch::{ChunkInput, Next, Wave, WavePolicy, Waves};
 use crate::render::{KernelChoice, Traversal};
 use crate::scene::Scene;
 
@@ -145,7 +147,8 @@ impl<'a> RayTracer<'a> {
     /// with [`Accel::build_on`]). Instanced scenes are refused
     /// ([`Error::Unsupported`]): trace [`Scene::flattened`] instead.
     pub fn new(ctx: &'a Context, scene: &'a Scene, accel: &'a Accel, options: &TraceOptions) -> Result<RayTracer<'a>> {
-        if scene.has_instances() || matches!(accel, Accel::TwoLevel(_)) {
+        let two_level = accel.gpu_image(scene).is_ok_and(|image| image.family.is_instanced());
+        if scene.has_instances() || two_level {
             return Err(Error::Unsupported(format!(
                 "scene {}: ray batches trace flat scenes; flatten the instances first (Scene::flattened)",
                 scene.name
@@ -163,16 +166,10 @@ impl<'a> RayTracer<'a> {
         };
         settings.check()?;
         let request = Request {
-            prefix: "rays",
+            entry: Entry::Rays,
             traces: 1,
             rays_per_sample: 1,
-            spec: vec![
-                (SPEC_LIGHTS, 0),
-                (SPEC_MAX_DEPTH, 1),
-                // The probe kernel's value: the resume sweep finds a stopped ray by its
-                // zero count (shaders/common/resume_trace.glsl).
-                (SPEC_INTEGRATOR, INTEGRATOR_PROBE),
-            ],
+            spec: vec![(SPEC_LIGHTS, 0), (SPEC_MAX_DEPTH, 1)],
             // No camera: the rays come from the batch.
             params: base_params(scene, (1, 1), 0, accel),
             scene: GpuScene::new(scene),
@@ -206,72 +203,64 @@ impl<'a> RayTracer<'a> {
         let start = Instant::now();
         check_rays(rays)?;
         let mut stats = BatchStats { rays: rays.len() as u64, gpu_ms: Some(0.0), ..Default::default() };
-        let mut hits = Vec::with_capacity(rays.len());
         if rays.is_empty() {
-            return Ok((hits, stats));
+            return Ok((Vec::new(), stats));
         }
         let prep = &self.prep;
-        let ray_buf =
-            prep.bound.rays().ok_or_else(|| Error::Failed("the ray-batch kernel has no ray buffer".into()))?;
-        let mut resumer = prep.resumer()?;
-        let mut sizer = self.sizer.borrow_mut();
-        let mut overflow = 0u64;
-        for chunk in rays.chunks(prep.chunk_pixels as usize) {
-            let gpu_rays: Vec<GpuRay> = chunk
+        let chunk = prep.chunk_pixels;
+        let waves = Waves {
+            total_pixels: rays.len() as u64,
+            chunk_pixels: chunk,
+            spp: 1,
+            first_sample: 0,
+            window: [0, 0, chunk as u32],
+            resumed: false,
+        };
+        let mut batch = Batch { rays, hits: Vec::with_capacity(rays.len()), scene: &prep.scene.name };
+        let totals = prep.run(&mut self.sizer.borrow_mut(), waves, &mut |_, _| {}, &mut batch)?;
+        stats.dispatches = totals.dispatches;
+        stats.gpu_ms = totals.gpu_ms;
+        stats.resumed = totals.resumes.samples;
+        stats.resume_dispatches = totals.resumes.dispatches;
+        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok((batch.hits, stats))
+    }
+}
+
+/// The wave policy of a batch: each chunk's rays in, their hits out.
+struct Batch<'b> {
+    rays: &'b [Ray],
+    hits: Vec<Option<Hit>>,
+    scene: &'b str,
+}
+
+impl WavePolicy for Batch<'_> {
+    fn input(&mut self, first: u64, len: u64) -> Result<ChunkInput> {
+        let chunk = &self.rays[first as usize..(first + len) as usize];
+        Ok(ChunkInput::Rays(
+            chunk
                 .iter()
                 .map(|r| GpuRay {
                     origin_tmin: [r.origin.x, r.origin.y, r.origin.z, r.tmin],
                     dir_tmax: [r.dir.x, r.dir.y, r.dir.z, r.tmax],
                 })
-                .collect();
-            prep.ctx.write_storage(ray_buf, 0, bytemuck::cast_slice(&gpu_rays))?;
-            let len = chunk.len() as u64;
-            let waves = Waves {
-                total_pixels: len,
-                chunk_pixels: len,
-                spp: 1,
-                first_sample: 0,
-                window: [0, 0, len as u32],
-                resumed: false,
-            };
-            let pixel_buf = prep.bound.pixels();
-            let (totals, _) = prep.run((&mut resumer, &mut sizer), waves, None, &mut |_, _| {}, |_, wave| {
-                if !wave.complete {
-                    return Ok(Next::Continue);
-                }
-                let px = prep.ctx.read_storage_pod::<GpuPixel>(pixel_buf, PIXEL_HEADER_BYTES, wave.len as usize)?;
-                for (k, p) in px.iter().enumerate() {
-                    if p.prim_cost[3] & OVERFLOW_FLAG != 0 {
-                        overflow += 1;
-                    } else if p.radiance[3] != 1.0 {
-                        return Err(Error::scene(
-                            prep.scene.name.clone(),
-                            format!("ray {} of the chunk was not traced to its end", wave.first + k as u64),
-                        ));
-                    }
-                    hits.push(hit_of(p));
-                }
-                Ok(Next::Continue)
-            })?;
-            stats.dispatches += totals.dispatches;
-            stats.gpu_ms = crate::render::dispatch::add_ms(stats.gpu_ms, totals.gpu_ms);
+                .collect(),
+        ))
+    }
+
+    fn pixels(&mut self, wave: Wave, pixels: &[GpuPixel]) -> Result<Next> {
+        for (k, p) in pixels.iter().enumerate() {
+            // A trace that ran out of steps is the loop's to refuse; any other must
+            // have reached its end (resumed where it stopped).
+            if p.prim_cost[3] & OVERFLOW_FLAG == 0 && p.radiance[3] != 1.0 {
+                return Err(Error::scene(
+                    self.scene.to_string(),
+                    format!("ray {} of the batch was not traced to its end", wave.first + k as u64),
+                ));
+            }
+            self.hits.push(hit_of(p));
         }
-        stats.resumed = resumer.totals.samples;
-        stats.resume_dispatches = resumer.totals.dispatches;
-        drop(resumer);
-        prep.ctx.check_validation()?;
-        if overflow > 0 {
-            return Err(Error::scene(
-                prep.scene.name.clone(),
-                format!(
-                    "{overflow} rays needed more than {} traversal steps (the per-trace budget on {}) in a structure that cannot resume a trace; their hits would be wrong, so none are returned",
-                    prep.bounds.steps,
-                    prep.ctx.info().name
-                ),
-            ));
-        }
-        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok((hits, stats))
+        Ok(Next::Continue)
     }
 }
 

@@ -6,16 +6,14 @@
 //! modes (camera rays only; one cosine bounce). Its settings become specialization
 //! constants; the render loop ([`crate::render::dispatch`]) does the rest.
 
-use std::time::Instant;
-
 use crate::accel::gpu_layout::GpuParams;
 use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
+use crate::render::dispatch::kernel::Entry;
 use crate::render::dispatch::prepare::{Prepared, Request};
 use crate::render::dispatch::upload::GpuScene;
-use crate::render::dispatch::{Next, Waves};
 use crate::render::integrators::path::{extras, Extras};
 use crate::render::{Frame, RenderSettings, RenderStats};
 use crate::scene::Scene;
@@ -83,8 +81,6 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
         (SPEC_LIGHTS, lights_used(scene, settings)),
         (SPEC_MAX_DEPTH, if probe { 1 } else { scene.max_depth }),
         (SPEC_DIFFUSE_PROBE, u32::from(settings.diffuse_probe)),
-        // The probe modes run the lean probe kernel (trace.comp, probe_main).
-        (SPEC_INTEGRATOR, if probe { INTEGRATOR_PROBE } else { INTEGRATOR_WHITTED }),
         (SPEC_EMITTERS, ex.emitter_count),
         (SPEC_TEXTURES, u32::from(!probe && !scene.textures.is_empty())),
     ]
@@ -117,7 +113,8 @@ pub fn render_with(
     let glass = !probe(settings) && scene.materials.iter().any(|m| m.is_smooth_glass());
     let (depth, lights, emitters) = (scene.max_depth, scene.lights.len() as u64, ex.emitter_count);
     let request = Request {
-        prefix: "trace",
+        // The probe modes run the lean probe kernel (trace.comp, probe_main).
+        entry: if probe(settings) { Entry::Probe } else { Entry::Whitted },
         traces: traces_per_sample(scene, settings, emitters, 0),
         rays_per_sample: rays_per_sample(scene, settings, emitters),
         spec: specialization(scene, settings, &ex),
@@ -135,25 +132,8 @@ pub fn render_with(
         }),
     };
     let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
-    let start = Instant::now();
-    let win = settings.window();
-    let mut frame = Frame::new(win.width(), win.height())?;
-    let mut overflow = 0u64;
-    let mut resumer = prep.resumer()?;
     let mut sizer = prep.sizer(settings.spp);
-    let waves = Waves::new(settings, prep.chunk_pixels);
-    let pixels = prep.bound.pixels();
-    let (totals, _) =
-        prep.run((&mut resumer, &mut sizer), waves, settings.resume.as_deref(), &mut progress, |_, wave| {
-            if wave.complete {
-                overflow +=
-                    crate::render::dispatch::readback::read_chunk(ctx, pixels, &mut frame, wave.first, wave.len)?;
-            }
-            Ok(Next::Continue)
-        })?;
-    drop(resumer);
-    let stats = prep.finish((settings, accel), &frame, &totals, (overflow, start))?;
-    Ok((frame, stats))
+    prep.render((settings, accel), &mut sizer, &mut progress, &mut ())
 }
 
 #[cfg(test)]
