@@ -14,7 +14,7 @@ use glam::{Affine3A, Quat, Vec3};
 
 /// A ground quad and a sphere of the scene's own, and 12 instances of a blob under
 /// rotations, non-uniform and mirroring scales and translations.
-fn scene(blob_tris: usize, grid: i32) -> Scene {
+pub(crate) fn scene(blob_tris: usize, grid: i32) -> Scene {
     let mut b = SceneBuilder::new("instances");
     let ground = procedural::quad([
         Vec3::new(-20.0, -1.5, -20.0),

@@ -1,7 +1,8 @@
 //! Ray batches on the device (src/render/rays.rs) against the CPU reference
 //! (`Accel::trace_cpu`): every structure on the mixed scene (triangles and spheres),
 //! with misses, tmin/tmax limits and axis-parallel directions; resumed traces; batches
-//! over several dispatches and chunks; the empty batch; bad rays as typed errors.
+//! over several dispatches and chunks; the empty batch; bad rays as typed errors;
+//! instanced scenes and two-level structures refused.
 
 use crate::common;
 
@@ -207,4 +208,23 @@ fn a_structure_built_for_the_cpu_only_is_refused_on_the_device() {
     let accel = Accel::build(AccelKind::RayQuery, &scene);
     let err = RayTracer::new(&ctx, &scene, &accel, &TraceOptions::default()).unwrap_err();
     assert!(err.to_string().contains("rayquery") || err.to_string().contains("driver"), "{err}");
+}
+
+#[test]
+fn instanced_scenes_and_two_level_structures_are_refused() {
+    let Some(ctx) = common::gpu() else { return };
+    let instanced = crate::instances::scene(50, 0);
+    let two_level = Accel::build(AccelKind::BvhSah, &instanced);
+    let err = RayTracer::new(&ctx, &instanced, &two_level, &TraceOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::Unsupported(_)), "{err}");
+    assert!(err.to_string().contains("flatten the instances first"), "{err}");
+    // The flattened scene traces; the two-level structure still does not.
+    let flat = instanced.flattened().expect("flattened");
+    let err = RayTracer::new(&ctx, &flat, &two_level, &TraceOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("flat"), "{err}");
+    let accel = Accel::build(AccelKind::BvhSah, &flat);
+    let rays = rays(&flat, 500, 3);
+    let gpu =
+        RayTracer::new(&ctx, &flat, &accel, &TraceOptions::default()).expect("tracer").trace(&rays).expect("trace");
+    assert_same("flattened", &rays, &gpu, &accel.trace_cpu(&flat, &rays));
 }

@@ -256,6 +256,12 @@ impl Variant {
         image: &GpuImage,
         bounds: &LoopBounds,
     ) -> Result<Variant> {
+        if entry == Entry::Rays && image.family.is_instanced() {
+            return Err(Error::Unsupported(format!(
+                "scene {}: ray batches trace flat scenes; flatten the instances first (Scene::flattened)",
+                scene.name
+            )));
+        }
         let geometry = kernel_geometry(scene, choice);
         let unrolled = if bounds.unroll > 1 { format!("_x{}", bounds.unroll) } else { String::new() };
         let name = format!("{}_{}_{geometry}{unrolled}", entry.prefix(), image.family);

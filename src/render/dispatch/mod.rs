@@ -5,8 +5,9 @@
 //! wave in dispatches sized by [`pacing`] and kept in flight on one [`DispatchRing`].
 //! The loop owns a chunk from end to end: the upload of its input, the dispatches and
 //! their resume passes, the readback, the overflow count and the totals. An integrator
-//! says only what a chunk's input is and what to do with its pixels, in a
-//! [`WavePolicy`] (renders: [`readback::FrameWaves`]; ray batches their own).
+//! says only what a chunk's input is, what follows each wave and what to do with the
+//! pixels read back, in a [`WavePolicy`] (renders: [`readback::FrameWaves`]; ray
+//! batches their own).
 //!
 //! The host waits only where it needs a result: when the ring is full (the oldest
 //! dispatch lands: its GPU time sizes the next ones, its counters say whether traces
@@ -291,8 +292,9 @@ pub trait WavePolicy {
     }
 
     /// The chunk's pixels, once every dispatch so far has landed: at its end
-    /// (`wave.complete`, the returned [`Next`] then only stops the loop or not), or
-    /// when [`WavePolicy::after_wave`] asked for them ([`Next::ReadBack`] then goes on).
+    /// (`wave.complete`: then [`Next::Stop`] stops the loop and anything else goes on;
+    /// after a chunk that ended early, whatever is returned is ignored), or when
+    /// [`WavePolicy::after_wave`] asked for them ([`Next::ReadBack`] then goes on).
     fn pixels(&mut self, wave: Wave, pixels: &[GpuPixel]) -> Result<Next>;
 }
 

@@ -276,6 +276,7 @@ impl<'a> Prepared<'a> {
         let start = Instant::now();
         let win = settings.window();
         let frame = Frame::new(win.width(), win.height())?;
+        steer.started();
         let mut policy = FrameWaves { frame, resume: settings.resume.as_deref(), steer };
         let totals = self.run(sizer, Waves::new(settings, self.chunk_pixels), progress, &mut policy)?;
         let frame = policy.frame;

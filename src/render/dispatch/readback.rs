@@ -96,6 +96,9 @@ fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
 /// writes checkpoints and keeps a time budget; the Whitted integrator says nothing
 /// (`()`).
 pub trait Steer {
+    /// Just before the first dispatch (the frame is allocated): clocks start here.
+    fn started(&mut self) {}
+
     /// After a wave that is not its chunk's last: [`Next::ReadBack`] gives the frame
     /// the chunk's pixels so far and then asks [`Steer::stored`].
     fn wave(&mut self, _wave: Wave) -> Next {

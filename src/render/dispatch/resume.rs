@@ -12,7 +12,8 @@
 //! The passes are submitted as the trace dispatches are (a [`DispatchRing`]), and the
 //! header's counter comes back with each. The ring is the resumer's own, of one: the
 //! trace dispatches submitted behind the one that stopped are still in flight on the
-//! loop's, and land after these passes. The host waits for each pass: the count it
+//! loop's ring (the queue runs them before these passes), and the host lands them only
+//! after these passes, in order. The host waits for each pass: the count it
 //! gives out sizes the next one and splits it in two (the jobs that hold a record
 //! first), and bounds the passes ([`MAX_PASSES`]). An indirect dispatch would size one
 //! pass without the host, but not split it.

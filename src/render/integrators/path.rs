@@ -375,6 +375,11 @@ impl Steering<'_> {
 }
 
 impl Steer for Steering<'_> {
+    fn started(&mut self) {
+        self.last_checkpoint = Instant::now();
+        self.chunk_started = Instant::now();
+    }
+
     fn wave(&mut self, wave: Wave) -> Next {
         if (self.interrupted)() {
             return Next::Stop;

@@ -147,8 +147,8 @@ impl<'a> RayTracer<'a> {
     /// with [`Accel::build_on`]). Instanced scenes are refused
     /// ([`Error::Unsupported`]): trace [`Scene::flattened`] instead.
     pub fn new(ctx: &'a Context, scene: &'a Scene, accel: &'a Accel, options: &TraceOptions) -> Result<RayTracer<'a>> {
-        let two_level = accel.gpu_image(scene).is_ok_and(|image| image.family.is_instanced());
-        if scene.has_instances() || two_level {
+        // A two-level structure over a flat scene is refused when its kernel is chosen.
+        if scene.has_instances() {
             return Err(Error::Unsupported(format!(
                 "scene {}: ray batches trace flat scenes; flatten the instances first (Scene::flattened)",
                 scene.name
