@@ -193,6 +193,11 @@ void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
 #endif
 }
 
+// Texture coordinates of the point of a sphere whose outward normal is n.
+vec2 sphere_uv(vec3 n) {
+    return vec2(0.5 + atan(n.x, -n.z) * (0.5 / PI), acos(clamp(n.y, -1.0, 1.0)) / PI);
+}
+
 // Shading frame at a hit: the point (recomputed on the surface) and its error bound
 // for spawning rays, geometric normal (the triangle's winding, a sphere's outside),
 // shading normal, material index, texture coordinates.
@@ -234,7 +239,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
     sn = gn;
     mat = s.material.x;
-    uv = vec2(0.5 + atan(gn.x, -gn.z) * (0.5 / PI), acos(clamp(gn.y, -1.0, 1.0)) / PI);
+    uv = sphere_uv(gn);
 #endif
 }
 

@@ -22,6 +22,7 @@ struct Material {
     vec3 specular;    // Phong
     float shininess;  // Phong exponent
     vec3 emission;
+    uint emission_map; // emission texture index + 1 (0: none)
     float ior;        // glass, dielectric
     vec3 absorption;  // glass, dielectric: Beer-Lambert coefficient per unit length
     uint flags;       // MAT_FLAG_TWO_SIDED | MAT_FLAG_SCHLICK | texture index + 1 << MAT_TEXTURE_SHIFT
@@ -40,7 +41,8 @@ Material material_at(uint id) {
     vec4 r3 = mat_row(id, 3u);
     Material m;
     m.albedo = r0.rgb;
-    m.kind = floatBitsToUint(r0.w);
+    m.kind = floatBitsToUint(r0.w) & ((1u << MAT_MAP_SHIFT) - 1u);
+    m.emission_map = floatBitsToUint(r0.w) >> MAT_MAP_SHIFT;
     m.specular = r1.rgb;
     m.shininess = r1.w;
     m.emission = r2.rgb;

@@ -21,7 +21,8 @@ struct Pixel {
 };                      // 64 bytes
 
 // Material = 4 vec4 rows of the shading buffer:
-//   row 0: rgb colour (conductor: tint, or F0 with MAT_FLAG_SCHLICK), a = kind (uint bits)
+//   row 0: rgb colour (conductor: tint, or F0 with MAT_FLAG_SCHLICK), a = kind | emission
+//          texture + 1 << MAT_MAP_SHIFT (uint bits)
 //   row 1: rgb specular (Phong) or eta (conductor), a = shininess (Phong) or GGX
 //          alpha = roughness^2 (conductor, dielectric); metallic-roughness (MAT_PBR):
 //          metallic, specular weight, normal-map scale, roughness

@@ -35,7 +35,10 @@ vec3 emitted(Material m, vec3 gn, vec3 dir) {
     return vec3(0.0);
 }
 
-float emitter_power(uint prim, Material m) {
+// The power by which the emitter table chose primitive `prim` of material `mat`: from
+// the material's emission factor (not textured at a point).
+float emitter_power(uint prim, uint mat) {
+    Material m = material_at(mat);
     float area = 0.0;
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
@@ -51,7 +54,10 @@ float emitter_power(uint prim, Material m) {
     }
 #endif
     float sides = (m.flags & MAT_FLAG_TWO_SIDED) != 0u ? 2.0 : 1.0;
-    return luminance(m.emission) * area * sides;
+    // An emission texture scales the power by its mean luminance (the texture row's
+    // w), as the host's emitter table does.
+    float map = HAS_TEXTURES && m.emission_map != 0u ? shading_row(params.tables.y + m.emission_map - 1u).w : 1.0;
+    return luminance(m.emission) * map * area * sides;
 }
 
 // Solid-angle pdf, from point p, of sampling a sphere by its cone (outside) or by
@@ -71,8 +77,8 @@ float sphere_light_pdf(vec3 p, vec3 c, float r, float t, vec3 d, vec3 gn) {
 
 // Pdf with which next-event estimation from p would have chosen the point where the
 // ray (p, d) hit primitive `prim` at distance t with geometric normal gn.
-float light_pdf(uint prim, Material m, vec3 p, vec3 d, float t, vec3 gn) {
-    float pmf = emitter_power(prim, m) / params.env.z;
+float light_pdf(uint prim, uint mat, vec3 p, vec3 d, float t, vec3 gn) {
+    float pmf = emitter_power(prim, mat) / params.env.z;
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
         uvec4 tri = triangle_at(prim);
@@ -110,18 +116,24 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     if (pmf <= 0.0) return false;
     vec3 gn;
     uint mat;
+    vec2 uv = vec2(0.0);  // where the point is, for an emission texture
 #if HAS_TRIANGLES
     if (prim < params.dims.z) {
         uvec4 tri = triangle_at(prim);
-        vec3 a = vertex_position(tri.x);
-        vec3 b = vertex_position(tri.y);
-        vec3 c = vertex_position(tri.z);
+        Vertex va = vertex_at(tri.x);
+        Vertex vb = vertex_at(tri.y);
+        Vertex vc = vertex_at(tri.z);
+        vec3 a = va.position.xyz;
+        vec3 b = vb.position.xyz;
+        vec3 c = vc.position.xyz;
         vec3 cr = cross(b - a, c - a);
         float area = 0.5 * length(cr);
         if (area <= 0.0) return false;
         gn = normalize(cr);
         float su = sqrt(u.y);
         vec3 q = a * (1.0 - su) + b * (su * (1.0 - u.z)) + c * (su * u.z);
+        uv = vec2(va.position.w, va.normal.w) * (1.0 - su) + vec2(vb.position.w, vb.normal.w) * (su * (1.0 - u.z))
+             + vec2(vc.position.w, vc.normal.w) * (su * u.z);
         vec3 to = q - p;
         float d2 = dot(to, to);
         dist = sqrt(d2);
@@ -171,17 +183,23 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     }
 #endif
     Material m = material_at(mat);
+#if HAS_SPHERES
+    if (prim >= params.dims.z) uv = sphere_uv(gn);
+#endif
+    if (HAS_TEXTURES && m.emission_map != 0u) m.emission *= texture_rgb(m.emission_map - 1u, uv, true);
     le = emitted(m, gn, wi);
     return pdf > 0.0 && (le.r > 0.0 || le.g > 0.0 || le.b > 0.0);
 }
 
-// The material at a hit with texture coordinates uv: its albedo textured and, for
-// metallic-roughness, roughness and metallic times the green and blue channels of its
-// metallic-roughness texture (the normal map bends the frame earlier, in `surface`).
+// The material at a hit with texture coordinates uv: its albedo and emission textured
+// and, for metallic-roughness, roughness and metallic times the green and blue
+// channels of its metallic-roughness texture (the normal map bends the frame earlier,
+// in `surface`).
 Material material_hit(uint mat, vec2 uv) {
     Material m = material_at(mat);
     if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
         m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
+    if (HAS_TEXTURES && m.emission_map != 0u) m.emission *= texture_rgb(m.emission_map - 1u, uv, true);
     if (HAS_TEXTURES && is_pbr(m)) {
         uint slot = floatBitsToUint(mat_row(mat, 2u).w) & ((1u << MAT_MAP_SHIFT) - 1u);
         if (slot != 0u) {
@@ -313,7 +331,7 @@ void path_main() {
                 float w = 1.0;
                 if (EMITTER_COUNT > 0u && !prev_delta) {
                     if (MIS_MODE == MIS_LIGHT) w = 0.0;
-                    else if (MIS_MODE == MIS_BOTH) w = power_heuristic(prev_pdf, light_pdf(h.prim, m, prev_p, r.dir, h.t, gn));
+                    else if (MIS_MODE == MIS_BOTH) w = power_heuristic(prev_pdf, light_pdf(h.prim, mat, prev_p, r.dir, h.t, gn));
                 }
                 L += beta * le * w;
             }

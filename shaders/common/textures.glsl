@@ -50,7 +50,7 @@ vec3 texture_albedo(uint tex, vec2 uv) { return texture_rgb(tex, uv, true); }
 // itself where the triangle's texture coordinates are degenerate.
 vec3 normal_mapped(uint mat, vec3 n, vec2 uv, vec3 p0, vec3 p1, vec3 p2, vec2 t0, vec2 t1, vec2 t2) {
     vec4 r0 = shading_row(mat * MATERIAL_ROWS);
-    if (floatBitsToUint(r0.w) != MAT_PBR) return n;
+    if ((floatBitsToUint(r0.w) & ((1u << MAT_MAP_SHIFT) - 1u)) != MAT_PBR) return n;
     uint slot = floatBitsToUint(shading_row(mat * MATERIAL_ROWS + 2u).w) >> MAT_MAP_SHIFT;
     if (slot == 0u) return n;
     vec3 e1 = p1 - p0;

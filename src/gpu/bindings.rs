@@ -231,8 +231,8 @@ pub const SPEC_RESUME_PASS: u32 = 40;
 pub const SPEC_RESUME_LOG: u32 = 41;
 pub const SPEC_RESUME_RECORDS: u32 = 42;
 pub const SPEC_RESUME_JOBS: u32 = 43;
-/// Material kind codes (row 0, w of a material; `scene::MaterialKind` takes its values
-/// from these).
+/// Material kind codes (row 0, w of a material, below MAT_MAP_SHIFT; the emission
+/// texture's index + 1 is above it; `scene::MaterialKind` takes its values from these).
 pub const MAT_LAMBERT: u32 = 0;
 pub const MAT_PHONG: u32 = 1;
 pub const MAT_MIRROR: u32 = 2;
@@ -252,7 +252,8 @@ pub const MAT_FLAG_SCHLICK: u32 = 2;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
 pub const MAT_TEXTURE_SHIFT: u32 = 8;
 /// Shift of the normal texture index + 1 in a metallic-roughness material's map word
-/// (row 2, w); the metallic-roughness texture's index + 1 is below it.
+/// (row 2, w), the metallic-roughness texture's index + 1 below it; and of the
+/// emission texture index + 1 in any material's kind word (row 0, w), the kind below.
 pub const MAT_MAP_SHIFT: u32 = 16;
 /// GGX alpha below which a conductor or dielectric is smooth (a delta lobe), as its
 /// f32 bits (shaders read `uintBitsToFloat(SMOOTH_ALPHA_BITS)`): 0.001, roughness

@@ -11,11 +11,12 @@
 //!   roughness factors times the metallicRoughness texture's blue and green channels,
 //!   the normal texture and its scale; KHR_materials_ior and KHR_materials_specular
 //!   (factor and colour factor) set the dielectric layer's F0 and weight;
-//! - the emissive factor times KHR_materials_emissive_strength is the emission (an area
-//!   light); `doubleSided` makes it emit from both sides.
+//! - the emissive factor times KHR_materials_emissive_strength, times the emissive
+//!   texture (sRGB) where there is one, is the emission (an area light); `doubleSided`
+//!   makes it emit from both sides.
 //!
-//! Not read, and named in the scene's warnings: emissive textures, textures of a
-//! texture-coordinate set other than 0, and KHR_materials_specular's textures. The
+//! Not read, and named in the scene's warnings: textures of a texture-coordinate set
+//! other than 0, and KHR_materials_specular's textures. The
 //! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
@@ -460,8 +461,9 @@ fn material(
     }
     out.emission = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
     out.two_sided = m.double_sided();
-    if m.emissive_texture().is_some() && out.emission != Vec3::ZERO {
-        slots.unread.push("emissive textures (the emissive factor emits uniformly)".into());
+    if out.emission != Vec3::ZERO {
+        let emissive = m.emissive_texture().map(|i| (i.texture(), i.tex_coord()));
+        out.maps.emission = slots.of(emissive, "emissive", textures)?;
     }
     let base_tex = pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord()));
     out.texture = slots.of(base_tex, "base colour", textures)?;

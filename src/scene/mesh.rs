@@ -99,11 +99,13 @@ pub struct Maps {
     pub normal: Option<u32>,
     /// Scales the normal map's x and y.
     pub normal_scale: f32,
+    /// sRGB texture that multiplies the emission (glTF's emissiveTexture).
+    pub emission: Option<u32>,
 }
 
 impl Default for Maps {
     fn default() -> Self {
-        Maps { metal_rough: None, normal: None, normal_scale: 1.0 }
+        Maps { metal_rough: None, normal: None, normal_scale: 1.0, emission: None }
     }
 }
 
@@ -132,12 +134,17 @@ impl Material {
 
     /// Every texture this material reads: albedo, then its maps.
     pub fn textures(&self) -> impl Iterator<Item = u32> {
-        [self.texture, self.maps.metal_rough, self.maps.normal].into_iter().flatten()
+        [self.texture, self.maps.metal_rough, self.maps.normal, self.maps.emission].into_iter().flatten()
     }
 
     /// The same material with every texture index mapped by `f`.
     pub fn map_textures(&self, f: impl Fn(u32) -> u32) -> Material {
-        let maps = Maps { metal_rough: self.maps.metal_rough.map(&f), normal: self.maps.normal.map(&f), ..self.maps };
+        let maps = Maps {
+            metal_rough: self.maps.metal_rough.map(&f),
+            normal: self.maps.normal.map(&f),
+            emission: self.maps.emission.map(&f),
+            ..self.maps
+        };
         Material { texture: self.texture.map(&f), maps, ..self.clone() }
     }
 
@@ -219,6 +226,31 @@ pub struct Texture {
     pub height: u32,
     /// `width * height` texels, row-major.
     pub texels: Vec<[u8; 4]>,
+}
+
+impl Texture {
+    /// The mean luminance of the texels read as sRGB colours (decoded as the kernels
+    /// decode them): what an emission texture scales its material's power by when
+    /// area lights are chosen.
+    pub fn mean_luminance(&self) -> f32 {
+        let linear: [f32; 256] = std::array::from_fn(|k| {
+            let c = k as f32 / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        });
+        let lum = |t: &[u8; 4]| {
+            0.2126 * linear[usize::from(t[0])] + 0.7152 * linear[usize::from(t[1])] + 0.0722 * linear[usize::from(t[2])]
+        };
+        let sum: f64 = self.texels.iter().map(|t| f64::from(lum(t))).sum();
+        if self.texels.is_empty() {
+            0.0
+        } else {
+            (sum / self.texels.len() as f64) as f32
+        }
+    }
 }
 
 /// An equirectangular environment map: linear RGB radiance, row 0 at the top (the

@@ -310,7 +310,7 @@ impl SceneBuilder {
             if let Some(t) = m.textures().find(|&t| t as usize >= s.textures.len()) {
                 return Err(err(format!("material {k} ('{}') has texture index {t} of {}", m.name, s.textures.len())));
             }
-            if m.maps.metal_rough.into_iter().chain(m.maps.normal).any(|t| t >= MAX_MAP_INDEX) {
+            if [m.maps.metal_rough, m.maps.normal, m.maps.emission].into_iter().flatten().any(|t| t >= MAX_MAP_INDEX) {
                 return Err(err(format!(
                     "material {k} ('{}'): a map's texture index is {MAX_MAP_INDEX} or more",
                     m.name

@@ -302,9 +302,9 @@ fn metals_and_transmission_map_to_microfacet_materials() {
     assert_eq!(t.warnings, s.warnings);
 }
 
-/// The metallic-roughness texture, the normal texture (a 16-bit PNG) with its scale
-/// and KHR_materials_specular come through to the material; what is not read (an emissive
-/// texture, a texture of coordinate set 1, a specular texture) is named in one
+/// The metallic-roughness texture, the normal texture (a 16-bit PNG) with its scale,
+/// the emissive texture and KHR_materials_specular come through to the material; what
+/// is not read (a texture of coordinate set 1, a specular texture) is named in one
 /// warning; a file whose textures need UVs it lacks is an error naming the material.
 #[test]
 fn metallic_roughness_maps_and_specular_come_through() {
@@ -363,10 +363,13 @@ fn metallic_roughness_maps_and_specular_come_through() {
     assert_eq!(s.textures[n as usize].texels[0], [128, 128, 255, 255]);
     assert_eq!(m.maps.normal_scale, 0.5);
     assert_eq!(m.texture, None, "a base colour texture of set 1 is not read");
+    let e = m.maps.emission.expect("emissive texture");
+    assert_eq!((m.emission, s.textures[e as usize].texels[0]), (glam::Vec3::ONE, [255, 0, 0, 255]));
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-    for what in ["emissive textures", "texture-coordinate set 1", "KHR_materials_specular textures"] {
+    for what in ["texture-coordinate set 1", "KHR_materials_specular textures"] {
         assert!(s.warnings[0].contains(what), "{what}: {:?}", s.warnings);
     }
+    assert!(!s.warnings[0].contains("emissive"), "{:?}", s.warnings);
     std::fs::write(&path, gltf(false)).expect("gltf");
     let e = Scene::load(&path.display().to_string()).expect_err("maps without UVs").to_string();
     assert!(e.contains("'mapped'") && e.contains("texture coordinates"), "{e}");

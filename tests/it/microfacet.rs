@@ -420,7 +420,7 @@ fn mapped_quad(maps: Option<([u8; 4], [u8; 4])>, normal: Vec3) -> arbor::scene::
         Some((mr, n)) => {
             let one = |name: &str, t: [u8; 4]| Texture { name: name.into(), width: 2, height: 2, texels: vec![t; 4] };
             mesh.textures = vec![one("metal-rough", mr), one("normal", n)];
-            m.maps = Maps { metal_rough: Some(0), normal: Some(1), normal_scale: 1.0 };
+            m.maps = Maps { metal_rough: Some(0), normal: Some(1), ..Maps::default() };
             mesh.normals = Some(vec![Vec3::Z; 4]);
         }
         None => mesh.normals = Some(vec![normal; 4]),

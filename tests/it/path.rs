@@ -1,7 +1,7 @@
 //! The path integrator against analytic values (seeded, deterministic): the white
 //! furnace, three estimators of one integral (light sampling, BSDF sampling, MIS),
 //! an emitter seen directly, in a mirror and through a glass slab (with and without
-//! absorption), and the same bytes for any dispatch split.
+//! absorption), an emission texture, and the same bytes for any dispatch split.
 
 use crate::common;
 
@@ -153,6 +153,84 @@ fn light_bsdf_and_mis_sampling_agree() {
         let best = results[1].1 .1.min(results[2].1 .1);
         assert!(e0 <= 1.5 * best, "light {half}: MIS error {e0} vs best single {best}");
     }
+}
+
+/// How the light of [`emission_scene`] emits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Emits {
+    /// Through a texture of two texels, white then black along u (which runs along
+    /// +x): bright over the light's half at -x.
+    Textured,
+    /// Uniformly, at the texture's mean (the texels are decoded to linear 1 and 0 and
+    /// filtered after, so its mean is exactly 1/2).
+    Mean,
+    /// Uniformly, at the full factor.
+    Full,
+}
+
+/// A floor that lies under the -x half of a square light facing down only.
+fn emission_scene(emits: Emits) -> Scene {
+    use arbor::scene::{Maps, Texture};
+    let v = Vec3::new;
+    let mut b = SceneBuilder::new("floor under half a light");
+    let white = b.material(lambert(0.8));
+    b.mesh(
+        &quad([v(-2.0, 0.0, 2.0), v(0.0, 0.0, 2.0), v(0.0, 0.0, -2.0), v(-2.0, 0.0, -2.0)]),
+        1.0,
+        Vec3::ZERO,
+        Some(white),
+    );
+    let (h, y, e) = (0.8, 1.0, 1.5);
+    let mut light = quad([v(-h, y, -h), v(h, y, -h), v(h, y, h), v(-h, y, h)]);
+    let uv = glam::Vec2::new;
+    light.uvs = Some(vec![uv(0.0, 0.0), uv(1.0, 0.0), uv(1.0, 1.0), uv(0.0, 1.0)]);
+    let m = match emits {
+        Emits::Textured => {
+            let texels = vec![[255, 255, 255, 255], [0, 0, 0, 255]];
+            light.textures = vec![Texture { name: "white, black".into(), width: 2, height: 1, texels }];
+            Material { maps: Maps { emission: Some(0), ..Maps::default() }, ..emitter(e) }
+        }
+        Emits::Mean => emitter(0.5 * e),
+        Emits::Full => emitter(e),
+    };
+    light.materials = vec![m];
+    light.tri_material = vec![0, 0];
+    b.mesh(&light, 1.0, Vec3::ZERO, None);
+    b.scene.background = Vec3::ZERO;
+    b.scene.camera = Camera { eye: v(-1.0, 0.6, 3.0), look_at: v(-1.0, 0.0, 0.0), up: Vec3::Y, vfov: 50.0 };
+    b.finish().expect("scene")
+}
+
+/// An emission texture scales the emission both where a path hits the light (BSDF
+/// sampling) and where next-event estimation samples a point on it (light sampling,
+/// at that point's texture coordinates), and the light's power is its factor times
+/// the texture's mean luminance: light sampling, BSDF sampling and MIS agree on the
+/// floor; the floor under the bright half is brighter than under a uniform light of
+/// the texture's mean and darker than under the untextured light.
+#[test]
+fn emission_textures_light_where_they_are_bright() {
+    let Some(ctx) = common::gpu() else { return };
+    let floor_mean = |scene: &Scene, mis: Mis| {
+        let mut s = settings(24, 24, 64);
+        s.mis = mis;
+        s.max_depth = Some(2);
+        let f = render(&ctx, scene, &s);
+        // The floor only (its two triangles come first).
+        mean_and_error(&f, |k| f.prim[k] < 2)
+    };
+    let textured = emission_scene(Emits::Textured);
+    let results: Vec<(Mis, (f64, f64))> =
+        [Mis::Both, Mis::Light, Mis::Bsdf].into_iter().map(|mis| (mis, floor_mean(&textured, mis))).collect();
+    let (_, (m0, e0)) = results[0];
+    eprintln!("emission texture, floor mean and error by strategy: {results:?}");
+    for &(mis, (m, e)) in &results[1..] {
+        let bound = 4.0 * (e0 * e0 + e * e).sqrt();
+        assert!((m - m0).abs() <= bound, "{mis:?} mean {m} vs MIS {m0} (bound {bound})");
+    }
+    let (mean, _) = floor_mean(&emission_scene(Emits::Mean), Mis::Both);
+    let (full, _) = floor_mean(&emission_scene(Emits::Full), Mis::Both);
+    eprintln!("floor: textured {m0} (MIS), uniform at the mean {mean}, untextured {full}");
+    assert!(m0 > 1.1 * mean && m0 < 0.9 * full, "textured {m0}, mean {mean}, full {full}");
 }
 
 /// The test scene of the emitter tests: a one-sided emitter of radiance 2 facing +z,

@@ -60,8 +60,10 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
             MaterialKind::Pbr => f32::from_bits(map_word(m)),
             _ => m.ior,
         };
+        // The kind, and the emission texture + 1 from MAT_MAP_SHIFT.
+        let kind = m.kind as u32 | m.maps.emission.map_or(0, |t| t + 1) << MAT_MAP_SHIFT;
         let g = GpuMaterial {
-            color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(m.kind as u32)],
+            color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(kind)],
             specular: [specular.x, specular.y, specular.z, shininess],
             emission_ior: [m.emission.x, m.emission.y, m.emission.z, ior],
             absorption_flags: [absorption.x, absorption.y, absorption.z, f32::from_bits(material_flags(m))],

@@ -56,17 +56,41 @@ fn sides(m: &Material) -> f32 {
 }
 
 /// Every primitive that emits (non-zero luminance of emission, non-zero area), with
-/// the power the kernel's `emitter_power` computes for it.
+/// the power the kernel's `emitter_power` computes for it: with an emission texture,
+/// the emission's luminance times the texture's mean luminance.
 ///
 /// Numbers are those of the kernel's primitive buffers: with instancing, the scene's
 /// own triangles come after every prototype's (which cannot emit).
 pub fn emitters(scene: &Scene) -> Vec<Emitter> {
+    emitters_with(scene, &emission_means(scene))
+}
+
+/// Per texture, the mean luminance it scales an emission by ([`Texture::mean_luminance`]),
+/// once for every texture a material emits through; 0 for the others.
+///
+/// [`Texture::mean_luminance`]: crate::scene::Texture::mean_luminance
+fn emission_means(scene: &Scene) -> Vec<f32> {
+    let mut means = vec![0.0; scene.textures.len()];
+    let mut done = vec![false; scene.textures.len()];
+    for t in scene.materials.iter().filter_map(|m| m.maps.emission) {
+        let t = t as usize;
+        if let (Some(tex), false) = (scene.textures.get(t), done.get(t).copied().unwrap_or(true)) {
+            means[t] = tex.mean_luminance();
+            done[t] = true;
+        }
+    }
+    means
+}
+
+/// [`emitters`] with the emission textures' means.
+fn emitters_with(scene: &Scene, means: &[f32]) -> Vec<Emitter> {
     let mut out = Vec::new();
     let stored = scene.stored_triangles() as u32;
     let first_own = stored - scene.triangles.len() as u32;
     let emits = |m: u32| {
         let m = &scene.materials[m as usize];
-        let l = luminance(m.emission);
+        let map = m.maps.emission.map_or(1.0, |t| means.get(t as usize).copied().unwrap_or(0.0));
+        let l = luminance(m.emission) * map;
         (l > 0.0 && l.is_finite()).then(|| l * sides(m))
     };
     for (k, t) in scene.triangles.iter().enumerate() {
@@ -108,13 +132,14 @@ pub fn emitter_rows(list: &[Emitter]) -> (Vec<[f32; 4]>, f32) {
 
 /// Texture table rows then texels (4 per row, 0x00BBGGRR), given the first row the
 /// section starts at. Returns (rows, table base row).
-fn texture_rows(scene: &Scene, base: u32) -> Vec<[f32; 4]> {
+fn texture_rows(scene: &Scene, base: u32, means: &[f32]) -> Vec<[f32; 4]> {
     let n = scene.textures.len() as u32;
     let mut rows: Vec<[f32; 4]> = Vec::new();
     let mut next = base + n;
     let mut texel_rows: Vec<[f32; 4]> = Vec::new();
-    for t in &scene.textures {
-        rows.push([f32::from_bits(next), f32::from_bits(t.width), f32::from_bits(t.height), 0.0]);
+    for (t, &mean) in scene.textures.iter().zip(means) {
+        // w: the mean luminance an emission texture scales its power by (`emitters`).
+        rows.push([f32::from_bits(next), f32::from_bits(t.width), f32::from_bits(t.height), mean]);
         let words: Vec<u32> =
             t.texels.iter().map(|p| u32::from(p[0]) | u32::from(p[1]) << 8 | u32::from(p[2]) << 16).collect();
         for chunk in words.chunks(4) {
@@ -184,7 +209,8 @@ pub struct Extras {
 /// and texture tables, and with `env` the environment map's.
 pub fn extras(scene: &Scene, base: u32, env: bool) -> Result<Extras> {
     let mut ex = Extras::default();
-    let list = emitters(scene);
+    let means = emission_means(scene);
+    let list = emitters_with(scene, &means);
     let mut next = base;
     if !list.is_empty() {
         let (rows, total) = emitter_rows(&list);
@@ -196,7 +222,7 @@ pub fn extras(scene: &Scene, base: u32, env: bool) -> Result<Extras> {
     }
     if !scene.textures.is_empty() {
         ex.tables[1] = next;
-        let rows = texture_rows(scene, next);
+        let rows = texture_rows(scene, next, &means);
         next += rows.len() as u32;
         ex.rows.extend(rows);
     }

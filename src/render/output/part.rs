@@ -192,7 +192,7 @@ pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
         for v in [m.roughness, m.metallic, m.specular_weight, m.maps.normal_scale] {
             h.f32(v);
         }
-        for t in [m.maps.metal_rough, m.maps.normal] {
+        for t in [m.maps.metal_rough, m.maps.normal, m.maps.emission] {
             h.u32(t.map_or(u32::MAX, |t| t));
         }
     }
