@@ -211,6 +211,7 @@ struct MaterialDef {
     two_sided: bool,
     absorption: Option<[f32; 3]>,
     texture: Option<String>,
+    emission_texture: Option<String>,
     roughness: Option<f32>,
     eta: Option<[f32; 3]>,
     k: Option<[f32; 3]>,
@@ -351,21 +352,26 @@ pub fn load(path: &Path) -> Result<Scene> {
             return Err(at(m.span(), format!("material '{}': {what}", d.name)));
         }
         let mut mat = mat;
-        if let Some(t) = &d.texture {
-            let tex_path = dir.join(t);
-            let index = match textures.get(&tex_path) {
-                Some(&i) => i,
-                None => {
-                    let tex = load_texture(&tex_path)
-                        .map_err(|e| at(m.span(), format!("material '{}': texture: {e}", d.name)))?;
-                    b.scene.textures.push(tex);
-                    let i = b.scene.textures.len() as u32 - 1;
-                    textures.insert(tex_path, i);
-                    i
-                }
-            };
-            mat.texture = Some(index);
+        if d.emission_texture.is_some() && mat.emission == Vec3::ZERO {
+            return Err(at(
+                m.span(),
+                format!("material '{}': emission_texture multiplies `emission`, which is zero", d.name),
+            ));
         }
+        let mut load = |key: &str, file: &str| -> Result<u32> {
+            let tex_path = dir.join(file);
+            if let Some(&i) = textures.get(&tex_path) {
+                return Ok(i);
+            }
+            let tex =
+                load_texture(&tex_path).map_err(|e| at(m.span(), format!("material '{}': {key}: {e}", d.name)))?;
+            b.scene.textures.push(tex);
+            let i = b.scene.textures.len() as u32 - 1;
+            textures.insert(tex_path, i);
+            Ok(i)
+        };
+        mat.texture = d.texture.as_deref().map(|t| load("texture", t)).transpose()?;
+        mat.maps.emission = d.emission_texture.as_deref().map(|t| load("emission_texture", t)).transpose()?;
         let index = b.material(mat);
         names.insert(d.name.clone(), index);
     }

@@ -148,6 +148,7 @@ fn toml_material_keys_and_environment_parse() {
         "s.toml",
         "[environment]\nfile = \"sky.hdr\"\nrotation = 90\nintensity = 2.5\n\
          [[material]]\nname = \"lamp\"\ntype = \"emissive\"\ntwo_sided = true\n\
+         [[material]]\nname = \"sign\"\ntype = \"emissive\"\nemission = [2, 2, 2]\nemission_texture = \"wood.png\"\n\
          [[material]]\nname = \"tinted\"\ntype = \"glass\"\nabsorption = [0.5, 0.0, 2.0]\n\
          [[material]]\nname = \"wood2\"\ntype = \"lambert\"\ntexture = \"wood.png\"\n\
          [[mesh]]\nfile = \"quad.obj\"\n\
@@ -163,6 +164,7 @@ fn toml_material_keys_and_environment_parse() {
     assert_eq!(scene.textures.len(), 1, "{:?}", scene.textures.iter().map(|t| &t.name).collect::<Vec<_>>());
     assert_eq!(by_name("wood2").texture, Some(0));
     assert_eq!(by_name("wood").texture, Some(0));
+    assert_eq!((by_name("sign").maps.emission, by_name("sign").texture), (Some(0), None), "one file, read once");
     let env = scene.environment.as_ref().expect("environment");
     assert_eq!((env.width, env.height, env.rotation, env.intensity), (2, 1, 90.0, 2.5));
     let close = |a: [f32; 3], b: [f32; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 0.02 * y.max(0.1));
@@ -252,6 +254,16 @@ fn toml_errors_name_the_file() {
 
     let msg = error(&toml("[[material]]\nname = \"w\"\ntype = \"lambert\"\ntexture = \"nope.png\"\n"), "nope.png");
     assert!(msg.contains("s.toml:1") && msg.contains("material 'w'"), "{msg}");
+    let msg = error(
+        &toml(
+            "[[material]]\nname = \"e\"\ntype = \"emissive\"\nemission = [1, 1, 1]\nemission_texture = \"nope.png\"\n",
+        ),
+        "nope.png",
+    );
+    assert!(msg.contains("s.toml:1") && msg.contains("emission_texture"), "{msg}");
+    let msg =
+        error(&toml("[[material]]\nname = \"e\"\ntype = \"lambert\"\nemission_texture = \"nope.png\"\n"), "s.toml:1");
+    assert!(msg.contains("emission_texture multiplies `emission`, which is zero"), "{msg}");
 
     write(d, "junk.jpg", "\u{1}\u{2}garbage");
     let msg = error(&toml("[[material]]\nname = \"w\"\ntype = \"lambert\"\ntexture = \"junk.jpg\"\n"), "junk.jpg");
