@@ -76,8 +76,9 @@ pub fn gpu_spheres(scene: &Scene) -> Vec<GpuSphere> {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
-    /// bytes 0..12 colour (albedo / tint), 12..16 kind as float-encoded integer bits
-    /// (`f32::from_bits(kind)`) so the row stays a vec4
+    /// bytes 0..12 colour (albedo / tint), 12..16 kind | emission texture + 1 <<
+    /// `MAT_MAP_SHIFT`, as float-encoded integer bits (`f32::from_bits`) so the row
+    /// stays a vec4
     pub color_kind: [f32; 4],
     /// bytes 16..28 Phong specular colour, 28..32 shininess (conductor: eta and GGX
     /// alpha; dielectric: alpha in 28..32; metallic-roughness: metallic, specular

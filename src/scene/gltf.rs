@@ -15,8 +15,13 @@
 //!   texture (sRGB) where there is one, is the emission (an area light); `doubleSided`
 //!   makes it emit from both sides.
 //!
+//! KHR_texture_transform is applied to a primitive's texture coordinates at load, one
+//! transform a material: its base colour texture's (else its metallic-roughness or
+//! emissive texture's); the normal texture takes the same.
+//!
 //! Not read, and named in the scene's warnings: textures of a texture-coordinate set
-//! other than 0, and KHR_materials_specular's textures. The
+//! other than 0, KHR_materials_specular's textures, and texture transforms that differ
+//! between one material's textures. The
 //! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
@@ -116,12 +121,13 @@ pub fn load(path: &Path) -> Result<GltfScene> {
 }
 
 /// Extensions this loader reads; a file that uses others gets one warning naming them.
-const READ: [&str; 5] = [
+const READ: [&str; 6] = [
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_emissive_strength",
     "KHR_materials_specular",
+    "KHR_texture_transform",
 ];
 
 /// Extensions a file may require: what this loader reads, and those whose absence
@@ -344,7 +350,15 @@ fn add_mesh(
             None => normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
         }
         if let Some(tc) = reader.read_tex_coords(0) {
-            let tc: Vec<Vec2> = tc.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect();
+            // In glTF's UV space (v down), then arbor's (v up).
+            let t = uv_transform(&prim.material()).0;
+            let tc: Vec<Vec2> = tc
+                .into_f32()
+                .map(|uv| {
+                    let [u, v] = t.transform_point2(Vec2::from(uv)).to_array();
+                    Vec2::new(u, 1.0 - v)
+                })
+                .collect();
             if tc.len() != positions.len() {
                 return Err(format!("{}: primitive {} has {} UVs for {n} positions", what(), prim.index(), tc.len()));
             }
@@ -422,6 +436,29 @@ impl Slots<'_> {
     }
 }
 
+/// The UV transform (KHR_texture_transform) of `m`'s textures, on glTF's (u, v): the
+/// base colour texture's, else that of the first of the metallic-roughness and emissive
+/// textures that has one; and whether those textures carry different ones (then the
+/// first is used for all). The normal texture's is not read: it takes this one.
+fn uv_transform(m: &gltf::Material) -> (glam::Affine2, bool) {
+    let pbr = m.pbr_metallic_roughness();
+    let infos = [pbr.base_color_texture(), pbr.metallic_roughness_texture(), m.emissive_texture()];
+    let of = |i: &gltf::texture::Info| {
+        i.texture_transform().map_or(glam::Affine2::IDENTITY, |t| {
+            let (s, c) = t.rotation().sin_cos();
+            // Rotation counter-clockwise in glTF's UV space, after the scale.
+            let rotate = glam::Mat2::from_cols(Vec2::new(c, -s), Vec2::new(s, c));
+            glam::Affine2::from_mat2_translation(
+                rotate * glam::Mat2::from_diagonal(Vec2::from(t.scale())),
+                Vec2::from(t.offset()),
+            )
+        })
+    };
+    let all: Vec<glam::Affine2> = infos.iter().flatten().map(of).collect();
+    let first = all.first().copied().unwrap_or(glam::Affine2::IDENTITY);
+    (first, all.iter().any(|t| *t != first))
+}
+
 /// An arbor material for a glTF material (the module docs give the mapping).
 fn material(
     m: &gltf::Material,
@@ -467,6 +504,9 @@ fn material(
     }
     let base_tex = pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord()));
     out.texture = slots.of(base_tex, "base colour", textures)?;
+    if uv_transform(m).1 {
+        slots.unread.push("KHR_texture_transform differing between one material's textures (the first is used)".into());
+    }
     Ok(out)
 }
 

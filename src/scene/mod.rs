@@ -69,9 +69,11 @@ pub const MAX_PRIMS: usize = 1 << 30;
 /// Largest image side accepted.
 pub const MAX_FILM_SIDE: u32 = 16384;
 
-/// A metallic-roughness material's map textures are 16-bit fields of one word
-/// (`MAT_MAP_SHIFT`): their indices stay below this.
-pub const MAX_MAP_INDEX: u32 = (1 << crate::gpu::bindings::MAT_MAP_SHIFT) - 1;
+/// A material's map textures (metallic-roughness, normal, emission) are 16-bit fields
+/// (`MAT_MAP_SHIFT`) of words the shading buffer holds as float bits: their indices
+/// stay below this, so that index + 1 in the upper field never makes the word's
+/// exponent all ones (an infinity or NaN, which a driver might rewrite).
+pub const MAX_MAP_INDEX: u32 = 0x7F7F;
 
 /// A validated scene.
 #[derive(Debug, Clone)]

@@ -374,3 +374,61 @@ fn metallic_roughness_maps_and_specular_come_through() {
     let e = Scene::load(&path.display().to_string()).expect_err("maps without UVs").to_string();
     assert!(e.contains("'mapped'") && e.contains("texture coordinates"), "{e}");
 }
+
+/// KHR_texture_transform: a material's transform (offset, then rotation, then scale,
+/// on glTF's UVs) is baked into its primitives' texture coordinates; the extension is
+/// not named as unread; textures of one material with different transforms are.
+#[test]
+fn texture_transforms_move_the_texture_coordinates() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 255, 255, 255])).save(dir.path().join("t.png")).expect("png");
+    // A triangle: positions, then UVs (0, 1), (1, 1), (0, 0).
+    let mut bin: Vec<u8> = Vec::new();
+    for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {
+        bin.extend_from_slice(&f.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("tri.bin"), &bin).expect("bin");
+    let gltf = |emissive: &str| {
+        format!(
+            r#"{{
+      "asset": {{"version": "2.0"}},
+      "extensionsUsed": ["KHR_texture_transform"],
+      "scenes": [{{"nodes": [0]}}],
+      "nodes": [{{"mesh": 0}}],
+      "images": [{{"uri": "t.png"}}],
+      "textures": [{{"source": 0}}],
+      "materials": [{{
+        "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0, "extensions": {{"KHR_texture_transform":
+            {{"offset": [0.5, 0], "rotation": 1.5707963267948966, "scale": [2, 1]}}}}}}}},
+        "emissiveFactor": [1, 1, 1], "emissiveTexture": {{"index": 0{emissive}}}
+      }}],
+      "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "material": 0}}]}}],
+      "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]}},
+                    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}],
+      "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 24}}],
+      "buffers": [{{"byteLength": 60, "uri": "tri.bin"}}]
+    }}"#
+        )
+    };
+    let path = dir.path().join("moved.gltf");
+    let same = r#", "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 1.5707963267948966, "scale": [2, 1]}}"#;
+    std::fs::write(&path, gltf(same)).expect("gltf");
+    let s = Scene::load(&path.display().to_string()).expect("loads");
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // glTF (u, v): scaled by (2, 1), turned a quarter (u' = v, v' = -u), moved by
+    // (0.5, 0); then arbor's v = 1 - v.
+    for (k, want) in [[1.5, 1.0], [1.5, 3.0], [0.5, 1.0]].into_iter().enumerate() {
+        assert!((s.uvs[k] - glam::Vec2::from(want)).length() < 1e-5, "vertex {k}: {} vs {want:?}", s.uvs[k]);
+    }
+    std::fs::write(&path, gltf("")).expect("gltf");
+    let s = Scene::load(&path.display().to_string()).expect("loads");
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert!(s.warnings[0].contains("KHR_texture_transform differing"), "{:?}", s.warnings);
+    assert!((s.uvs[1] - glam::Vec2::new(1.5, 3.0)).length() < 1e-5, "the base colour's transform: {}", s.uvs[1]);
+    // Khronos's test file loads without a warning.
+    if have_models() {
+        let s = load("textureTransform/TextureTransformTest.gltf");
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    }
+}
