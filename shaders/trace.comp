@@ -258,18 +258,6 @@ struct Branch {
     vec3 beta;
 };
 
-// Fresnel reflectance of smooth glass for a ray along dir meeting shading normal n
-// (facing the ray's origin), and the relative index eta; 1 at total internal reflection.
-float glass_fresnel(vec3 dir, vec3 n, float eta) {
-    float cos_i = min(dot(-dir, n), 1.0);
-    float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
-    if (sin2_t >= 1.0) return 1.0;
-    float cos_t = sqrt(1.0 - sin2_t);
-    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5 * (rs * rs + rp * rp);
-}
-
 // The preview: camera rays; at a Lambert, Phong or rough (microfacet) surface, the
 // point and directional lights (hard shadows), one area light sampled by power (as
 // the path tracer does, without MIS) and the ambient term, and no further bounce;
@@ -352,8 +340,9 @@ void whitted_main() {
                     r.origin = offset_ray_origin(p, err, gnf, r.dir);
                     follow = true;
                 } else if (is_glass(m) && more) {
-                    float eta = front ? 1.0 / m.ior : m.ior;
-                    float fresnel = glass_fresnel(r.dir, n, eta);
+                    float eta = front ? 1.0 / m.ior : m.ior;  // incident over transmitted, for refract
+                    float cos_t;
+                    float fresnel = fresnel_dielectric(clamp(dot(-r.dir, n), 0.0, 1.0), 1.0 / eta, cos_t);
                     vec3 reflected = normalize(reflect(r.dir, n));
                     vec3 w_reflect = vec3(fresnel);
                     vec3 w_refract = (1.0 - fresnel) * m.albedo;
