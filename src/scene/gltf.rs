@@ -20,8 +20,9 @@
 //! emissive texture's); the normal texture takes the same.
 //!
 //! Not read, and named in the scene's warnings: textures of a texture-coordinate set
-//! other than 0, KHR_materials_specular's textures, and texture transforms that differ
-//! between one material's textures. The
+//! other than 0, KHR_materials_specular's textures, texture transforms that differ
+//! between one material's textures, alpha (MASK and BLEND surfaces are opaque) and
+//! vertex colours. The
 //! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
@@ -185,6 +186,12 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
     for m in document.materials() {
         let mat = material(&m, &mut textures, &mut out.mesh.textures)?;
         out.mesh.materials.push(mat);
+        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            textures.unread.push("alpha (alphaMode MASK or BLEND: those surfaces are opaque)".into());
+        }
+    }
+    if document.meshes().flat_map(|m| m.primitives()).any(|p| p.get(&gltf::Semantic::Colors(0)).is_some()) {
+        textures.unread.push("vertex colours (COLOR_0)".into());
     }
     if !textures.unread.is_empty() {
         textures.unread.sort();

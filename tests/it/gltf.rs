@@ -304,8 +304,8 @@ fn metals_and_transmission_map_to_microfacet_materials() {
 
 /// The metallic-roughness texture, the normal texture (a 16-bit PNG) with its scale,
 /// the emissive texture and KHR_materials_specular come through to the material; what
-/// is not read (a texture of coordinate set 1, a specular texture) is named in one
-/// warning; a file whose textures need UVs it lacks is an error naming the material.
+/// is not read (a texture of coordinate set 1, a specular texture, alpha, vertex
+/// colours) is named in one warning; a file whose textures need UVs it lacks is an error naming the material.
 #[test]
 fn metallic_roughness_maps_and_specular_come_through() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -322,7 +322,7 @@ fn metallic_roughness_maps_and_specular_come_through() {
     }
     std::fs::write(dir.path().join("tri.bin"), &bin).expect("bin");
     let gltf = |uvs: bool| {
-        let attributes = if uvs { r#"{"POSITION": 0, "TEXCOORD_0": 1}"# } else { r#"{"POSITION": 0}"# };
+        let attributes = if uvs { r#"{"POSITION": 0, "TEXCOORD_0": 1, "COLOR_0": 0}"# } else { r#"{"POSITION": 0}"# };
         format!(
             r#"{{
       "asset": {{"version": "2.0"}},
@@ -332,7 +332,7 @@ fn metallic_roughness_maps_and_specular_come_through() {
       "images": [{{"uri": "mr.png"}}, {{"uri": "n.png"}}, {{"uri": "e.png"}}],
       "textures": [{{"source": 0}}, {{"source": 1}}, {{"source": 2}}],
       "materials": [{{
-        "name": "mapped",
+        "name": "mapped", "alphaMode": "MASK",
         "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0.8,
                                  "roughnessFactor": 0.6, "metallicRoughnessTexture": {{"index": 0}},
                                  "baseColorTexture": {{"index": 2, "texCoord": 1}}}},
@@ -366,7 +366,7 @@ fn metallic_roughness_maps_and_specular_come_through() {
     let e = m.maps.emission.expect("emissive texture");
     assert_eq!((m.emission, s.textures[e as usize].texels[0]), (glam::Vec3::ONE, [255, 0, 0, 255]));
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-    for what in ["texture-coordinate set 1", "KHR_materials_specular textures"] {
+    for what in ["texture-coordinate set 1", "KHR_materials_specular textures", "alpha", "vertex colours (COLOR_0)"] {
         assert!(s.warnings[0].contains(what), "{what}: {:?}", s.warnings);
     }
     assert!(!s.warnings[0].contains("emissive"), "{:?}", s.warnings);
