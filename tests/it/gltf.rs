@@ -23,6 +23,26 @@ const ONE_TRIANGLE: &str = r#"
                    "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
     }"#;
 
+/// The end of a glTF JSON whose accessors 0 and 1 are the positions and UVs of the
+/// triangle [`write_uv_triangle`] writes, and the closing brace.
+const UV_TRIANGLE: &str = r#"
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24}],
+      "buffers": [{"byteLength": 60, "uri": "tri.bin"}]
+    }"#;
+
+/// Writes `tri.bin` into `dir`: the triangle (0,0,0), (1,0,0), (0,1,0), then its UVs
+/// (0, 1), (1, 1), (0, 0) ([`UV_TRIANGLE`] reads it).
+fn write_uv_triangle(dir: &std::path::Path) {
+    let mut bin: Vec<u8> = Vec::new();
+    for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {
+        bin.extend_from_slice(&f.to_le_bytes());
+    }
+    std::fs::write(dir.join("tri.bin"), &bin).expect("bin");
+}
+
 fn have_models() -> bool {
     let ok = model("BoxTextured-glTF/BoxTextured.gltf").exists();
     if !ok {
@@ -315,12 +335,7 @@ fn metallic_roughness_maps_and_specular_come_through() {
     // The normal map in 16 bits per channel, as many are: rounded to 8.
     let n16 = image::ImageBuffer::from_pixel(2, 2, image::Rgba([32_896u16, 32_896, 65_535, 65_535]));
     n16.save(dir.path().join("n.png")).expect("16-bit png");
-    // A triangle: positions, then UVs.
-    let mut bin: Vec<u8> = Vec::new();
-    for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {
-        bin.extend_from_slice(&f.to_le_bytes());
-    }
-    std::fs::write(dir.path().join("tri.bin"), &bin).expect("bin");
+    write_uv_triangle(dir.path());
     let gltf = |uvs: bool| {
         let attributes = if uvs { r#"{"POSITION": 0, "TEXCOORD_0": 1, "COLOR_0": 0}"# } else { r#"{"POSITION": 0}"# };
         format!(
@@ -343,13 +358,8 @@ fn metallic_roughness_maps_and_specular_come_through() {
                        "KHR_materials_ior": {{"ior": 2.0}}}}
       }}],
       "meshes": [{{"primitives": [{{"attributes": {attributes}, "material": 0}}]}}],
-      "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                     "min": [0, 0, 0], "max": [1, 1, 0]}},
-                    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}],
-      "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 24}}],
-      "buffers": [{{"byteLength": 60, "uri": "tri.bin"}}]
-    }}"#
-        )
+"#
+        ) + UV_TRIANGLE
     };
     let path = dir.path().join("mapped.gltf");
     std::fs::write(&path, gltf(true)).expect("gltf");
@@ -382,12 +392,7 @@ fn metallic_roughness_maps_and_specular_come_through() {
 fn texture_transforms_move_the_texture_coordinates() {
     let dir = tempfile::tempdir().expect("tempdir");
     image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 255, 255, 255])).save(dir.path().join("t.png")).expect("png");
-    // A triangle: positions, then UVs (0, 1), (1, 1), (0, 0).
-    let mut bin: Vec<u8> = Vec::new();
-    for f in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0] {
-        bin.extend_from_slice(&f.to_le_bytes());
-    }
-    std::fs::write(dir.path().join("tri.bin"), &bin).expect("bin");
+    write_uv_triangle(dir.path());
     let gltf = |emissive: &str| {
         format!(
             r#"{{
@@ -403,13 +408,8 @@ fn texture_transforms_move_the_texture_coordinates() {
         "emissiveFactor": [1, 1, 1], "emissiveTexture": {{"index": 0{emissive}}}
       }}],
       "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "material": 0}}]}}],
-      "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                     "min": [0, 0, 0], "max": [1, 1, 0]}},
-                    {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}}],
-      "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 24}}],
-      "buffers": [{{"byteLength": 60, "uri": "tri.bin"}}]
-    }}"#
-        )
+"#
+        ) + UV_TRIANGLE
     };
     let path = dir.path().join("moved.gltf");
     let same = r#", "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 1.5707963267948966, "scale": [2, 1]}}"#;
