@@ -18,24 +18,48 @@ vec3 texel(uint base, uint w, uint x, uint y, bool srgb) {
     return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
 }
 
-// Bilinear, repeat wrap; `srgb`: decode to linear before filtering.
+// A texture coordinate reduced to one period of its wrap mode (the table row's
+// TEXTURE_WRAP_* bits: 0 repeat, 1 clamp to edge, 2 mirrored repeat): [0, 1), [-1, 2]
+// or [0, 2), so that texel indices stay small.
+float wrap_coord(float u, uint mode) {
+    if (mode == 1u) return clamp(u, -1.0, 2.0);
+    if (mode == 2u) return u - 2.0 * floor(0.5 * u);
+    return u - floor(u);
+}
+
+// Texel index i of a row or column of n texels, wrapped by mode.
+uint wrap_texel(int i, int n, uint mode) {
+    if (mode == 1u) return uint(clamp(i, 0, n - 1));
+    if (mode == 2u) {
+        int p = (i % (2 * n) + 2 * n) % (2 * n);
+        return uint(p < n ? p : 2 * n - 1 - p);
+    }
+    return uint((i % n + n) % n);
+}
+
+// Bilinear, with the texture's wrap along u and v; `srgb`: decode to linear before
+// filtering.
 vec3 texture_rgb(uint tex, vec2 uv, bool srgb) {
     vec4 row = shading_row(params.tables.y + tex);
     uint base = floatBitsToUint(row.x);
-    uint w = floatBitsToUint(row.y);
+    uint wbits = floatBitsToUint(row.y);
+    uint w = wbits & ((1u << TEXTURE_WRAP_U_SHIFT) - 1u);
+    uint wrap_u = (wbits >> TEXTURE_WRAP_U_SHIFT) & 3u;
+    uint wrap_v = (wbits >> TEXTURE_WRAP_V_SHIFT) & 3u;
     uint h = floatBitsToUint(row.z);
-    float x = (uv.x - floor(uv.x)) * float(w) - 0.5;
-    float y = (1.0 - (uv.y - floor(uv.y))) * float(h) - 0.5;
+    float x = wrap_coord(uv.x, wrap_u) * float(w) - 0.5;
+    // Row 0 is the top, v = 1.
+    float y = (1.0 - wrap_coord(uv.y, wrap_v)) * float(h) - 0.5;
     float fx = floor(x);
     float fy = floor(y);
     float ax = x - fx;
     float ay = y - fy;
     int ix = int(fx);
     int iy = int(fy);
-    uint x0 = uint((ix % int(w) + int(w)) % int(w));
-    uint x1 = (x0 + 1u) % w;
-    uint y0 = uint((iy % int(h) + int(h)) % int(h));
-    uint y1 = (y0 + 1u) % h;
+    uint x0 = wrap_texel(ix, int(w), wrap_u);
+    uint x1 = wrap_texel(ix + 1, int(w), wrap_u);
+    uint y0 = wrap_texel(iy, int(h), wrap_v);
+    uint y1 = wrap_texel(iy + 1, int(h), wrap_v);
     vec3 a = mix(texel(base, w, x0, y0, srgb), texel(base, w, x1, y0, srgb), ax);
     vec3 b = mix(texel(base, w, x0, y1, srgb), texel(base, w, x1, y1, srgb), ax);
     return mix(a, b, ay);

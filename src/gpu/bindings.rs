@@ -251,6 +251,11 @@ pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 pub const MAT_FLAG_SCHLICK: u32 = 2;
 /// Shift of the texture index + 1 (0: no texture) in a material's flags word.
 pub const MAT_TEXTURE_SHIFT: u32 = 8;
+/// A texture's wrap along u and v (glTF's sampler: 0 repeat, 1 clamp to edge, 2
+/// mirrored repeat), in its table row's width word (y) from these bits up; the width
+/// is below TEXTURE_WRAP_U_SHIFT.
+pub const TEXTURE_WRAP_U_SHIFT: u32 = 24;
+pub const TEXTURE_WRAP_V_SHIFT: u32 = 26;
 /// Shift of the normal texture index + 1 in a metallic-roughness material's map word
 /// (row 2, w), the metallic-roughness texture's index + 1 below it; and of the
 /// emission texture index + 1 in any material's kind word (row 0, w), the kind below.
@@ -368,6 +373,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SMOOTH_ALPHA_BITS", SMOOTH_ALPHA_BITS),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
     ("MAT_MAP_SHIFT", MAT_MAP_SHIFT),
+    ("TEXTURE_WRAP_U_SHIFT", TEXTURE_WRAP_U_SHIFT),
+    ("TEXTURE_WRAP_V_SHIFT", TEXTURE_WRAP_V_SHIFT),
     ("MIS_BOTH", MIS_BOTH),
     ("MIS_LIGHT", MIS_LIGHT),
     ("MIS_BSDF", MIS_BSDF),

@@ -40,7 +40,7 @@ use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3};
 
-use super::mesh::{MeshData, Texture};
+use super::mesh::{MeshData, Texture, Wrap};
 use super::{Camera, Light, Material, MaterialKind};
 use crate::error::{Error, Result};
 
@@ -182,7 +182,7 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         out.warnings.push(format!("{name}: arbor does not read the glTF extension(s) {}", unread.join(", ")));
     }
     // Materials and textures: one arbor material per glTF material, then the default.
-    let mut textures = Slots { images: &images, slot: vec![None; images.len()], file: name, unread: Vec::new() };
+    let mut textures = Slots { images: &images, slot: Default::default(), file: name, unread: Vec::new() };
     for m in document.materials() {
         let mat = material(&m, &mut textures, &mut out.mesh.textures)?;
         out.mesh.materials.push(mat);
@@ -408,8 +408,8 @@ fn add_mesh(
 /// The file's images as arbor textures, each converted once, when a material uses it.
 struct Slots<'a> {
     images: &'a [gltf::image::Data],
-    /// Per image, its texture index once converted.
-    slot: Vec<Option<u32>>,
+    /// Per image and wrap (the texture's sampler), its texture index once converted.
+    slot: std::collections::HashMap<(usize, [Wrap; 2]), u32>,
     file: &'a str,
     /// What materials have that is not read, for the warning.
     unread: Vec<String>,
@@ -430,15 +430,22 @@ impl Slots<'_> {
             return Ok(None);
         }
         let image = tex.source().index();
-        if let Some(s) = self.slot.get(image).copied().flatten() {
+        let wrap = {
+            use gltf::texture::WrappingMode;
+            let sampler = tex.sampler();
+            [sampler.wrap_s(), sampler.wrap_t()].map(|m| match m {
+                WrappingMode::ClampToEdge => Wrap::Clamp,
+                WrappingMode::MirroredRepeat => Wrap::Mirror,
+                WrappingMode::Repeat => Wrap::Repeat,
+            })
+        };
+        if let Some(&s) = self.slot.get(&(image, wrap)) {
             return Ok(Some(s));
         }
         let data = self.images.get(image).ok_or_else(|| format!("image {image} is missing"))?;
-        textures.push(texture(data, &format!("{}#image{image}", self.file))?);
+        textures.push(Texture { wrap, ..texture(data, &format!("{}#image{image}", self.file))? });
         let s = (textures.len() - 1) as u32;
-        if let Some(d) = self.slot.get_mut(image) {
-            *d = Some(s);
-        }
+        self.slot.insert((image, wrap), s);
         Ok(Some(s))
     }
 }
@@ -551,7 +558,7 @@ fn texture(d: &gltf::image::Data, name: &str) -> std::result::Result<Texture, St
     if texels.len() != n || n == 0 {
         return Err(format!("{name}: the image has {} texels for {}x{}", texels.len(), d.width, d.height));
     }
-    Ok(Texture { name: name.to_string(), width: d.width, height: d.height, texels })
+    Ok(Texture { name: name.to_string(), width: d.width, height: d.height, texels, ..Default::default() })
 }
 
 /// What a file that is not glTF looks like, from its first bytes.

@@ -28,7 +28,7 @@ pub fn load_texture(path: &Path) -> Result<Texture> {
     let rgba = image.into_rgba8();
     let (width, height) = rgba.dimensions();
     let texels = rgba.as_raw().chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
-    Ok(Texture { name: path.display().to_string(), width, height, texels })
+    Ok(Texture { name: path.display().to_string(), width, height, texels, ..Default::default() })
 }
 
 /// Loads an equirectangular environment map (Radiance `.hdr` or OpenEXR `.exr`) as

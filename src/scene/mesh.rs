@@ -217,8 +217,8 @@ pub struct MeshData {
 }
 
 /// A texture image: 8-bit RGBA texels as stored (sRGB-encoded colour), row 0 at the
-/// top (v = 1 in texture space), sampled with bilinear filtering and repeat wrap.
-#[derive(Debug, Clone, PartialEq)]
+/// top (v = 1 in texture space), sampled with bilinear filtering and `wrap`.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Texture {
     /// The file it came from, for messages.
     pub name: String,
@@ -226,6 +226,20 @@ pub struct Texture {
     pub height: u32,
     /// `width * height` texels, row-major.
     pub texels: Vec<[u8; 4]>,
+    /// How coordinates outside [0, 1] read it, along u and v (glTF's sampler).
+    pub wrap: [Wrap; 2],
+}
+
+/// How a texture is read outside [0, 1] (glTF's wrapS / wrapT).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Wrap {
+    /// The texture tiles (the default).
+    #[default]
+    Repeat = 0,
+    /// The edge texels stretch on.
+    Clamp = 1,
+    /// The texture tiles, every other copy mirrored.
+    Mirror = 2,
 }
 
 impl Texture {

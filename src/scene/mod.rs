@@ -28,7 +28,7 @@ use glam::{Vec2, Vec3};
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
 pub use instance::{Instance, Instancing, Prototype};
-pub use mesh::{ComplexIor, Environment, Maps, Material, MaterialKind, MeshData, Texture};
+pub use mesh::{ComplexIor, Environment, Maps, Material, MaterialKind, MeshData, Texture, Wrap};
 
 use crate::error::{Error, Result};
 use crate::math::Aabb;
@@ -178,8 +178,8 @@ impl SceneBuilder {
     /// Texture coordinates: `scene.uvs` stays empty until a mesh with UVs arrives, and
     /// from then on holds one per position (`Vec2::ZERO` for vertices of meshes without
     /// them, earlier ones included). The mesh's textures join `scene.textures` (one with
-    /// the same name as a texture already there is that texture) and its materials'
-    /// texture indices are remapped.
+    /// the same name and wrap modes as a texture already there is that texture) and its
+    /// materials' texture indices are remapped.
     pub fn mesh(&mut self, mesh: &MeshData, scale: f32, translate: Vec3, material: Option<u32>) {
         let t = glam::Affine3A::from_scale_rotation_translation(Vec3::splat(scale), glam::Quat::IDENTITY, translate);
         self.mesh_transformed(mesh, &t, material);
@@ -218,7 +218,7 @@ impl SceneBuilder {
             // Where each of the mesh's textures is in the scene.
             let mut remap = Vec::with_capacity(mesh.textures.len());
             for t in &mesh.textures {
-                let at = match s.textures.iter().position(|old| old.name == t.name) {
+                let at = match s.textures.iter().position(|old| old.name == t.name && old.wrap == t.wrap) {
                     Some(i) => i,
                     None => {
                         s.textures.push(t.clone());

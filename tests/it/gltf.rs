@@ -387,7 +387,8 @@ fn metallic_roughness_maps_and_specular_come_through() {
 
 /// KHR_texture_transform: a material's transform (offset, then rotation, then scale,
 /// on glTF's UVs) is baked into its primitives' texture coordinates; the extension is
-/// not named as unread; textures of one material with different transforms are.
+/// not named as unread; textures of one material with different transforms are. An
+/// image under two samplers is two textures, each with its sampler's wrap modes.
 #[test]
 fn texture_transforms_move_the_texture_coordinates() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -401,11 +402,12 @@ fn texture_transforms_move_the_texture_coordinates() {
       "scenes": [{{"nodes": [0]}}],
       "nodes": [{{"mesh": 0}}],
       "images": [{{"uri": "t.png"}}],
-      "textures": [{{"source": 0}}],
+      "samplers": [{{"wrapS": 33071, "wrapT": 33648}}],
+      "textures": [{{"source": 0, "sampler": 0}}, {{"source": 0}}],
       "materials": [{{
         "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0, "extensions": {{"KHR_texture_transform":
             {{"offset": [0.5, 0], "rotation": 1.5707963267948966, "scale": [2, 1]}}}}}}}},
-        "emissiveFactor": [1, 1, 1], "emissiveTexture": {{"index": 0{emissive}}}
+        "emissiveFactor": [1, 1, 1], "emissiveTexture": {{"index": 1{emissive}}}
       }}],
       "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "material": 0}}]}}],
 "#
@@ -416,6 +418,13 @@ fn texture_transforms_move_the_texture_coordinates() {
     std::fs::write(&path, gltf(same)).expect("gltf");
     let s = Scene::load(&path.display().to_string()).expect("loads");
     assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // One image under two samplers: two textures, each with its sampler's wrap.
+    use arbor::scene::Wrap;
+    let m = s.materials.iter().find(|m| m.name == "gltf material 0").expect("the material");
+    let (base, glow) = (m.texture.expect("base colour"), m.maps.emission.expect("emissive"));
+    assert_eq!(s.textures.len(), 2);
+    assert_eq!(s.textures[base as usize].wrap, [Wrap::Clamp, Wrap::Mirror]);
+    assert_eq!(s.textures[glow as usize].wrap, [Wrap::Repeat, Wrap::Repeat]);
     // glTF (u, v): scaled by (2, 1), turned a quarter (u' = v, v' = -u), moved by
     // (0.5, 0); then arbor's v = 1 - v.
     for (k, want) in [[1.5, 1.0], [1.5, 3.0], [0.5, 1.0]].into_iter().enumerate() {

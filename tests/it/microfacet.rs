@@ -418,7 +418,13 @@ fn mapped_quad(maps: Option<([u8; 4], [u8; 4])>, normal: Vec3) -> arbor::scene::
     let mut m = pbr("mapped", 1.0, 1.0, Vec3::new(0.9, 0.6, 0.3));
     match maps {
         Some((mr, n)) => {
-            let one = |name: &str, t: [u8; 4]| Texture { name: name.into(), width: 2, height: 2, texels: vec![t; 4] };
+            let one = |name: &str, t: [u8; 4]| Texture {
+                name: name.into(),
+                width: 2,
+                height: 2,
+                texels: vec![t; 4],
+                ..Default::default()
+            };
             mesh.textures = vec![one("metal-rough", mr), one("normal", n)];
             m.maps = Maps { metal_rough: Some(0), normal: Some(1), ..Maps::default() };
             mesh.normals = Some(vec![Vec3::Z; 4]);

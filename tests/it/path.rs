@@ -187,7 +187,8 @@ fn emission_scene(emits: Emits) -> Scene {
     let m = match emits {
         Emits::Textured => {
             let texels = vec![[255, 255, 255, 255], [0, 0, 0, 255]];
-            light.textures = vec![Texture { name: "white, black".into(), width: 2, height: 1, texels }];
+            light.textures =
+                vec![Texture { name: "white, black".into(), width: 2, height: 1, texels, ..Default::default() }];
             Material { maps: Maps { emission: Some(0), ..Maps::default() }, ..emitter(e) }
         }
         Emits::Mean => emitter(0.5 * e),
@@ -469,7 +470,8 @@ fn textured_albedo_is_the_decoded_texel() {
         glam::Vec2::new(1.0, 1.0),
         glam::Vec2::new(0.0, 1.0),
     ]);
-    mesh.textures = vec![arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels }];
+    mesh.textures =
+        vec![arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels, ..Default::default() }];
     mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
     mesh.tri_material = vec![0, 0];
     let mut b = SceneBuilder::new("textured");
@@ -498,6 +500,59 @@ fn textured_albedo_is_the_decoded_texel() {
         for c in 0..3 {
             let want = decode(t[c]);
             assert!((got[c] - want).abs() < 1e-3, "block {k} channel {c}: {} vs {want}", got[c]);
+        }
+    }
+}
+
+/// A texture's wrap modes (glTF's samplers): a quad whose texture coordinates run
+/// from 0 to 2 in u and v, textured with 2x2 texels of which only the top-left is
+/// white, read at the texel centres past 1 (so bilinear filtering sees one texel) by
+/// the Whitted integrator's unjittered first sample.
+#[test]
+fn wrap_modes_repeat_clamp_and_mirror() {
+    use arbor::scene::{Texture, Wrap};
+    let Some(ctx) = common::gpu() else { return };
+    let v = Vec3::new;
+    // 68 pixels over two units: texel centres (u = 0.25, 1.25, 1.75) fall on pixel
+    // centres (columns 8, 42, 59; rows 42, 25, 8 for v = 0.75, 1.25, 1.75).
+    let n = 68u32;
+    let render_with = |wrap: Wrap| {
+        let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
+        let uv = glam::Vec2::new;
+        mesh.uvs = Some(vec![uv(0.0, 0.0), uv(2.0, 0.0), uv(2.0, 2.0), uv(0.0, 2.0)]);
+        let (white, black) = ([255u8, 255, 255, 255], [0u8, 0, 0, 255]);
+        let texels = vec![white, black, black, black];
+        mesh.textures = vec![Texture { name: "corner".into(), width: 2, height: 2, texels, wrap: [wrap; 2] }];
+        mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
+        mesh.tri_material = vec![0, 0];
+        let mut b = SceneBuilder::new("wrapped");
+        b.mesh(&mesh, 1.0, Vec3::ZERO, None);
+        b.scene.camera = Camera {
+            eye: v(0.0, 0.0, 100.0),
+            look_at: Vec3::ZERO,
+            up: Vec3::Y,
+            vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees(),
+        };
+        let scene = b.finish().expect("scene");
+        // Whitted's first sample is the pixel's centre (the path tracer jitters it).
+        let mut s = settings(n, n, 1);
+        s.integrator = Integrator::Whitted;
+        render(&ctx, &scene, &s)
+    };
+    let at = |f: &Frame, col: u32, row: u32| f.albedo[(row * n + col) as usize][0];
+    // (u = 1.25, 1.75 along the top row's centre v = 0.75; v = 1.25, 1.75 along the
+    // left column's centre u = 0.25): 1 where the white texel is read.
+    for (wrap, along_u, along_v) in [
+        (Wrap::Repeat, [1.0, 0.0], [0.0, 1.0]),
+        (Wrap::Clamp, [0.0, 0.0], [1.0, 1.0]),
+        (Wrap::Mirror, [0.0, 1.0], [1.0, 0.0]),
+    ] {
+        let f = render_with(wrap);
+        assert!((at(&f, 8, 42) - 1.0).abs() < 1e-3, "{wrap:?}: the white texel itself");
+        let got_u = [at(&f, 42, 42), at(&f, 59, 42)];
+        let got_v = [at(&f, 8, 25), at(&f, 8, 8)];
+        for (got, want) in got_u.iter().chain(&got_v).zip(along_u.iter().chain(&along_v)) {
+            assert!((got - want).abs() < 1e-3, "{wrap:?}: along u {got_u:?}, along v {got_v:?}");
         }
     }
 }

@@ -139,7 +139,11 @@ fn texture_rows(scene: &Scene, base: u32, means: &[f32]) -> Vec<[f32; 4]> {
     let mut texel_rows: Vec<[f32; 4]> = Vec::new();
     for (t, &mean) in scene.textures.iter().zip(means) {
         // w: the mean luminance an emission texture scales its power by (`emitters`).
-        rows.push([f32::from_bits(next), f32::from_bits(t.width), f32::from_bits(t.height), mean]);
+        // y: the width, and the wrap modes above it (at most 24 bits of width: the
+        // float bits are never an infinity or NaN).
+        let [wu, wv] = t.wrap.map(|w| w as u32);
+        let width = t.width | wu << TEXTURE_WRAP_U_SHIFT | wv << TEXTURE_WRAP_V_SHIFT;
+        rows.push([f32::from_bits(next), f32::from_bits(width), f32::from_bits(t.height), mean]);
         let words: Vec<u32> =
             t.texels.iter().map(|p| u32::from(p[0]) | u32::from(p[1]) << 8 | u32::from(p[2]) << 16).collect();
         for chunk in words.chunks(4) {

@@ -200,6 +200,7 @@ pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
     for t in &scene.textures {
         h.u32(t.width);
         h.u32(t.height);
+        t.wrap.iter().for_each(|w| h.u32(*w as u32));
         t.texels.iter().for_each(|px| h.bytes(px));
     }
     h.u32(scene.lights.len() as u32);
