@@ -109,7 +109,8 @@ pub struct RenderSettings {
     pub intersect: IntersectMode,
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel; sample 0 goes through the pixel centre.
+    /// Samples per pixel; the Whitted integrator's sample 0 goes through the pixel
+    /// centre, the path tracer jitters every sample.
     pub spp: u32,
     pub seed: u32,
     pub accel: AccelKind,
@@ -321,8 +322,9 @@ impl RenderSettings {
 /// devices only `--dispatch-budget` bounds a dispatch, and time sizes it.
 pub const DEFAULT_DISPATCH_BUDGET: u64 = 60_000_000;
 
-/// A rendered frame: linear radiance (averaged over samples) and the AOVs of the
-/// pixel-centre camera ray. Row-major, row 0 at the top.
+/// A rendered frame: linear radiance (averaged over samples) and the AOVs of each
+/// pixel's first camera ray (its centre with the Whitted integrator, jittered with the
+/// path tracer). Row-major, row 0 at the top.
 #[derive(Debug, Clone, Default)]
 pub struct Frame {
     pub width: u32,
@@ -429,10 +431,10 @@ pub struct RenderStats {
     pub rays: u64,
     pub mrays_per_s: Option<f64>,
     pub accel_bytes: u64,
-    /// Mean primitives tested by the pixel-centre camera ray; null where the kernel
+    /// Mean primitives tested by each pixel's first camera ray; null where the kernel
     /// cannot count them (the driver's structure, `rayquery`).
     pub mean_prims_tested: Option<f64>,
-    /// Mean nodes (or boxes) visited by the pixel-centre camera ray; null as above.
+    /// Mean nodes (or boxes) visited by each pixel's first camera ray; null as above.
     pub mean_nodes_visited: Option<f64>,
 }
 

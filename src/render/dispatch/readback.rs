@@ -1,5 +1,5 @@
 //! Accumulation: the `GpuPixel`s the loop read back into the frame (radiance
-//! averaged over samples, the AOVs of the pixel-centre camera ray), and the wave
+//! averaged over samples, the AOVs of the pixel's first camera ray), and the wave
 //! policy every render shares ([`FrameWaves`]).
 
 use super::{ChunkInput, Next, Wave, WavePolicy};
