@@ -14,8 +14,9 @@
 // params.tables; see src/render/path.rs, which writes them):
 //   emitters (tables.x): one row each: x primitive (uint bits), y CDF at its start,
 //     z its probability; params.env.z is the total power
-//   textures (tables.y): one row each: x first texel row (uint bits), y width, z height,
-//     w mean luminance (for an emission texture's power, else 0); texels 4 per row, each 0x00BBGGRR, row-major from the top row (common/textures.glsl)
+//   textures (tables.y): one row each: x first texel row (uint bits), y width and wrap
+//     modes, z height, w mean luminance (an emission texture's, else 0); texels 4 per
+//     row, each 0x00BBGGRR, row-major from the top row (common/textures.glsl)
 //   environment texels (tables.z): 2 per row, each two words packHalf2x16(r, g),
 //     packHalf2x16(b, 0), row-major from the top row (the +y pole)
 //   environment distribution (tables.w): floats 4 per row, the layout of

@@ -1,9 +1,9 @@
 // Texture lookup (section tables.y of the shading buffer, common/path.glsl): one row
-// per texture, x first texel row (uint bits), y width, z height, w the mean luminance
-// an emission texture scales its light's power by (common/path.glsl); texels 4 per row,
-// each 0x00BBGGRR, row-major from the top row. Colour textures are sRGB-encoded and
-// decoded before filtering; data textures (metallic-roughness, normal maps) are
-// linear. Needs the shading buffer and params (common/layout.glsl).
+// per texture, x first texel row (uint bits), y width (TEXTURE_WRAP_* bits above it),
+// z height, w the mean luminance an emission texture scales its light's power by;
+// texels 4 per row, each 0x00BBGGRR, row-major from the top row. Colour textures are
+// sRGB-encoded and decoded before filtering; data textures (metallic-roughness, normal
+// maps) are linear. Needs the shading buffer and params (common/layout.glsl).
 #ifndef ARBOR_TEXTURES_GLSL
 #define ARBOR_TEXTURES_GLSL
 

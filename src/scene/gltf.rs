@@ -122,18 +122,9 @@ pub fn load(path: &Path) -> Result<GltfScene> {
 }
 
 /// Extensions this loader reads; a file that uses others gets one warning naming them.
+/// They are also the extensions a file may require (the others it might require, such
+/// as Draco or meshopt, change what the buffers hold).
 const READ: [&str; 6] = [
-    "KHR_lights_punctual",
-    "KHR_materials_transmission",
-    "KHR_materials_ior",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_specular",
-    "KHR_texture_transform",
-];
-
-/// Extensions a file may require: what this loader reads, and those whose absence
-/// only changes the look (the file stays valid glTF without them).
-const KNOWN_REQUIRED: [&str; 6] = [
     "KHR_lights_punctual",
     "KHR_materials_transmission",
     "KHR_materials_ior",
@@ -146,7 +137,7 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
     // A required extension arbor cannot read (Draco, meshopt, ...) would otherwise show
     // up as a confusing validation error about missing buffer views.
     if let Ok(g) = gltf::Gltf::from_slice_without_validation(bytes) {
-        if let Some(ext) = g.document.extensions_required().find(|e| !KNOWN_REQUIRED.contains(e)) {
+        if let Some(ext) = g.document.extensions_required().find(|e| !READ.contains(e)) {
             return Err(format!("glTF: the file requires the extension {ext}, which arbor does not read"));
         }
     }

@@ -453,37 +453,39 @@ fn white_furnace_under_an_environment_map() {
     assert!((on - 0.25).abs() <= 4.0 * on_err + 2e-3, "sphere under the map: {on} (error {on_err})");
 }
 
-/// A texture on a quad: the albedo AOV inside each block of equal texels is the texel,
-/// decoded from sRGB; the blocks land where the UVs put them (row 0 at the top).
-#[test]
-fn textured_albedo_is_the_decoded_texel() {
-    let Some(ctx) = common::gpu() else { return };
+/// A quad from (-1, -1) to (1, 1) in z = 0 whose texture coordinates run from 0 to
+/// `uv_max` along x and y, textured (albedo) with `texture`, seen head-on from far away
+/// through a narrow view that the quad fills exactly.
+fn textured_quad(texture: arbor::scene::Texture, uv_max: f32) -> Scene {
     let v = Vec3::new;
-    // 4x4 texels in four blocks of 2x2, so that bilinear filtering inside a block
-    // (where the pixels below look) sees one colour.
-    let colours = [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]];
-    let texels: Vec<[u8; 4]> = (0..16).map(|k| colours[(k % 4) / 2 + 2 * ((k / 4) / 2)]).collect();
     let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
-    mesh.uvs = Some(vec![
-        glam::Vec2::new(0.0, 0.0),
-        glam::Vec2::new(1.0, 0.0),
-        glam::Vec2::new(1.0, 1.0),
-        glam::Vec2::new(0.0, 1.0),
-    ]);
-    mesh.textures =
-        vec![arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels, ..Default::default() }];
+    let uv = glam::Vec2::new;
+    mesh.uvs = Some(vec![uv(0.0, 0.0), uv(uv_max, 0.0), uv(uv_max, uv_max), uv(0.0, uv_max)]);
+    mesh.textures = vec![texture];
     mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
     mesh.tri_material = vec![0, 0];
-    let mut b = SceneBuilder::new("textured");
+    let mut b = SceneBuilder::new("textured quad");
     b.mesh(&mesh, 1.0, Vec3::ZERO, None);
-    // An orthographic-like view: far away, narrow.
     b.scene.camera = Camera {
         eye: v(0.0, 0.0, 100.0),
         look_at: Vec3::ZERO,
         up: Vec3::Y,
         vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees(),
     };
-    let scene = b.finish().expect("scene");
+    b.finish().expect("scene")
+}
+
+/// A texture on a quad: the albedo AOV inside each block of equal texels is the texel,
+/// decoded from sRGB; the blocks land where the UVs put them (row 0 at the top).
+#[test]
+fn textured_albedo_is_the_decoded_texel() {
+    let Some(ctx) = common::gpu() else { return };
+    // 4x4 texels in four blocks of 2x2, so that bilinear filtering inside a block
+    // (where the pixels below look) sees one colour.
+    let colours = [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]];
+    let texels: Vec<[u8; 4]> = (0..16).map(|k| colours[(k % 4) / 2 + 2 * ((k / 4) / 2)]).collect();
+    let texture = arbor::scene::Texture { name: "4x4".into(), width: 4, height: 4, texels, ..Default::default() };
+    let scene = textured_quad(texture, 1.0);
     let f = render(&ctx, &scene, &settings(64, 64, 1));
     let decode = |c: u8| {
         let c = f32::from(c) / 255.0;
@@ -512,28 +514,13 @@ fn textured_albedo_is_the_decoded_texel() {
 fn wrap_modes_repeat_clamp_and_mirror() {
     use arbor::scene::{Texture, Wrap};
     let Some(ctx) = common::gpu() else { return };
-    let v = Vec3::new;
     // 68 pixels over two units: texel centres (u = 0.25, 1.25, 1.75) fall on pixel
     // centres (columns 8, 42, 59; rows 42, 25, 8 for v = 0.75, 1.25, 1.75).
     let n = 68u32;
     let render_with = |wrap: Wrap| {
-        let mut mesh = quad([v(-1.0, -1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 1.0, 0.0), v(-1.0, 1.0, 0.0)]);
-        let uv = glam::Vec2::new;
-        mesh.uvs = Some(vec![uv(0.0, 0.0), uv(2.0, 0.0), uv(2.0, 2.0), uv(0.0, 2.0)]);
         let (white, black) = ([255u8, 255, 255, 255], [0u8, 0, 0, 255]);
         let texels = vec![white, black, black, black];
-        mesh.textures = vec![Texture { name: "corner".into(), width: 2, height: 2, texels, wrap: [wrap; 2] }];
-        mesh.materials = vec![Material { texture: Some(0), ..lambert(1.0) }];
-        mesh.tri_material = vec![0, 0];
-        let mut b = SceneBuilder::new("wrapped");
-        b.mesh(&mesh, 1.0, Vec3::ZERO, None);
-        b.scene.camera = Camera {
-            eye: v(0.0, 0.0, 100.0),
-            look_at: Vec3::ZERO,
-            up: Vec3::Y,
-            vfov: 2.0 * (1.0f32 / 100.0).atan().to_degrees(),
-        };
-        let scene = b.finish().expect("scene");
+        let scene = textured_quad(Texture { name: "corner".into(), width: 2, height: 2, texels, wrap: [wrap; 2] }, 2.0);
         // Whitted's first sample is the pixel's centre (the path tracer jitters it).
         let mut s = settings(n, n, 1);
         s.integrator = Integrator::Whitted;

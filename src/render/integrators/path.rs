@@ -70,16 +70,15 @@ pub fn emitters(scene: &Scene) -> Vec<Emitter> {
 ///
 /// [`Texture::mean_luminance`]: crate::scene::Texture::mean_luminance
 fn emission_means(scene: &Scene) -> Vec<f32> {
-    let mut means = vec![0.0; scene.textures.len()];
-    let mut done = vec![false; scene.textures.len()];
-    for t in scene.materials.iter().filter_map(|m| m.maps.emission) {
-        let t = t as usize;
-        if let (Some(tex), false) = (scene.textures.get(t), done.get(t).copied().unwrap_or(true)) {
-            means[t] = tex.mean_luminance();
-            done[t] = true;
+    let emitting: std::collections::BTreeSet<u32> = scene.materials.iter().filter_map(|m| m.maps.emission).collect();
+    let mean = |(k, t): (usize, &crate::scene::Texture)| {
+        if emitting.contains(&(k as u32)) {
+            t.mean_luminance()
+        } else {
+            0.0
         }
-    }
-    means
+    };
+    scene.textures.iter().enumerate().map(mean).collect()
 }
 
 /// [`emitters`] with the emission textures' means.
