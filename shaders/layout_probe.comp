@@ -13,13 +13,21 @@ layout(std430, set = 0, binding = BINDING_ACCEL_NODES) buffer ProbeOut { uint wo
 
 void w4(inout uint o, uvec4 v) { words[o] = v.x; words[o + 1u] = v.y; words[o + 2u] = v.z; words[o + 3u] = v.w; o += 4u; }
 void f4(inout uint o, vec4 v) { w4(o, floatBitsToUint(v)); }
+void w1(inout uint o, uint v) { words[o] = v; o += 1u; }
+void f1(inout uint o, float v) { w1(o, floatBitsToUint(v)); }
+void f3(inout uint o, vec3 v) { f1(o, v.x); f1(o, v.y); f1(o, v.z); }
 
 void main() {
     uint o = 0u;
-    // GpuParams
-    f4(o, params.cam_eye); f4(o, params.cam_right); f4(o, params.cam_up); f4(o, params.cam_forward);
-    f4(o, params.scene_min); f4(o, params.scene_max); w4(o, params.dims); w4(o, params.counts);
-    f4(o, params.background); w4(o, params.tables); f4(o, params.env);
+    // GpuParams, every field in declaration order
+    f3(o, params.cam_eye); f1(o, params.tan_half_fov); f3(o, params.cam_right); f1(o, params.aspect);
+    f3(o, params.cam_up); f1(o, params.pad0); f3(o, params.cam_forward); f1(o, params.pad1);
+    f3(o, params.scene_min); f1(o, params.pad2); f3(o, params.scene_max); f1(o, params.pad3);
+    w1(o, params.width); w1(o, params.height); w1(o, params.triangle_count); w1(o, params.sphere_count);
+    w1(o, params.light_count); w1(o, params.material_count); w1(o, params.seed); w1(o, params.pad4);
+    f3(o, params.background); f1(o, params.ambient);
+    w1(o, params.emitter_table); w1(o, params.texture_table); w1(o, params.env_texel_table); w1(o, params.env_distribution_table);
+    f1(o, params.env_intensity); f1(o, params.env_rotation); f1(o, params.emitter_power); f1(o, params.pad5);
     // GpuDispatch (the pixel buffer's header)
     w4(o, dispatch_range); w4(o, dispatch_chunk); w4(o, dispatch_window); w4(o, dispatch_limits);
     // GpuVertex[0..2]
@@ -28,8 +36,8 @@ void main() {
     for (uint k = 0u; k < 2u; k++) { w4(o, triangle_at(k)); }
     // GpuSphere[0..2]
     for (uint k = 0u; k < 2u; k++) { f4(o, sphere_center_radius(k)); w4(o, sphere_at(k).material); }
-    // shading rows: one GpuMaterial + one GpuLight = 6 rows
-    for (uint k = 0u; k < 6u; k++) { f4(o, shading_row(k)); }
+    // shading rows: one GpuMaterial + one GpuLight
+    for (uint k = 0u; k < MATERIAL_ROWS + LIGHT_ROWS; k++) { f4(o, shading_row(k)); }
     // GpuPixel[0..2] (read)
     for (uint k = 0u; k < 2u; k++) { f4(o, pixels[k].radiance); f4(o, pixels[k].normal_depth); w4(o, pixels[k].prim_cost); f4(o, pixels[k].albedo_m2); }
     // GpuRay[0..2]

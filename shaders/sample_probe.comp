@@ -12,6 +12,13 @@
 //   mode 2, environment sample: in (u1, u2, unused), unused; out (direction, pdf),
 //           (env_pdf at the direction, the direction's cell x and y, the sampled cell
 //           y * width + x), (radiance, unused)
+//   mode 3, material decode (`material_at`): in (part, 0, 0, material), unused; out,
+//           uint words as their float bits:
+//           part 0: (albedo, kind), (specular, shininess), (emission, emission_map)
+//           part 1: (absorption, ior), (eta, alpha), (k, flags)
+//           part 2: (f0, metallic), (spec_weight, 0, 0, 0), 0
+//   mode 4, light decode (`light_at`): in (0, 0, 0, light), unused; out
+//           (position or direction, 1 point | 0 directional), (radiance, 0), 0
 // The shading normal is +z; `front` is 1.0 when wo is on the geometric normal's side.
 #extension GL_GOOGLE_include_directive : require
 layout(local_size_x = 64) in;
@@ -22,7 +29,6 @@ layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 255u;
 #include "common/layout.glsl"
 
-vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
 
 #include "common/bsdf.glsl"
 #include "common/envmap.glsl"
@@ -58,6 +64,26 @@ void main() {
         float pdf;
         vec3 f = bsdf_eval(m, n, a.xyz, b.xyz, b.w > 0.5, pdf);
         o0 = vec4(f, pdf);
+    } else if (probe.range.x == 3u) {
+        Material m = material_at(uint(a.w));
+        if (a.x == 0.0) {
+            o0 = vec4(m.albedo, uintBitsToFloat(m.kind));
+            o1 = vec4(m.specular, m.shininess);
+            o2 = vec4(m.emission, uintBitsToFloat(m.emission_map));
+        } else if (a.x == 1.0) {
+            o0 = vec4(m.absorption, m.ior);
+            o1 = vec4(m.eta, m.alpha);
+            o2 = vec4(m.k, uintBitsToFloat(m.flags));
+        } else {
+            o0 = vec4(m.f0, m.metallic);
+            o1 = vec4(m.spec_weight, 0.0, 0.0, 0.0);
+        }
+    } else if (probe.range.x == 4u) {
+        vec3 at, radiance;
+        bool point;
+        light_at(uint(a.w), at, point, radiance);
+        o0 = vec4(at, point ? 1.0 : 0.0);
+        o1 = vec4(radiance, 0.0);
     } else {
         vec3 d;
         float pdf;

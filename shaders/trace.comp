@@ -76,8 +76,8 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
     float t;
     Ray rr = r;
     rr.tmax = h.t;
-    if (ray_sphere(rr, s.xyz, s.w, t) && (t < h.t || params.dims.z + i < h.prim)) {
-        h.t = t; h.prim = params.dims.z + i; h.u = 0.0; h.v = 0.0;
+    if (ray_sphere(rr, s.xyz, s.w, t) && (t < h.t || params.triangle_count + i < h.prim)) {
+        h.t = t; h.prim = params.triangle_count + i; h.u = 0.0; h.v = 0.0;
         return true;
     }
     return false;
@@ -87,12 +87,12 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
 // Primitive p of the global numbering (triangles first, then spheres), for trees.
 bool intersect_prim(uint p, Ray r, inout Hit h) {
 #if HAS_TRIANGLES && HAS_SPHERES
-    if (p < params.dims.z) return intersect_triangle(p, r, h);
-    return intersect_sphere(p - params.dims.z, r, h);
+    if (p < params.triangle_count) return intersect_triangle(p, r, h);
+    return intersect_sphere(p - params.triangle_count, r, h);
 #elif HAS_TRIANGLES
     return intersect_triangle(p, r, h);
 #else
-    return intersect_sphere(p - params.dims.z, r, h);
+    return intersect_sphere(p - params.triangle_count, r, h);
 #endif
 }
 
@@ -171,7 +171,7 @@ void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
     gn = vec3(0.0, 1.0, 0.0);
     p = vec3(0.0); err = vec3(0.0);
 #if HAS_TRIANGLES
-    if (h.prim < params.dims.z) {
+    if (h.prim < params.triangle_count) {
         uvec4 tri = triangle_at(h.prim);
         vec3 a = vertex_position(tri.x);
         vec3 b = vertex_position(tri.y);
@@ -186,7 +186,7 @@ void surface_point(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn) {
     }
 #endif
 #if HAS_SPHERES
-    vec4 s = sphere_center_radius(h.prim - params.dims.z);
+    vec4 s = sphere_center_radius(h.prim - params.triangle_count);
     vec3 rel;
     sphere_point(r.origin, r.dir, h.t, s.xyz, s.w, p, err, rel);
     gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
@@ -205,7 +205,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     gn = vec3(0.0, 1.0, 0.0); sn = gn; mat = 0u; uv = vec2(0.0);
     p = vec3(0.0); err = vec3(0.0);
 #if HAS_TRIANGLES
-    if (h.prim < params.dims.z) {
+    if (h.prim < params.triangle_count) {
         uvec4 tri = triangle_at(h.prim);
         Vertex a = vertex_at(tri.x);
         Vertex b = vertex_at(tri.y);
@@ -233,7 +233,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
     }
 #endif
 #if HAS_SPHERES
-    Sphere s = sphere_at(h.prim - params.dims.z);
+    Sphere s = sphere_at(h.prim - params.triangle_count);
     vec3 rel;
     sphere_point(r.origin, r.dir, h.t, s.center_radius.xyz, s.center_radius.w, p, err, rel);
     gn = dot(rel, rel) > 0.0 ? normalize(rel) : -r.dir;
@@ -243,7 +243,6 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 #endif
 }
 
-vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
 
 #include "common/bsdf.glsl"
 #include "common/path.glsl"
@@ -280,12 +279,12 @@ void whitted_main() {
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {
         sample_start();
-        uint rng = rng_init(pixel, s, params.counts.z);
+        uint rng = rng_init(pixel, s, params.seed);
         // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
         float fx = 0.5, fy = 0.5;
         if (s > 0u) { fx = rng_next(rng); fy = rng_next(rng); }
         Ray r;
-        r.origin = params.cam_eye.xyz;
+        r.origin = params.cam_eye;
         r.dir = camera_ray_dir(i, j, fx, fy);
         r.tmin = 0.0;
         r.tmax = uintBitsToFloat(0x7f800000u);
@@ -318,7 +317,7 @@ void whitted_main() {
             }
             bool follow = false;
             if (!hit) {
-                L += beta * params.background.rgb;
+                L += beta * params.background;
             } else {
                 L += beta * emitted(m, gn, r.dir);
                 bool front = dot(gn, r.dir) < 0.0;
@@ -328,7 +327,7 @@ void whitted_main() {
                 bool more = depth + 1u < MAX_DEPTH;
                 if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG || is_rough_conductor(m)
                     || is_rough_dielectric(m) || is_pbr(m)) {
-                    L += beta * (bsdf_colour(m) * params.background.a * params.background.rgb
+                    L += beta * (bsdf_colour(m) * params.ambient * params.background
                                  + delta_lights(m, p, err, n, gnf, wo, front));
                     if (EMITTER_COUNT > 0u) {
                         vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
@@ -416,7 +415,7 @@ void probe_main() {
     uint pixel = at.x;
     sample_start();
     Ray r;
-    r.origin = params.cam_eye.xyz;
+    r.origin = params.cam_eye;
     r.dir = camera_ray_dir(at.y, at.z, 0.5, 0.5);
     r.tmin = 0.0;
     r.tmax = uintBitsToFloat(0x7f800000u);
@@ -426,13 +425,13 @@ void probe_main() {
     bool hit = trace_closest_coherent(r, h);
     uvec3 cost = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
     uint rays = 1u;
-    vec3 L = hit ? vec3(1.0) : params.background.rgb;
+    vec3 L = hit ? vec3(1.0) : params.background;
     vec3 n = vec3(0.0);
     if (DIFFUSE_PROBE && hit) {
         vec3 p, err, gn;
         surface_point(h, r, p, err, gn);
         n = dot(gn, r.dir) < 0.0 ? gn : -gn;
-        uint rng = rng_init(pixel, 0u, params.counts.z);
+        uint rng = rng_init(pixel, 0u, params.seed);
         vec3 d = cosine_direction(n, rng_next(rng), rng_next(rng));
         Ray dr;
         dr.origin = offset_ray_origin(p, err, n, d); dr.dir = d;
@@ -440,7 +439,7 @@ void probe_main() {
         Hit dh;
         dh.t = dr.tmax; dh.prim = NO_PRIM; dh.u = 0.0; dh.v = 0.0;
         rays = 2u;
-        L = trace_closest(dr, dh) ? vec3(0.0) : params.background.rgb;
+        L = trace_closest(dr, dh) ? vec3(0.0) : params.background;
     }
     Pixel q;
     // A stopped sample holds none: the resume kernel's sweep finds the pixel by it.

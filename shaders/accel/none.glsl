@@ -24,7 +24,7 @@
 bool scene_box(Ray r) {
     float enter, exit_t;
     g_nodes += 1u;
-    return ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, safe_rcp3(r.dir), r.tmin, r.tmax, enter, exit_t);
+    return ray_box(params.scene_min, params.scene_max, r.origin, safe_rcp3(r.dir), r.tmin, r.tmax, enter, exit_t);
 }
 
 // Tests primitives [0, n) with TEST (TEST_TRI or TEST_SPH), unrolled BRUTE_UNROLL times.
@@ -51,7 +51,7 @@ bool scene_box(Ray r) {
 #endif
 
 // Every primitive of the scene; ANY_EXIT decides what a hit does besides recording it.
-// The counts are specialization constants, not `params.dims`: lavapipe compiles a
+// The counts are specialization constants, not `params.triangle_count`: lavapipe compiles a
 // shader again at every dispatch for a uniform that bounds a loop.
 layout(constant_id = SPEC_TRIANGLE_COUNT) const uint TRIANGLE_COUNT = 0u;
 layout(constant_id = SPEC_SPHERE_COUNT) const uint SPHERE_COUNT = 0u;

@@ -71,7 +71,7 @@ bool rq_trace(Ray r, inout Hit h, bool any_hit) {
         h.u = b.x;
         h.v = b.y;
     } else {
-        h.prim = params.dims.z + p;
+        h.prim = params.triangle_count + p;
         h.u = 0.0;
         h.v = 0.0;
     }

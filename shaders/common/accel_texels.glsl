@@ -28,8 +28,8 @@ uint accel_index(uint k) {
 }
 #else
 // The box rays are first clipped to; the traversal's step counter.
-#define ACCEL_BOX_MIN params.scene_min.xyz
-#define ACCEL_BOX_MAX params.scene_max.xyz
+#define ACCEL_BOX_MIN params.scene_min
+#define ACCEL_BOX_MAX params.scene_max
 #define STEPS_START uint steps = 0u
 // 16-byte unit k of the node buffer.
 uvec4 node_texel(uint k) { return texelFetch(accel_node_texels, int(k)); }

@@ -1,6 +1,6 @@
 // Materials of the path integrator: evaluation, sampling and pdf agree (the pdf a
 // sampler returns is the pdf `bsdf_eval` reports for that direction), and no material
-// reflects more than it receives. Needs `mat_row` (the shading buffer).
+// reflects more than it receives. Reads the material records (common/layout.glsl).
 //
 // Conventions: n is the shading normal turned to the side of wo (toward the viewer);
 // wi points away from the surface; `f` excludes the cosine factor.
@@ -19,7 +19,7 @@ struct Material {
     vec3 albedo;      // Lambert / Phong diffuse albedo (textured), mirror, glass and
                       // dielectric tint, conductor tint (or F0 with MAT_FLAG_SCHLICK)
     uint kind;        // MAT_*
-    vec3 specular;    // Phong
+    vec3 specular;    // Phong (0 for other kinds)
     float shininess;  // Phong exponent
     vec3 emission;
     uint emission_map; // emission texture index + 1 (0: none)
@@ -34,48 +34,72 @@ struct Material {
     vec3 f0;          // MAT_PBR: the dielectric layer's reflectance at normal incidence
 };
 
-Material material_at(uint id) {
-    vec4 r0 = mat_row(id, 0u);
-    vec4 r1 = mat_row(id, 1u);
-    vec4 r2 = mat_row(id, 2u);
-    vec4 r3 = mat_row(id, 3u);
-    Material m;
-    m.albedo = r0.rgb;
-    m.kind = floatBitsToUint(r0.w) & ((1u << MAT_MAP_SHIFT) - 1u);
-    m.emission_map = floatBitsToUint(r0.w) >> MAT_MAP_SHIFT;
-    m.specular = r1.rgb;
-    m.shininess = r1.w;
-    m.emission = r2.rgb;
-    m.ior = r2.w;
-    m.absorption = r3.rgb;
-    m.flags = floatBitsToUint(r3.w);
-    m.alpha = 0.0;
-    m.eta = vec3(1.0);
-    m.k = vec3(0.0);
-    if (kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR) {
-        m.alpha = r1.w;
-        m.eta = r1.rgb;
-        m.k = r3.rgb;
-        m.absorption = vec3(0.0);
-    }
-    if (kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC) m.alpha = r1.w;
-    m.metallic = 0.0;
-    m.spec_weight = 0.0;
-    m.f0 = vec3(0.0);
-    if (kind_used(MAT_PBR) && m.kind == MAT_PBR) {
-        // Never a delta lobe: roughness 0 is the sharpest GGX lobe a float holds.
-        m.alpha = max(r1.w * r1.w, ALPHA_SMOOTH);
-        m.metallic = r1.x;
-        m.spec_weight = r1.y;
-        m.f0 = r3.rgb;
-        m.absorption = vec3(0.0);
-        m.ior = 1.5;
-    }
+// The decoders, one per kind (the encoders are in src/render/dispatch/upload.rs; the
+// words in src/gpu/bindings.rs, MAT_W_*). The plain kinds: Lambert, Phong, mirror,
+// glass, emissive.
+void decode_plain(vec4 rec[MATERIAL_ROWS], inout Material m) {
+    m.specular = REC_RGB(rec, MAT_W_SPECULAR_RGB);
+    m.shininess = REC_WORD(rec, MAT_W_SHININESS);
+    m.ior = REC_WORD(rec, MAT_W_IOR);
+    m.absorption = REC_RGB(rec, MAT_W_ABSORPTION_RGB);
     if (kind_used(MAT_PHONG) && m.kind == MAT_PHONG) {
         // Energy conservation: diffuse + specular albedo at most 1 per channel.
         float s = max(max(m.albedo.r + m.specular.r, m.albedo.g + m.specular.g), m.albedo.b + m.specular.b);
         if (s > 1.0) { m.albedo /= s; m.specular /= s; }
     }
+}
+
+void decode_conductor(vec4 rec[MATERIAL_ROWS], inout Material m) {
+    m.ior = REC_WORD(rec, MAT_W_IOR);
+    m.alpha = REC_WORD(rec, MAT_W_ALPHA);
+    m.eta = REC_RGB(rec, MAT_W_ETA_RGB);
+    m.k = REC_RGB(rec, MAT_W_K_RGB);
+}
+
+void decode_dielectric(vec4 rec[MATERIAL_ROWS], inout Material m) {
+    m.ior = REC_WORD(rec, MAT_W_IOR);
+    m.absorption = REC_RGB(rec, MAT_W_ABSORPTION_RGB);
+    m.alpha = REC_WORD(rec, MAT_W_ALPHA);
+}
+
+// Metallic-roughness (its maps are read at the hit, `material_hit` in path.glsl).
+void decode_pbr(vec4 rec[MATERIAL_ROWS], inout Material m) {
+    float roughness = REC_WORD(rec, MAT_W_ROUGHNESS);
+    // Never a delta lobe: roughness 0 is the sharpest GGX lobe a float holds.
+    m.alpha = max(roughness * roughness, ALPHA_SMOOTH);
+    m.metallic = REC_WORD(rec, MAT_W_METALLIC);
+    m.spec_weight = REC_WORD(rec, MAT_W_SPEC_WEIGHT);
+    m.f0 = REC_RGB(rec, MAT_W_F0_RGB);
+    m.ior = 1.5;
+}
+
+Material material_at(uint id) {
+    vec4 rec[MATERIAL_ROWS];
+    rec[0] = mat_row(id, 0u);
+    rec[1] = mat_row(id, 1u);
+    rec[2] = mat_row(id, 2u);
+    rec[3] = mat_row(id, 3u);
+    Material m;
+    uint kind_word = REC_BITS(rec, MAT_W_KIND);
+    m.albedo = REC_RGB(rec, MAT_W_COLOR_RGB);
+    m.kind = kind_word & ((1u << MAT_MAP_SHIFT) - 1u);
+    m.emission_map = kind_word >> MAT_MAP_SHIFT;
+    m.emission = REC_RGB(rec, MAT_W_EMISSION_RGB);
+    m.flags = REC_BITS(rec, MAT_W_FLAGS);
+    m.specular = vec3(0.0);
+    m.shininess = 0.0;
+    m.ior = 1.0;
+    m.absorption = vec3(0.0);
+    m.alpha = 0.0;
+    m.eta = vec3(1.0);
+    m.k = vec3(0.0);
+    m.metallic = 0.0;
+    m.spec_weight = 0.0;
+    m.f0 = vec3(0.0);
+    if (kind_used(MAT_CONDUCTOR) && m.kind == MAT_CONDUCTOR) decode_conductor(rec, m);
+    else if (kind_used(MAT_DIELECTRIC) && m.kind == MAT_DIELECTRIC) decode_dielectric(rec, m);
+    else if (kind_used(MAT_PBR) && m.kind == MAT_PBR) decode_pbr(rec, m);
+    else decode_plain(rec, m);
     return m;
 }
 

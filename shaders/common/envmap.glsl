@@ -25,26 +25,26 @@ uint cdf_search(uint base, uint first, uint n, float u) {
 
 // The map's direction convention (render::envdist::uv_to_dir / dir_to_uv): v = theta
 // / pi from +y (row 0 at the top); u = 0.5 looks along -z, 0.75 along +x; the map
-// turns by params.env.y radians about +y (counter-clockwise seen from above).
+// turns by params.env_rotation radians about +y (counter-clockwise seen from above).
 vec2 env_dir_to_uv(vec3 d) {
     float theta = acos(clamp(d.y, -1.0, 1.0));
-    float u = (atan(-d.x, d.z) + params.env.y) * (0.5 * INV_PI);
+    float u = (atan(-d.x, d.z) + params.env_rotation) * (0.5 * INV_PI);
     u -= floor(u);
     return vec2(u, theta * INV_PI);
 }
 
 vec3 env_uv_to_dir(vec2 uv, out float sin_theta) {
     float theta = uv.y * PI;
-    float phi = uv.x * 2.0 * PI - params.env.y;
+    float phi = uv.x * 2.0 * PI - params.env_rotation;
     sin_theta = sin(theta);
     return vec3(-sin_theta * sin(phi), cos(theta), sin_theta * cos(phi));
 }
 
 vec3 env_texel(uint x, uint y) {
     uint k = (y * ENV_WIDTH + x) * 2u;
-    vec2 rg = unpackHalf2x16(shading_word(params.tables.z, k));
-    vec2 b_ = unpackHalf2x16(shading_word(params.tables.z, k + 1u));
-    return vec3(rg, b_.x) * params.env.x;
+    vec2 rg = unpackHalf2x16(shading_word(params.env_texel_table, k));
+    vec2 b_ = unpackHalf2x16(shading_word(params.env_texel_table, k + 1u));
+    return vec3(rg, b_.x) * params.env_intensity;
 }
 
 // Cell (x, y) holding uv.
@@ -61,7 +61,7 @@ uint env_row_cdf(uint y) {
 float env_pdf(vec3 d) {
     vec2 uv = env_dir_to_uv(d);
     uvec2 c = env_cell(uv);
-    uint base = params.tables.w;
+    uint base = params.env_distribution_table;
     float pm = shading_float(base, c.y + 1u) - shading_float(base, c.y);
     uint row = env_row_cdf(c.y);
     float pc = shading_float(base, row + c.x + 1u) - shading_float(base, row + c.x);
@@ -79,7 +79,7 @@ vec3 env_radiance(vec3 d) {
 // float `first`, the continuous position in [0, 1) and the cell's density.
 float env_sample_1d(uint first, uint n, float u, out uint cell, out float pdf) {
     u = clamp(u, 0.0, ONE_MINUS_EPSILON);
-    uint base = params.tables.w;
+    uint base = params.env_distribution_table;
     cell = cdf_search(base, first, n, u);
     float c0 = shading_float(base, first + cell);
     float w = shading_float(base, first + cell + 1u) - c0;
@@ -105,7 +105,7 @@ vec3 env_sample(float u1, float u2, out vec3 d, out float pdf, out uvec2 cell) {
 // Radiance arriving along d from outside the scene.
 vec3 escaped(vec3 d) {
     if (ENV_WIDTH > 0u) return env_radiance(d);
-    return params.background.rgb;
+    return params.background;
 }
 
 #endif

@@ -53,7 +53,7 @@ Ray inst_enter(uint e, Ray r) {
 bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 inv = safe_rcp3(r.dir);
     float e0, e1;
-    if (!ray_box(params.scene_min.xyz, params.scene_max.xyz, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
+    if (!ray_box(params.scene_min, params.scene_max, r.origin, inv, r.tmin, r.tmax, e0, e1)) return false;
     uvec4 hdr = inst_texel(0u);
     uint stack[STACK_SIZE];
     uint sp = 0u;
@@ -194,8 +194,8 @@ uint inst_aov_prim(Hit h) {
     uvec4 counts = inst_texel(1u);
     uint base = inst_record(h.inst);
     if ((inst_texel(base + 7u).w & INST_ENTRY_OWN) != 0u) {
-        if (h.prim < params.dims.z) return h.prim - counts.x;
-        return h.prim - params.dims.z + counts.y + counts.z;
+        if (h.prim < params.triangle_count) return h.prim - counts.x;
+        return h.prim - params.triangle_count + counts.y + counts.z;
     }
     return counts.y + inst_texel(base + 6u).w + (h.prim - inst_texel(base + 6u).z);
 }

@@ -20,40 +20,42 @@ struct Pixel {
     vec4 albedo_m2;     // 48..60 albedo at the first hit, 60..64 summed squared luminance
 };                      // 64 bytes
 
-// Material = 4 vec4 rows of the shading buffer:
-//   row 0: rgb colour (conductor: tint, or F0 with MAT_FLAG_SCHLICK), a = kind | emission
-//          texture + 1 << MAT_MAP_SHIFT (uint bits)
-//   row 1: rgb specular (Phong) or eta (conductor), a = shininess (Phong) or GGX
-//          alpha = roughness^2 (conductor, dielectric); metallic-roughness (MAT_PBR):
-//          metallic, specular weight, normal-map scale, roughness
-//   row 2: rgb emission, a = ior (MAT_PBR: uint bits, metallic-roughness texture + 1
-//          | normal texture + 1 << MAT_MAP_SHIFT)
-//   row 3: rgb absorption (glass, dielectric), k (conductor) or the dielectric
-//          layer's F0 (MAT_PBR), a = flags (uint
-//          bits): MAT_FLAG_TWO_SIDED, MAT_FLAG_SCHLICK, texture index + 1 from bit
-//          MAT_TEXTURE_SHIFT (0: none)
-// Light = 2 vec4 rows, after all materials:
-//   row 0: xyz position (w = 1) or travel direction (w = 0)
-//   row 1: rgb radiance / intensity
-#define MATERIAL_ROWS 4
-#define LIGHT_ROWS 2
-// The MAT_* kind codes come from src/gpu/bindings.rs.
+// Material and light records: rows of the shading buffer whose words are named in
+// src/gpu/bindings.rs (MAT_W_*, LIGHT_W_*: the table of which kind uses which word);
+// read below (`mat_row`, `mat_word`, `light_at`) and in common/bsdf.glsl (`material_at`).
 
 layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
-    vec4 cam_eye;      // 0   xyz eye, w tan(vfov/2)
-    vec4 cam_right;    // 16  xyz right, w aspect
-    vec4 cam_up;       // 32
-    vec4 cam_forward;  // 48
-    vec4 scene_min;    // 64
-    vec4 scene_max;    // 80
-    uvec4 dims;        // 96  width, height, triangles, spheres
-    uvec4 counts;      // 112 lights (the trace loop uses SPEC_LIGHTS), materials, seed, flags
-    vec4 background;   // 128 rgb, a ambient factor
-    uvec4 tables;      // 144 path integrator: shading rows of the emitters, textures,
-                       //     environment texels, environment distribution
-    vec4 env;          // 160 environment intensity, rotation (radians), total emitter power
+    vec3 cam_eye;                // 0
+    float tan_half_fov;          // 12  tan(vfov / 2)
+    vec3 cam_right;              // 16  unit
+    float aspect;                // 28  width / height
+    vec3 cam_up;                 // 32  unit
+    float pad0;                  // 44
+    vec3 cam_forward;            // 48  unit
+    float pad1;                  // 60
+    vec3 scene_min;              // 64  the scene box
+    float pad2;                  // 76
+    vec3 scene_max;              // 80
+    float pad3;                  // 92
+    uint width;                  // 96  the whole image
+    uint height;                 // 100
+    uint triangle_count;         // 104 primitives 0.. are triangles, spheres follow
+    uint sphere_count;           // 108
+    uint light_count;            // 112 (the light loops use SPEC_LIGHTS)
+    uint material_count;         // 116 the light records follow the materials
+    uint seed;                   // 120
+    uint pad4;                   // 124
+    vec3 background;             // 128 radiance of a ray that leaves the scene
+    float ambient;               // 140 Whitted's ambient factor
+    uint emitter_table;          // 144 first shading rows of the path integrator's tables:
+    uint texture_table;          // 148   area lights by power, textures,
+    uint env_texel_table;        // 152   environment texels,
+    uint env_distribution_table; // 156   environment distribution
+    float env_intensity;         // 160
+    float env_rotation;          // 164 about +y, radians
+    float emitter_power;         // 168 the emitter table's total
+    float pad5;                  // 172
 } params;
-
 #if HAS_TRIANGLES
 // Vertices and triangles are uniform texel buffers (RGBA32UI views of the same bytes):
 // on llvmpipe a texel fetch is one vector gather where a storage-buffer load is a loop
@@ -98,6 +100,35 @@ vec4 shading_row(uint k) { return uintBitsToFloat(texelFetch(shading_texels, int
 // Word k (float or uint bits) of a section of the shading buffer, 4 words a row.
 float shading_float(uint base, uint k) { return shading_row(base + (k >> 2u))[k & 3u]; }
 uint shading_word(uint base, uint k) { return floatBitsToUint(shading_row(base + (k >> 2u))[k & 3u]); }
+
+// Row `row` and word `w` (MAT_W_*) of material `mat`'s record.
+vec4 mat_row(uint mat, uint row) { return shading_row(mat * MATERIAL_ROWS + row); }
+float mat_word(uint mat, uint w) { return shading_float(mat * MATERIAL_ROWS, w); }
+uint mat_bits(uint mat, uint w) { return shading_word(mat * MATERIAL_ROWS, w); }
+// A record's word `w` and the three words from `w` (a _RGB word opens a row), from its
+// rows read once into `rec`.
+#define REC_WORD(rec, w) (rec)[(w) >> 2][(w) & 3]
+#define REC_BITS(rec, w) floatBitsToUint(REC_WORD(rec, w))
+#define REC_RGB(rec, w) (rec)[(w) >> 2].rgb
+#if (MAT_W_COLOR_RGB & 3) != 0 || (MAT_W_SPECULAR_RGB & 3) != 0 || (MAT_W_ETA_RGB & 3) != 0 || (MAT_W_EMISSION_RGB & 3) != 0 || (MAT_W_ABSORPTION_RGB & 3) != 0 || (MAT_W_K_RGB & 3) != 0 || (MAT_W_F0_RGB & 3) != 0 || (LIGHT_W_POSITION_RGB & 3) != 0 || (LIGHT_W_RADIANCE_RGB & 3) != 0
+#error "a _RGB record word must open a row"
+#endif
+#if MATERIAL_ROWS != 4 || LIGHT_ROWS != 2
+#error "material_at reads four rows, light_at two"
+#endif
+
+// Point or directional light `l` (its record follows the materials'): the position
+// (point) or the direction the light travels (directional), and the intensity (point)
+// or radiance (directional).
+void light_at(uint l, out vec3 position_or_direction, out bool point, out vec3 radiance) {
+    uint base = params.material_count * MATERIAL_ROWS + l * LIGHT_ROWS;
+    vec4 rec[LIGHT_ROWS];
+    rec[0] = shading_row(base);
+    rec[1] = shading_row(base + 1u);
+    position_or_direction = REC_RGB(rec, LIGHT_W_POSITION_RGB);
+    point = REC_WORD(rec, LIGHT_W_IS_POINT) > 0.5;
+    radiance = REC_RGB(rec, LIGHT_W_RADIANCE_RGB);
+}
 // The pixel buffer opens with the dispatch header (`GpuDispatch`), which the host
 // writes before each dispatch (vkCmdUpdateBuffer). It is storage, not push constants,
 // because lavapipe compiles a shader again, at every dispatch, for the values of push
@@ -133,7 +164,7 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
 uvec3 window_pixel(uint local) {
     uint i = DISPATCH_WINDOW_LEFT + local % DISPATCH_WINDOW_WIDTH;
     uint j = DISPATCH_WINDOW_TOP + local / DISPATCH_WINDOW_WIDTH;
-    return uvec3(j * params.dims.x + i, i, j);
+    return uvec3(j * params.width + i, i, j);
 }
 
 // The pixel's state before this dispatch's samples: zero at the window's first sample,

@@ -11,15 +11,15 @@
 // without a map no environment code, without textures no texture code.
 //
 // Shading-buffer sections after the materials and lights (row bases in
-// params.tables; see src/render/path.rs, which writes them):
-//   emitters (tables.x): one row each: x primitive (uint bits), y CDF at its start,
-//     z its probability; params.env.z is the total power
-//   textures (tables.y): one row each: x first texel row (uint bits), y width and wrap
+// params, `*_table`; src/render/integrators/path.rs writes them):
+//   emitters (emitter_table): one row each: x primitive (uint bits), y CDF at its start,
+//     z its probability; params.emitter_power is the total power
+//   textures (texture_table): one row each: x first texel row (uint bits), y width and wrap
 //     modes, z height, w mean luminance (an emission texture's, else 0); texels 4 per
 //     row, each 0x00BBGGRR, row-major from the top row (common/textures.glsl)
-//   environment texels (tables.z): 2 per row, each two words packHalf2x16(r, g),
+//   environment texels (env_texel_table): 2 per row, each two words packHalf2x16(r, g),
 //     packHalf2x16(b, 0), row-major from the top row (the +y pole)
-//   environment distribution (tables.w): floats 4 per row, the layout of
+//   environment distribution (env_distribution_table): floats 4 per row, the layout of
 //     `render::envdist` (marginal CDF, then one conditional CDF per row)
 #ifndef ARBOR_PATH_GLSL
 #define ARBOR_PATH_GLSL
@@ -42,22 +42,22 @@ float emitter_power(uint prim, uint mat) {
     Material m = material_at(mat);
     float area = 0.0;
 #if HAS_TRIANGLES
-    if (prim < params.dims.z) {
+    if (prim < params.triangle_count) {
         uvec4 tri = triangle_at(prim);
         vec3 a = vertex_position(tri.x);
         area = 0.5 * length(cross(vertex_position(tri.y) - a, vertex_position(tri.z) - a));
     }
 #endif
 #if HAS_SPHERES
-    if (prim >= params.dims.z) {
-        float r = sphere_center_radius(prim - params.dims.z).w;
+    if (prim >= params.triangle_count) {
+        float r = sphere_center_radius(prim - params.triangle_count).w;
         area = 4.0 * PI * r * r;
     }
 #endif
     float sides = (m.flags & MAT_FLAG_TWO_SIDED) != 0u ? 2.0 : 1.0;
     // An emission texture scales the power by its mean luminance (the texture row's
     // w), as the host's emitter table does.
-    float map = HAS_TEXTURES && m.emission_map != 0u ? shading_row(params.tables.y + m.emission_map - 1u).w : 1.0;
+    float map = HAS_TEXTURES && m.emission_map != 0u ? shading_row(params.texture_table + m.emission_map - 1u).w : 1.0;
     return luminance(m.emission) * map * area * sides;
 }
 
@@ -79,9 +79,9 @@ float sphere_light_pdf(vec3 p, vec3 c, float r, float t, vec3 d, vec3 gn) {
 // Pdf with which next-event estimation from p would have chosen the point where the
 // ray (p, d) hit primitive `prim` at distance t with geometric normal gn.
 float light_pdf(uint prim, uint mat, vec3 p, vec3 d, float t, vec3 gn) {
-    float pmf = emitter_power(prim, mat) / params.env.z;
+    float pmf = emitter_power(prim, mat) / params.emitter_power;
 #if HAS_TRIANGLES
-    if (prim < params.dims.z) {
+    if (prim < params.triangle_count) {
         uvec4 tri = triangle_at(prim);
         vec3 a = vertex_position(tri.x);
         float area = 0.5 * length(cross(vertex_position(tri.y) - a, vertex_position(tri.z) - a));
@@ -90,7 +90,7 @@ float light_pdf(uint prim, uint mat, vec3 p, vec3 d, float t, vec3 gn) {
     }
 #endif
 #if HAS_SPHERES
-    vec4 s = sphere_center_radius(prim - params.dims.z);
+    vec4 s = sphere_center_radius(prim - params.triangle_count);
     return pmf * sphere_light_pdf(p, s.xyz, s.w, t, d, gn);
 #else
     return 0.0;
@@ -104,7 +104,7 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     pdf = 0.0;
     wi = vec3(0.0, 1.0, 0.0);
     dist = 0.0;
-    uint base = params.tables.x;
+    uint base = params.emitter_table;
     uint lo = 0u;
     uint hi = EMITTER_COUNT;
     for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
@@ -119,7 +119,7 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     uint mat;
     vec2 uv = vec2(0.0);  // where the point is, for an emission texture
 #if HAS_TRIANGLES
-    if (prim < params.dims.z) {
+    if (prim < params.triangle_count) {
         uvec4 tri = triangle_at(prim);
         Vertex va = vertex_at(tri.x);
         Vertex vb = vertex_at(tri.y);
@@ -147,8 +147,8 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     }
 #endif
 #if HAS_SPHERES
-    if (prim >= params.dims.z) {
-        Sphere s = sphere_at(prim - params.dims.z);
+    if (prim >= params.triangle_count) {
+        Sphere s = sphere_at(prim - params.triangle_count);
         vec3 c = s.center_radius.xyz;
         float r = s.center_radius.w;
         vec3 pc = c - p;
@@ -185,7 +185,7 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
 #endif
     Material m = material_at(mat);
 #if HAS_SPHERES
-    if (prim >= params.dims.z) uv = sphere_uv(gn);
+    if (prim >= params.triangle_count) uv = sphere_uv(gn);
 #endif
     if (HAS_TEXTURES && m.emission_map != 0u) m.emission *= texture_rgb(m.emission_map - 1u, uv, true);
     le = emitted(m, gn, wi);
@@ -202,10 +202,10 @@ Material material_hit(uint mat, vec2 uv) {
         m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
     if (HAS_TEXTURES && m.emission_map != 0u) m.emission *= texture_rgb(m.emission_map - 1u, uv, true);
     if (HAS_TEXTURES && is_pbr(m)) {
-        uint slot = floatBitsToUint(mat_row(mat, 2u).w) & ((1u << MAT_MAP_SHIFT) - 1u);
+        uint slot = mat_bits(mat, MAT_W_MAPS) & ((1u << MAT_MAP_SHIFT) - 1u);
         if (slot != 0u) {
             vec3 t = texture_rgb(slot - 1u, uv, false);
-            float rough = mat_row(mat, 1u).w * t.g;
+            float rough = mat_word(mat, MAT_W_ROUGHNESS) * t.g;
             m.alpha = max(rough * rough, ALPHA_SMOOTH);
             m.metallic *= t.b;
         }
@@ -220,19 +220,19 @@ Material material_hit(uint mat, vec2 uv) {
 vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front) {
     vec3 total = vec3(0.0);
     if (LIGHT_COUNT == 0u) return total;
-    uint base = params.counts.y * MATERIAL_ROWS;
     for (uint l = 0u; l < LIGHT_COUNT; l++) {
-        vec4 a = shading_row(base + l * LIGHT_ROWS);
-        vec3 li = shading_row(base + l * LIGHT_ROWS + 1u).xyz;
+        vec3 at, li;
+        bool point;
+        light_at(l, at, point, li);
         vec3 wi;
         float dist;
-        if (a.w > 0.5) {
-            vec3 to = a.xyz - p;
+        if (point) {
+            vec3 to = at - p;
             dist = length(to);
             wi = to / dist;
             li /= max(dist * dist, 1e-30);
         } else {
-            wi = -a.xyz;
+            wi = -at;
             dist = 3.0e38;
         }
         if (dot(gnf, wi) <= 0.0 && !bsdf_transmits(m)) continue;
@@ -241,7 +241,7 @@ vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool 
         if (f == vec3(0.0)) continue;
         Ray sr;
         sr.origin = offset_ray_origin(p, err, gnf, wi); sr.dir = wi; sr.tmin = 0.0;
-        sr.tmax = a.w > 0.5 ? length(a.xyz - sr.origin) : dist;
+        sr.tmax = point ? length(at - sr.origin) : dist;
         g_rays += 1u;
         if (trace_any_coherent(sr)) continue;
         total += f * li * abs(dot(n, wi));
@@ -287,9 +287,9 @@ void path_main() {
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {
         sample_start();
-        uint rng = rng_init(pixel, s, params.counts.z);
+        uint rng = rng_init(pixel, s, params.seed);
         Ray r;
-        r.origin = params.cam_eye.xyz;
+        r.origin = params.cam_eye;
         r.dir = camera_ray_dir(i, j, rng_next(rng), rng_next(rng));
         r.tmin = 0.0;
         r.tmax = uintBitsToFloat(0x7f800000u);

@@ -40,7 +40,7 @@ uint wrap_texel(int i, int n, uint mode) {
 // Bilinear, with the texture's wrap along u and v; `srgb`: decode to linear before
 // filtering.
 vec3 texture_rgb(uint tex, vec2 uv, bool srgb) {
-    vec4 row = shading_row(params.tables.y + tex);
+    vec4 row = shading_row(params.texture_table + tex);
     uint base = floatBitsToUint(row.x);
     uint wbits = floatBitsToUint(row.y);
     uint w = wbits & ((1u << TEXTURE_WRAP_U_SHIFT) - 1u);
@@ -74,9 +74,8 @@ vec3 texture_albedo(uint tex, vec2 uv) { return texture_rgb(tex, uv, true); }
 // tangent frame is the triangle's (no vertex tangents), made orthogonal to n; n
 // itself where the triangle's texture coordinates are degenerate.
 vec3 normal_mapped(uint mat, vec3 n, vec2 uv, vec3 p0, vec3 p1, vec3 p2, vec2 t0, vec2 t1, vec2 t2) {
-    vec4 r0 = shading_row(mat * MATERIAL_ROWS);
-    if ((floatBitsToUint(r0.w) & ((1u << MAT_MAP_SHIFT) - 1u)) != MAT_PBR) return n;
-    uint slot = floatBitsToUint(shading_row(mat * MATERIAL_ROWS + 2u).w) >> MAT_MAP_SHIFT;
+    if ((mat_bits(mat, MAT_W_KIND) & ((1u << MAT_MAP_SHIFT) - 1u)) != MAT_PBR) return n;
+    uint slot = mat_bits(mat, MAT_W_MAPS) >> MAT_MAP_SHIFT;
     if (slot == 0u) return n;
     vec3 e1 = p1 - p0;
     vec3 e2 = p2 - p0;
@@ -92,7 +91,7 @@ vec3 normal_mapped(uint mat, vec3 n, vec2 uv, vec3 p0, vec3 p1, vec3 p2, vec2 t0
     vec3 b = cross(n, t);
     if (dot(b, dpdv) < 0.0) b = -b;
     vec3 c = texture_rgb(slot - 1u, uv, false) * 2.0 - 1.0;
-    float scale = shading_row(mat * MATERIAL_ROWS + 1u).z;
+    float scale = mat_word(mat, MAT_W_NORMAL_SCALE);
     vec3 bent = t * (c.x * scale) + b * (c.y * scale) + n * c.z;
     return dot(bent, bent) > 0.0 ? normalize(bent) : n;
 }

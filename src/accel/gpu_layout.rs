@@ -8,6 +8,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::gpu::bindings::*;
 use crate::scene::Scene;
 
 /// One vertex: position and shading normal, interleaved so that one storage buffer
@@ -72,37 +73,93 @@ pub fn gpu_spheres(scene: &Scene) -> Vec<GpuSphere> {
         .collect()
 }
 
-/// One material: four vec4 rows of the shading buffer.
+/// One material record: `MATERIAL_ROWS` vec4 rows of the shading buffer, as words
+/// named in src/gpu/bindings.rs (`MAT_W_*`, with the table of which kind uses which).
+/// Written through [`GpuMaterial::set`] and its siblings by the one encoder per kind
+/// (src/render/dispatch/upload.rs); read by `material_at` in
+/// shaders/common/records.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
-    /// bytes 0..12 colour (albedo / tint), 12..16 kind | emission texture + 1 <<
-    /// `MAT_MAP_SHIFT`, as float-encoded integer bits (`f32::from_bits`) so the row
-    /// stays a vec4
-    pub color_kind: [f32; 4],
-    /// bytes 16..28 Phong specular colour, 28..32 shininess (conductor: eta and GGX
-    /// alpha; dielectric: alpha in 28..32; metallic-roughness: metallic, specular
-    /// weight, normal scale, roughness)
-    pub specular: [f32; 4],
-    /// bytes 32..44 emitted radiance, 44..48 index of refraction (metallic-roughness:
-    /// its map word, `MAT_MAP_SHIFT`)
-    pub emission_ior: [f32; 4],
-    /// bytes 48..60 glass absorption per unit length (conductor: k; metallic-roughness:
-    /// the dielectric F0), 60..64 flags as float-encoded
-    /// integer bits: bit 0 two-sided emission, bits 8.. texture index + 1 (0: none)
-    pub absorption_flags: [f32; 4],
+    pub words: [f32; (MATERIAL_ROWS * 4) as usize],
 }
 
-/// One light: two vec4 rows of the shading buffer, after all materials.
+/// One light record: `LIGHT_ROWS` vec4 rows of the shading buffer, after all
+/// materials, as words named `LIGHT_W_*` in src/gpu/bindings.rs.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
-    /// Directional: bytes 0..12 direction the light travels (unit), 12..16 = 0.0.
-    /// Point: bytes 0..12 position, 12..16 = 1.0.
-    pub position_or_direction: [f32; 4],
-    /// bytes 16..28 radiance (directional) or intensity (point), 28..32 unused
-    pub radiance: [f32; 4],
+    pub words: [f32; (LIGHT_ROWS * 4) as usize],
 }
+
+/// Setters shared by the material and light records: a word as a float, as uint bits,
+/// and three words from a vector (a `_RGB` word opens a row).
+macro_rules! record_setters {
+    ($t:ty) => {
+        impl $t {
+            /// Word `w` holds `v`.
+            pub fn set(&mut self, w: u32, v: f32) -> &mut Self {
+                self.words[w as usize] = v;
+                self
+            }
+            /// Word `w` holds the bits of `v` (read with `floatBitsToUint`).
+            pub fn set_bits(&mut self, w: u32, v: u32) -> &mut Self {
+                self.set(w, f32::from_bits(v))
+            }
+            /// Words `w..w + 3` hold `v` (`w` is a `_RGB` word).
+            pub fn set_rgb(&mut self, w: u32, v: glam::Vec3) -> &mut Self {
+                self.words[w as usize..w as usize + 3].copy_from_slice(&v.to_array());
+                self
+            }
+            /// The record as shading rows.
+            pub fn rows(&self) -> impl Iterator<Item = [f32; 4]> + '_ {
+                self.words.chunks_exact(4).map(|r| [r[0], r[1], r[2], r[3]])
+            }
+        }
+    };
+}
+record_setters!(GpuMaterial);
+record_setters!(GpuLight);
+
+// Every named word lies in its record, and a three-word field fills lanes 0..2 of one
+// row (the GLSL decoder reads it as `row.rgb`).
+const _: () = {
+    let rgb = [
+        MAT_W_COLOR_RGB,
+        MAT_W_SPECULAR_RGB,
+        MAT_W_ETA_RGB,
+        MAT_W_EMISSION_RGB,
+        MAT_W_ABSORPTION_RGB,
+        MAT_W_K_RGB,
+        MAT_W_F0_RGB,
+        LIGHT_W_POSITION_RGB,
+        LIGHT_W_RADIANCE_RGB,
+    ];
+    let mut i = 0;
+    while i < rgb.len() {
+        assert!(rgb[i] % 4 == 0);
+        i += 1;
+    }
+    let words = [
+        MAT_W_KIND,
+        MAT_W_SHININESS,
+        MAT_W_ALPHA,
+        MAT_W_METALLIC,
+        MAT_W_SPEC_WEIGHT,
+        MAT_W_NORMAL_SCALE,
+        MAT_W_ROUGHNESS,
+        MAT_W_IOR,
+        MAT_W_MAPS,
+        MAT_W_FLAGS,
+        MAT_W_ABSORPTION_RGB + 2,
+    ];
+    let mut i = 0;
+    while i < words.len() {
+        assert!(words[i] < MATERIAL_ROWS * 4);
+        i += 1;
+    }
+    assert!(LIGHT_W_IS_POINT < LIGHT_ROWS * 4 && LIGHT_W_RADIANCE_RGB + 2 < LIGHT_ROWS * 4);
+};
 
 /// Per-pixel output of the trace kernel.
 ///
@@ -138,35 +195,67 @@ pub struct GpuRay {
     pub dir_tmax: [f32; 4],
 }
 
-/// The uniform block (std140; every member a 16-byte vec4/uvec4).
+/// The uniform block (std140: a `[f32; 3]` is a vec3, which the scalar after it
+/// completes to 16 bytes). `ParamsBlock` in shaders/common/layout.glsl; the `pad*`
+/// words are 0.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuParams {
-    /// bytes 0..12 eye, 12..16 tan(vfov / 2)
-    pub cam_eye: [f32; 4],
-    /// bytes 16..28 camera right (unit), 28..32 aspect (width / height)
-    pub cam_right: [f32; 4],
-    /// bytes 32..44 camera up (unit), 44..48 unused
-    pub cam_up: [f32; 4],
-    /// bytes 48..60 camera forward (unit), 60..64 unused
-    pub cam_forward: [f32; 4],
-    /// bytes 64..76 scene box min, 76..80 unused
-    pub scene_min: [f32; 4],
-    /// bytes 80..92 scene box max, 92..96 unused
-    pub scene_max: [f32; 4],
-    /// bytes 96..112: width, height, triangles, spheres
-    pub dims: [u32; 4],
-    /// bytes 112..128: lights, materials, seed, flags (unused, 0). The trace kernel's
-    /// light loop takes its count from the constant SPEC_LIGHTS, not from `counts[0]`.
-    pub counts: [u32; 4],
-    /// bytes 128..140 background radiance, 140..144 ambient factor
-    pub background: [f32; 4],
-    /// bytes 144..160, path integrator: first shading row of the emitter table, the
-    /// texture table, the environment texels and the environment distribution
-    pub tables: [u32; 4],
-    /// bytes 160..176: environment intensity, rotation about +y (radians), total
-    /// emitter power, unused
-    pub env: [f32; 4],
+    /// bytes 0..12: the camera's eye
+    pub cam_eye: [f32; 3],
+    /// bytes 12..16: tan(vfov / 2)
+    pub tan_half_fov: f32,
+    /// bytes 16..28: camera right (unit)
+    pub cam_right: [f32; 3],
+    /// bytes 28..32: width / height
+    pub aspect: f32,
+    /// bytes 32..44: camera up (unit)
+    pub cam_up: [f32; 3],
+    pub pad0: f32,
+    /// bytes 48..60: camera forward (unit)
+    pub cam_forward: [f32; 3],
+    pub pad1: f32,
+    /// bytes 64..76: the scene box's minimum
+    pub scene_min: [f32; 3],
+    pub pad2: f32,
+    /// bytes 80..92: the scene box's maximum
+    pub scene_max: [f32; 3],
+    pub pad3: f32,
+    /// bytes 96..100: the whole image's width in pixels
+    pub width: u32,
+    /// bytes 100..104: its height
+    pub height: u32,
+    /// bytes 104..108: stored triangles, which are primitives 0.. (spheres follow)
+    pub triangle_count: u32,
+    /// bytes 108..112: spheres
+    pub sphere_count: u32,
+    /// bytes 112..116: point and directional lights shaded. The kernels' light loops
+    /// take their bound from the constant SPEC_LIGHTS, not from here.
+    pub light_count: u32,
+    /// bytes 116..120: materials (the light records follow them in the shading rows)
+    pub material_count: u32,
+    /// bytes 120..124: the render's seed
+    pub seed: u32,
+    pub pad4: u32,
+    /// bytes 128..140: background radiance (a ray that leaves the scene)
+    pub background: [f32; 3],
+    /// bytes 140..144: Whitted's ambient factor (0 for the path integrator)
+    pub ambient: f32,
+    /// bytes 144..148: first shading row of the emitter table (area lights by power)
+    pub emitter_table: u32,
+    /// bytes 148..152: first shading row of the texture table
+    pub texture_table: u32,
+    /// bytes 152..156: first shading row of the environment map's texels
+    pub env_texel_table: u32,
+    /// bytes 156..160: first shading row of the environment map's sampling distribution
+    pub env_distribution_table: u32,
+    /// bytes 160..164: the environment map's intensity
+    pub env_intensity: f32,
+    /// bytes 164..168: its rotation about +y (radians)
+    pub env_rotation: f32,
+    /// bytes 168..172: the emitter table's total power
+    pub emitter_power: f32,
+    pub pad5: f32,
 }
 
 /// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,

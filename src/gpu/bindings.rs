@@ -260,6 +260,51 @@ pub const TEXTURE_WRAP_V_SHIFT: u32 = 26;
 /// (row 2, w), the metallic-roughness texture's index + 1 below it; and of the
 /// emission texture index + 1 in any material's kind word (row 0, w), the kind below.
 pub const MAT_MAP_SHIFT: u32 = 16;
+/// Shading rows (16-byte texels) of one material record, and of one light record (the
+/// lights follow every material).
+pub const MATERIAL_ROWS: u32 = 4;
+pub const LIGHT_ROWS: u32 = 2;
+/// The words of a material record, `row * 4 + lane` (`GpuMaterial` in
+/// src/accel/gpu_layout.rs writes them, `material_at` in shaders/common/records.glsl
+/// reads them). A `_RGB` word opens three (a row's lanes 0..2). Which kind uses which:
+///
+/// | word | every kind        | plain (Lambert, Phong, mirror, glass, emissive) | conductor  | dielectric  | metallic-roughness (PBR) |
+/// |------|-------------------|--------------------|------------|-------------|--------------------------|
+/// | 0..3 | colour            |                    |            |             |                          |
+/// | 3    | kind word         |                    |            |             |                          |
+/// | 4..7 |                   | specular (Phong)   | eta        | 0           | metallic, specular weight, normal scale |
+/// | 7    |                   | shininess (Phong)  | GGX alpha  | GGX alpha   | roughness                |
+/// | 8..11| emitted radiance  |                    |            |             |                          |
+/// | 11   |                   | ior                | ior        | ior         | map word                 |
+/// | 12..15|                  | absorption (glass) | k          | absorption  | the dielectric F0        |
+/// | 15   | flags word        |                    |            |             |                          |
+///
+/// The kind word is the kind (`MAT_*`) | emission texture + 1 << MAT_MAP_SHIFT, the map
+/// word metallic-roughness texture + 1 | normal texture + 1 << MAT_MAP_SHIFT, the flags
+/// word MAT_FLAG_* | texture + 1 << MAT_TEXTURE_SHIFT, all as uint bits (0: none).
+pub const MAT_W_COLOR_RGB: u32 = 0;
+pub const MAT_W_KIND: u32 = 3;
+pub const MAT_W_SPECULAR_RGB: u32 = 4;
+pub const MAT_W_SHININESS: u32 = 7;
+pub const MAT_W_ETA_RGB: u32 = 4;
+pub const MAT_W_ALPHA: u32 = 7;
+pub const MAT_W_METALLIC: u32 = 4;
+pub const MAT_W_SPEC_WEIGHT: u32 = 5;
+pub const MAT_W_NORMAL_SCALE: u32 = 6;
+pub const MAT_W_ROUGHNESS: u32 = 7;
+pub const MAT_W_EMISSION_RGB: u32 = 8;
+pub const MAT_W_IOR: u32 = 11;
+pub const MAT_W_MAPS: u32 = 11;
+pub const MAT_W_ABSORPTION_RGB: u32 = 12;
+pub const MAT_W_K_RGB: u32 = 12;
+pub const MAT_W_F0_RGB: u32 = 12;
+pub const MAT_W_FLAGS: u32 = 15;
+/// The words of a light record: the position (a point light) or the direction the
+/// light travels (directional, unit), 1.0 for a point light and 0.0 for a directional
+/// one, the intensity (point) or radiance (directional).
+pub const LIGHT_W_POSITION_RGB: u32 = 0;
+pub const LIGHT_W_IS_POINT: u32 = 3;
+pub const LIGHT_W_RADIANCE_RGB: u32 = 4;
 /// GGX alpha below which a conductor or dielectric is smooth (a delta lobe), as its
 /// f32 bits (shaders read `uintBitsToFloat(SMOOTH_ALPHA_BITS)`): 0.001, roughness
 /// 0.0316.
@@ -373,6 +418,28 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SMOOTH_ALPHA_BITS", SMOOTH_ALPHA_BITS),
     ("MAT_TEXTURE_SHIFT", MAT_TEXTURE_SHIFT),
     ("MAT_MAP_SHIFT", MAT_MAP_SHIFT),
+    ("MATERIAL_ROWS", MATERIAL_ROWS),
+    ("LIGHT_ROWS", LIGHT_ROWS),
+    ("MAT_W_COLOR_RGB", MAT_W_COLOR_RGB),
+    ("MAT_W_KIND", MAT_W_KIND),
+    ("MAT_W_SPECULAR_RGB", MAT_W_SPECULAR_RGB),
+    ("MAT_W_SHININESS", MAT_W_SHININESS),
+    ("MAT_W_ETA_RGB", MAT_W_ETA_RGB),
+    ("MAT_W_ALPHA", MAT_W_ALPHA),
+    ("MAT_W_METALLIC", MAT_W_METALLIC),
+    ("MAT_W_SPEC_WEIGHT", MAT_W_SPEC_WEIGHT),
+    ("MAT_W_NORMAL_SCALE", MAT_W_NORMAL_SCALE),
+    ("MAT_W_ROUGHNESS", MAT_W_ROUGHNESS),
+    ("MAT_W_EMISSION_RGB", MAT_W_EMISSION_RGB),
+    ("MAT_W_IOR", MAT_W_IOR),
+    ("MAT_W_MAPS", MAT_W_MAPS),
+    ("MAT_W_ABSORPTION_RGB", MAT_W_ABSORPTION_RGB),
+    ("MAT_W_K_RGB", MAT_W_K_RGB),
+    ("MAT_W_F0_RGB", MAT_W_F0_RGB),
+    ("MAT_W_FLAGS", MAT_W_FLAGS),
+    ("LIGHT_W_POSITION_RGB", LIGHT_W_POSITION_RGB),
+    ("LIGHT_W_IS_POINT", LIGHT_W_IS_POINT),
+    ("LIGHT_W_RADIANCE_RGB", LIGHT_W_RADIANCE_RGB),
     ("TEXTURE_WRAP_U_SHIFT", TEXTURE_WRAP_U_SHIFT),
     ("TEXTURE_WRAP_V_SHIFT", TEXTURE_WRAP_V_SHIFT),
     ("MIS_BOTH", MIS_BOTH),

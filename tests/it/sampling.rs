@@ -273,11 +273,12 @@ fn environment_samples_follow_the_map() {
     let mut shading = GpuScene::new(&scene).shading;
     let ex = arbor::render::path::extras(&scene, shading.len() as u32, true).expect("extras");
     shading.extend_from_slice(&ex.rows);
-    let params = arbor::accel::gpu_layout::GpuParams {
-        tables: ex.tables,
-        env: [2.0, 30f32.to_radians(), 0.0, 0.0],
+    let mut params = arbor::accel::gpu_layout::GpuParams {
+        env_intensity: 2.0,
+        env_rotation: 30f32.to_radians(),
         ..Default::default()
     };
+    ex.set_tables(&mut params);
     let n = 200_000usize;
     let mut rng = Rng(5);
     let mut input = Vec::with_capacity(2 * n);

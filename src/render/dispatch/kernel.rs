@@ -320,16 +320,21 @@ pub fn base_params(
     let basis = scene.camera.basis(w, h);
     let bounds = accel.bounds();
     crate::accel::gpu_layout::GpuParams {
-        cam_eye: [basis.eye.x, basis.eye.y, basis.eye.z, basis.tan_half],
-        cam_right: [basis.right.x, basis.right.y, basis.right.z, basis.aspect],
-        cam_up: [basis.up.x, basis.up.y, basis.up.z, 0.0],
-        cam_forward: [basis.forward.x, basis.forward.y, basis.forward.z, 0.0],
-        scene_min: [bounds.min.x, bounds.min.y, bounds.min.z, 0.0],
-        scene_max: [bounds.max.x, bounds.max.y, bounds.max.z, 0.0],
-        dims: [w, h, scene.stored_triangles() as u32, scene.spheres.len() as u32],
-        counts: [0, scene.materials.len() as u32, seed, 0],
-        background: [scene.background.x, scene.background.y, scene.background.z, 0.0],
-        tables: [0; 4],
-        env: [0.0; 4],
+        cam_eye: basis.eye.to_array(),
+        tan_half_fov: basis.tan_half,
+        cam_right: basis.right.to_array(),
+        aspect: basis.aspect,
+        cam_up: basis.up.to_array(),
+        cam_forward: basis.forward.to_array(),
+        scene_min: bounds.min.to_array(),
+        scene_max: bounds.max.to_array(),
+        width: w,
+        height: h,
+        triangle_count: scene.stored_triangles() as u32,
+        sphere_count: scene.spheres.len() as u32,
+        material_count: scene.materials.len() as u32,
+        seed,
+        background: scene.background.to_array(),
+        ..Default::default()
     }
 }

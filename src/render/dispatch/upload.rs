@@ -6,7 +6,7 @@ use crate::accel::{AccelBuffers, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
-use crate::scene::{ComplexIor, Light, MaterialKind, Scene};
+use crate::scene::{ComplexIor, Light, Material, MaterialKind, Scene};
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -16,7 +16,7 @@ pub struct GpuScene {
     pub vertices: Vec<GpuVertex>,
     pub triangles: Vec<GpuTriangle>,
     pub spheres: Vec<GpuSphere>,
-    /// Materials (4 rows each) then lights (2 rows each).
+    /// Materials (`MATERIAL_ROWS` rows each) then lights (`LIGHT_ROWS` rows each).
     pub shading: Vec<[f32; 4]>,
 }
 
@@ -38,63 +38,106 @@ impl GpuScene {
     }
 }
 
-/// Materials (4 rows each) then lights (2 rows each).
+/// Materials (`MATERIAL_ROWS` rows each) then lights (`LIGHT_ROWS` rows each).
 fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
-    let mut shading = Vec::with_capacity(scene.materials.len() * 4 + scene.lights.len() * 2);
+    let rows = scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize;
+    let mut shading = Vec::with_capacity(rows);
     for m in &scene.materials {
-        // A conductor keeps eta in the specular row and k in the absorption row; it and
-        // the dielectric keep GGX alpha where Phong keeps its exponent.
-        let (specular, shininess, absorption) = match (m.kind, m.complex_ior) {
-            (MaterialKind::Conductor, ior) => {
-                let c = ior.unwrap_or(ComplexIor { eta: Vec3::ONE, k: Vec3::ZERO });
-                (c.eta, m.alpha(), c.k)
-            }
-            (MaterialKind::Dielectric, _) => (Vec3::ZERO, m.alpha(), m.absorption),
-            // Metallic-roughness: roughness itself (its texture multiplies it first).
-            (MaterialKind::Pbr, _) => {
-                (Vec3::new(m.metallic, m.specular_weight, m.maps.normal_scale), m.roughness, m.dielectric_f0)
-            }
-            _ => (m.specular, m.shininess, m.absorption),
-        };
-        let ior = match m.kind {
-            MaterialKind::Pbr => f32::from_bits(map_word(m)),
-            _ => m.ior,
-        };
-        // The kind, and the emission texture + 1 from MAT_MAP_SHIFT.
-        let kind = m.kind as u32 | m.maps.emission.map_or(0, |t| t + 1) << MAT_MAP_SHIFT;
-        let g = GpuMaterial {
-            color_kind: [m.color.x, m.color.y, m.color.z, f32::from_bits(kind)],
-            specular: [specular.x, specular.y, specular.z, shininess],
-            emission_ior: [m.emission.x, m.emission.y, m.emission.z, ior],
-            absorption_flags: [absorption.x, absorption.y, absorption.z, f32::from_bits(material_flags(m))],
-        };
-        shading.extend([g.color_kind, g.specular, g.emission_ior, g.absorption_flags]);
+        shading.extend(material_record(m).rows());
     }
     for l in &scene.lights {
-        let g = match *l {
-            Light::Directional { direction: d, radiance: r } => {
-                GpuLight { position_or_direction: [d.x, d.y, d.z, 0.0], radiance: [r.x, r.y, r.z, 0.0] }
-            }
-            Light::Point { position: p, intensity: i } => {
-                GpuLight { position_or_direction: [p.x, p.y, p.z, 1.0], radiance: [i.x, i.y, i.z, 0.0] }
-            }
-        };
-        shading.extend([g.position_or_direction, g.radiance]);
+        shading.extend(light_record(l).rows());
     }
     shading
 }
 
-/// The flags word of material row 3 (shaders/common/layout.glsl).
-fn material_flags(m: &crate::scene::Material) -> u32 {
+/// A material's record: the words every kind has, then its kind's own (the table at
+/// `MAT_W_COLOR_RGB` in src/gpu/bindings.rs; `material_at` in
+/// shaders/common/records.glsl decodes them).
+pub fn material_record(m: &Material) -> GpuMaterial {
+    let mut g = GpuMaterial::default();
+    // The kind, and the emission texture + 1 from MAT_MAP_SHIFT.
+    let kind = m.kind as u32 | m.maps.emission.map_or(0, |t| t + 1) << MAT_MAP_SHIFT;
+    g.set_rgb(MAT_W_COLOR_RGB, m.color)
+        .set_bits(MAT_W_KIND, kind)
+        .set_rgb(MAT_W_EMISSION_RGB, m.emission)
+        .set_bits(MAT_W_FLAGS, material_flags(m));
+    match m.kind {
+        MaterialKind::Conductor => encode_conductor(m, &mut g),
+        MaterialKind::Dielectric => encode_dielectric(m, &mut g),
+        MaterialKind::Pbr => encode_pbr(m, &mut g),
+        MaterialKind::Lambert
+        | MaterialKind::Phong
+        | MaterialKind::Mirror
+        | MaterialKind::Glass
+        | MaterialKind::Emissive => encode_plain(m, &mut g),
+    }
+    g
+}
+
+/// Lambert, Phong, mirror, glass, emissive: Phong's specular colour and exponent, the
+/// glass's index and absorption.
+fn encode_plain(m: &Material, g: &mut GpuMaterial) {
+    g.set_rgb(MAT_W_SPECULAR_RGB, m.specular)
+        .set(MAT_W_SHININESS, m.shininess)
+        .set(MAT_W_IOR, m.ior)
+        .set_rgb(MAT_W_ABSORPTION_RGB, m.absorption);
+}
+
+/// A conductor: its complex index (eta, k; without one, eta 1 and k 0, and the flag
+/// MAT_FLAG_SCHLICK takes Fresnel from the colour) and GGX alpha.
+fn encode_conductor(m: &Material, g: &mut GpuMaterial) {
+    let c = m.complex_ior.unwrap_or(ComplexIor { eta: Vec3::ONE, k: Vec3::ZERO });
+    g.set_rgb(MAT_W_ETA_RGB, c.eta).set(MAT_W_ALPHA, m.alpha()).set(MAT_W_IOR, m.ior).set_rgb(MAT_W_K_RGB, c.k);
+}
+
+/// A dielectric: GGX alpha, index and absorption.
+fn encode_dielectric(m: &Material, g: &mut GpuMaterial) {
+    g.set_rgb(MAT_W_SPECULAR_RGB, Vec3::ZERO)
+        .set(MAT_W_ALPHA, m.alpha())
+        .set(MAT_W_IOR, m.ior)
+        .set_rgb(MAT_W_ABSORPTION_RGB, m.absorption);
+}
+
+/// Metallic-roughness: metallic, the dielectric layer's weight and F0, the normal
+/// map's scale, roughness itself (its texture multiplies it first, in the kernel) and
+/// the map word.
+fn encode_pbr(m: &Material, g: &mut GpuMaterial) {
+    g.set(MAT_W_METALLIC, m.metallic)
+        .set(MAT_W_SPEC_WEIGHT, m.specular_weight)
+        .set(MAT_W_NORMAL_SCALE, m.maps.normal_scale)
+        .set(MAT_W_ROUGHNESS, m.roughness)
+        .set_bits(MAT_W_MAPS, map_word(m))
+        .set_rgb(MAT_W_F0_RGB, m.dielectric_f0);
+}
+
+/// A light's record (`light_at` in shaders/common/records.glsl decodes it).
+pub fn light_record(l: &Light) -> GpuLight {
+    let mut g = GpuLight::default();
+    match *l {
+        Light::Directional { direction, radiance } => g
+            .set_rgb(LIGHT_W_POSITION_RGB, direction)
+            .set(LIGHT_W_IS_POINT, 0.0)
+            .set_rgb(LIGHT_W_RADIANCE_RGB, radiance),
+        Light::Point { position, intensity } => g
+            .set_rgb(LIGHT_W_POSITION_RGB, position)
+            .set(LIGHT_W_IS_POINT, 1.0)
+            .set_rgb(LIGHT_W_RADIANCE_RGB, intensity),
+    };
+    g
+}
+
+/// The flags word (`MAT_W_FLAGS`).
+fn material_flags(m: &Material) -> u32 {
     let sides = if m.two_sided { MAT_FLAG_TWO_SIDED } else { 0 };
     let schlick = if m.kind == MaterialKind::Conductor && m.complex_ior.is_none() { MAT_FLAG_SCHLICK } else { 0 };
     let tex = m.texture.map_or(0, |t| (t + 1) << MAT_TEXTURE_SHIFT);
     sides | schlick | tex
 }
 
-/// A metallic-roughness material's map word (row 2, w): metallic-roughness texture
-/// + 1, normal texture + 1 from MAT_MAP_SHIFT (0: none).
-fn map_word(m: &crate::scene::Material) -> u32 {
+/// A metallic-roughness material's map word (`MAT_W_MAPS`): metallic-roughness
+/// texture + 1, normal texture + 1 from MAT_MAP_SHIFT (0: none).
+fn map_word(m: &Material) -> u32 {
     let slot = |t: Option<u32>| t.map_or(0, |t| t + 1);
     slot(m.maps.metal_rough) | slot(m.maps.normal) << MAT_MAP_SHIFT
 }

@@ -200,12 +200,27 @@ fn float_rows(values: &[f32]) -> Vec<[f32; 4]> {
 pub struct Extras {
     /// Rows appended to the shading buffer.
     pub rows: Vec<[f32; 4]>,
-    /// `GpuParams::tables`.
-    pub tables: [u32; 4],
+    /// First shading rows of the emitter table, the texture table, the environment
+    /// map's texels and its distribution (0: none), as `GpuParams` names them.
+    pub emitter_table: u32,
+    pub texture_table: u32,
+    pub env_texel_table: u32,
+    pub env_distribution_table: u32,
     pub emitter_count: u32,
     pub total_power: f32,
     /// Environment map size (0 x 0 without one).
     pub env_size: (u32, u32),
+}
+
+impl Extras {
+    /// Writes the tables' first rows and the emitters' total power into `p`.
+    pub fn set_tables(&self, p: &mut GpuParams) {
+        p.emitter_table = self.emitter_table;
+        p.texture_table = self.texture_table;
+        p.env_texel_table = self.env_texel_table;
+        p.env_distribution_table = self.env_distribution_table;
+        p.emitter_power = self.total_power;
+    }
 }
 
 /// The extra shading rows for `scene`, whose Whitted rows number `base`: the emitter
@@ -217,14 +232,14 @@ pub fn extras(scene: &Scene, base: u32, env: bool) -> Result<Extras> {
     let mut next = base;
     if !list.is_empty() {
         let (rows, total) = emitter_rows(&list);
-        ex.tables[0] = next;
+        ex.emitter_table = next;
         ex.emitter_count = list.len() as u32;
         ex.total_power = total;
         next += rows.len() as u32;
         ex.rows.extend(rows);
     }
     if !scene.textures.is_empty() {
-        ex.tables[1] = next;
+        ex.texture_table = next;
         let rows = texture_rows(scene, next, &means);
         next += rows.len() as u32;
         ex.rows.extend(rows);
@@ -232,12 +247,12 @@ pub fn extras(scene: &Scene, base: u32, env: bool) -> Result<Extras> {
     if let Some(env) = scene.environment.as_ref().filter(|_| env) {
         let seen = env_texels_as_seen(&env.texels);
         let rows = env_texel_rows(&env.texels);
-        ex.tables[2] = next;
+        ex.env_texel_table = next;
         next += rows.len() as u32;
         ex.rows.extend(rows);
         let dist = env_distribution(env.width, env.height, &seen, env.intensity)?;
         let rows = float_rows(&dist);
-        ex.tables[3] = next;
+        ex.env_distribution_table = next;
         ex.rows.extend(rows);
         ex.env_size = (env.width, env.height);
     }
@@ -303,9 +318,10 @@ fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) 
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
     let mut p =
         crate::render::dispatch::kernel::base_params(scene, (settings.width, settings.height), settings.seed, accel);
-    p.counts[0] = scene.lights.len() as u32;
-    p.tables = ex.tables;
-    p.env = [intensity, rotation, ex.total_power, 0.0];
+    p.light_count = scene.lights.len() as u32;
+    ex.set_tables(&mut p);
+    p.env_intensity = intensity;
+    p.env_rotation = rotation;
     p
 }
 

@@ -91,10 +91,9 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
     let mut p =
         crate::render::dispatch::kernel::base_params(scene, (settings.width, settings.height), settings.seed, accel);
-    p.counts[0] = lights_used(scene, settings);
-    p.background[3] = scene.ambient;
-    p.tables = ex.tables;
-    p.env[2] = ex.total_power;
+    p.light_count = lights_used(scene, settings);
+    p.ambient = scene.ambient;
+    ex.set_tables(&mut p);
     p
 }
 
