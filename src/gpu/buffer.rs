@@ -7,7 +7,8 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
-use super::context::{alloc_err, vk_err, Context, Shared};
+use super::context::Context;
+use super::device::{alloc_err, vk_err, Shared};
 use crate::error::{Error, Result};
 
 /// What a buffer is for.

@@ -22,9 +22,10 @@ use std::time::Instant;
 use ash::vk;
 
 use super::buffer::{record_copy_to_host, Buffer, BufferKind};
-use super::context::{timestamp_ms, vk_err, Context, Work};
+use super::context::{Context, Work};
+use super::device::vk_err;
 use super::kernel::{barrier_all, check_update, record_dispatch, Kernel};
-use super::timing::Placement;
+use super::timing::{self, timestamp_ms, Placement};
 use crate::error::{Error, Result};
 
 /// Bytes each submission copies back: the trace kernels' `DispatchChunk`
@@ -284,7 +285,7 @@ impl DispatchRing<'_> {
         }
         if let Some(place) = &self.placement {
             let args = slot.work.args.clone();
-            super::timing::record(place, (&slot.label, slot.work.cat, args), ts[0], ts[1]);
+            timing::record(place, (&slot.label, slot.work.cat, args), ts[0], ts[1]);
             self.last_end = Some(place.at(ts[1]));
         }
         Ok(Landed { gpu_ms: Some(gpu_ms), words, submitted: slot.submitted })

@@ -15,7 +15,11 @@
 #[allow(missing_docs)] // constants documented where their values matter (comments); shared with the shaders
 pub mod bindings;
 mod buffer;
+mod cache;
 mod context;
+#[allow(missing_docs)] // internal to the renderer; not the stable API
+mod descriptor;
+mod device;
 mod flight;
 #[allow(missing_docs)] // internal to the renderer; not the stable API
 mod kernel;
@@ -24,9 +28,11 @@ mod raytrace;
 mod timing;
 
 pub use buffer::{Buffer, BufferKind};
+pub use cache::KernelCacheStats;
 pub use context::{Context, ContextOptions, DeviceInfo};
+pub use descriptor::{BindingDesc, BindingKind};
 pub use flight::{DispatchRing, Landed, COPY_BACK_BYTES, MAX_DEPTH as MAX_IN_FLIGHT};
-pub use kernel::{BindingDesc, BindingKind, Kernel, KernelCacheStats, Step};
+pub use kernel::{Kernel, Step};
 pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 
 /// Embedded SPIR-V of every kernel, by name (`trace_none_all`, `layout_probe`, ...).

@@ -13,7 +13,10 @@ use std::sync::Arc;
 use ash::vk;
 
 use super::buffer::{Buffer, BufferKind};
-use super::context::{vk_err, Context, Shared, Work};
+use super::context::{Context, Work};
+use super::descriptor::BindingKind;
+use super::device::{vk_err, Shared};
+use super::kernel::Kernel;
 use crate::error::{Error, Result};
 
 /// Which of the driver's build trade-offs to ask for.
@@ -478,8 +481,8 @@ impl Context {
     }
 
     /// Points `binding` of `kernel` at the TLAS of `structure`.
-    pub fn bind_ray_structure(&self, kernel: &mut super::Kernel, binding: u32, structure: &RayStructure) -> Result<()> {
-        let set = kernel.descriptor_set_for(binding, super::BindingKind::RayStructure)?;
+    pub fn bind_ray_structure(&self, kernel: &mut Kernel, binding: u32, structure: &RayStructure) -> Result<()> {
+        let set = kernel.descriptor_set_for(binding, BindingKind::RayStructure)?;
         let handles = [structure.tlas.raw];
         let mut as_info = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
         let mut write = vk::WriteDescriptorSet::default()

@@ -9,7 +9,7 @@
 //! most half the CPU time between the reads plus the deviation the driver reports.
 //! Without the extension, a span starts at the CPU instant of its `vkQueueSubmit`
 //! (and the trace says so). Durations never depend on the placement: they are the
-//! timestamps' difference times the period, as in [`super::context::timestamp_ms`].
+//! timestamps' difference times the period, as in [`timestamp_ms`].
 //!
 //! [`vkGetCalibratedTimestampsEXT`]: https://registry.khronos.org/vulkan/specs/1.3-extensions/man/html/vkGetCalibratedTimestampsEXT.html
 
@@ -18,8 +18,17 @@ use std::time::{Duration, Instant};
 use ash::vk;
 use serde_json::{Map, Value};
 
-use super::Context;
+use crate::error::{Error, Result};
 use crate::timeline::{self, GpuClock};
+
+/// Milliseconds between two timestamp query values, scaled by the device's
+/// `timestampPeriod` (nanoseconds per tick); an error if they are out of order.
+pub fn timestamp_ms(begin: u64, end: u64, period_ns: f32) -> Result<f64> {
+    if end < begin {
+        return Err(Error::Failed(format!("GPU timestamps out of order: {begin} then {end}")));
+    }
+    Ok((end - begin) as f64 * f64::from(period_ns) * 1e-6)
+}
 
 /// Whether `pd` can read its device clock together with the host's
 /// (`VK_EXT_calibrated_timestamps` with the `DEVICE` time domain).
@@ -68,38 +77,42 @@ impl Placement {
     }
 }
 
-impl Context {
-    /// How to place a submission whose first timestamp is `begin_ticks` and which the
-    /// CPU submitted at `submitted`; `None` when this thread is not recording a
-    /// timeline.
-    pub(crate) fn placement(&self, begin_ticks: u64, submitted: Instant) -> Option<Placement> {
-        if !timeline::recording() {
-            return None;
+/// How to place a submission whose first timestamp is `begin_ticks` and which the CPU
+/// submitted at `submitted`, on a device whose ticks last `period_ns` and which reads
+/// its clock with `calibration` where it can; `None` when this thread is not recording
+/// a timeline.
+pub(crate) fn placement(
+    calibration: Option<&ash::ext::calibrated_timestamps::Device>,
+    period_ns: f32,
+    begin_ticks: u64,
+    submitted: Instant,
+) -> Option<Placement> {
+    if !timeline::recording() {
+        return None;
+    }
+    let period_ns = f64::from(period_ns);
+    let submit =
+        Placement { anchor_ticks: begin_ticks, anchor: submitted, period_ns, clock: GpuClock::Submit, error_ns: 0 };
+    let Some(ext) = calibration.filter(|_| !timeline::align_at_submit()) else {
+        return Some(submit);
+    };
+    let info = [vk::CalibratedTimestampInfoKHR::default().time_domain(vk::TimeDomainKHR::DEVICE)];
+    let before = Instant::now();
+    // SAFETY: the extension is enabled on this device and DEVICE is one of its domains.
+    let read = unsafe { ext.get_calibrated_timestamps(&info) };
+    let after = Instant::now();
+    match read {
+        Ok((ticks, deviation)) if !ticks.is_empty() => {
+            let half = after.duration_since(before) / 2;
+            Some(Placement {
+                anchor_ticks: ticks[0],
+                anchor: before + half,
+                period_ns,
+                clock: GpuClock::Calibrated,
+                error_ns: half.as_nanos() as u64 + deviation,
+            })
         }
-        let period_ns = f64::from(self.info().timestamp_period_ns);
-        let submit =
-            Placement { anchor_ticks: begin_ticks, anchor: submitted, period_ns, clock: GpuClock::Submit, error_ns: 0 };
-        let Some(ext) = self.calibration.as_ref().filter(|_| !timeline::align_at_submit()) else {
-            return Some(submit);
-        };
-        let info = [vk::CalibratedTimestampInfoKHR::default().time_domain(vk::TimeDomainKHR::DEVICE)];
-        let before = Instant::now();
-        // SAFETY: the extension is enabled on this device and DEVICE is one of its domains.
-        let read = unsafe { ext.get_calibrated_timestamps(&info) };
-        let after = Instant::now();
-        match read {
-            Ok((ticks, deviation)) if !ticks.is_empty() => {
-                let half = after.duration_since(before) / 2;
-                Some(Placement {
-                    anchor_ticks: ticks[0],
-                    anchor: before + half,
-                    period_ns,
-                    clock: GpuClock::Calibrated,
-                    error_ns: half.as_nanos() as u64 + deviation,
-                })
-            }
-            _ => Some(submit),
-        }
+        _ => Some(submit),
     }
 }
 
@@ -125,5 +138,14 @@ mod tests {
         assert_eq!(p.at(600), anchor - Duration::from_nanos(1_000));
         assert_eq!(p.span_ns(600, 1_400), 2_000);
         assert_eq!(p.span_ns(1_400, 600), 0);
+    }
+
+    #[test]
+    fn timestamps_are_scaled_by_the_period_and_ordered() {
+        let ms = |a, b, p| super::timestamp_ms(a, b, p).expect("ordered");
+        assert!((ms(1_000, 3_000, 1.0) - 0.002).abs() < 1e-12);
+        assert!((ms(1_000, 3_000, 40.0) - 0.08).abs() < 1e-12);
+        assert_eq!(ms(7, 7, 1.0), 0.0);
+        assert!(super::timestamp_ms(3_000, 1_000, 1.0).is_err());
     }
 }
