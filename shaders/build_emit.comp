@@ -41,7 +41,7 @@ uint inner_nodes(uint i) {
 }
 
 uint child_ref(uint c, uint pre, uint first) {
-    if (is_leaf(c) || collapsed(c)) return LEAF_REF | (first << 3u) | (aux[c].y - 1u);
+    if (is_leaf(c) || collapsed(c)) return LEAF_REF | (first << BVH_LEAF_COUNT_BITS) | (aux[c].y - 1u);
     return pre;
 }
 
@@ -73,7 +73,7 @@ void main() {
         if (gl_GlobalInvocationID.x != 0u) return;
         // The root is node 0 (a leaf only when n = 1).
         if (is_leaf(0u) || collapsed(0u)) {
-            write_node(0u, LEAF_REF | ((aux[0].y - 1u) & 7u), 0u, EMPTY_REF, 0u);
+            write_node(0u, LEAF_REF | ((aux[0].y - 1u) & BVH_LEAF_COUNT_MASK), 0u, EMPTY_REF, 0u);
             hdr[BUILD_HDR_DEPTH] = 1u;
             hdr[BUILD_HDR_NODES] = 1u;
         } else {

@@ -1,8 +1,8 @@
 #version 460
 // The trace kernel, one thread per pixel, for either integrator (SPEC_INTEGRATOR):
-// Whitted (the preview: direct light, mirrors, glass split; below) or path
-// tracing (common/path.glsl). Each thread runs samples [z, w) of pixels [x, x + y) of `dispatch_range` (the pixel
-// buffer's header).
+// Whitted (the preview: direct light, mirrors, glass split; common/whitted.glsl) or
+// path tracing (common/path.glsl). Each thread runs samples [z, w) of pixels
+// [x, x + y) of `dispatch_range` (the pixel buffer's header).
 // Compiled once per (structure, geometry, integrator) variant by build.rs: exactly one
 // ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist,
 // TRACE_ENTRY which integrator main() runs (SPEC_INTEGRATOR must agree: the host picks
@@ -96,21 +96,8 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 }
 
-// The structure's traversal is accel_* (wrapped by common/resume_trace.glsl) or, with
-// instances, the bottom level of common/instances.glsl (the driver's structure has
-// both levels in it: its traversal is accel_* with instances too).
-#if defined(HAS_INSTANCES) && !defined(ACCEL_RAYQUERY)
-#define trace_closest blas_closest
-#define trace_any blas_any
-#define trace_closest_coherent blas_closest_coherent
-#define trace_any_coherent blas_any_coherent
-#else
-#define trace_closest accel_closest
-#define trace_any accel_any
-#define trace_closest_coherent accel_closest_coherent
-#define trace_any_coherent accel_any_coherent
-#endif
-
+// The structure's traces: accel_closest and accel_any (accel/*.glsl), and their
+// coherent forms (packets: BVHs only; the others trace coherent rays one by one).
 #if defined(ACCEL_NONE)
 #include "accel/none.glsl"
 #elif defined(ACCEL_KDTREE)
@@ -132,26 +119,30 @@ bool intersect_prim(uint p, Ray r, inout Hit h) {
 #endif
 
 #if !defined(ACCEL_BVH)
-// Coherent rays take the one traversal the structure has (packets: BVHs only).
-bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
-bool trace_any_coherent(Ray r) { return trace_any(r); }
+bool accel_closest_coherent(Ray r, inout Hit h) { return accel_closest(r, h); }
+bool accel_any_coherent(Ray r) { return accel_any(r); }
 #endif
 
-#undef trace_closest
-#undef trace_any
-#undef trace_closest_coherent
-#undef trace_any_coherent
 #ifdef HAS_INSTANCES
-#define trace_closest accel_closest
-#define trace_any accel_any
-#define trace_closest_coherent accel_closest_coherent
-#define trace_any_coherent accel_any_coherent
 #include "common/instances.glsl"
-#undef trace_closest
-#undef trace_any
-#undef trace_closest_coherent
-#undef trace_any_coherent
 #endif
+
+// The scene's traces, which common/resume_trace.glsl wraps: with instances, the top
+// level of common/instances.glsl over the structure's traces (no packets across
+// instances: coherent rays trace one by one); else, and with the driver's structure,
+// which has both levels in it, the structure's own.
+#if defined(HAS_INSTANCES) && !defined(ACCEL_RAYQUERY)
+bool scene_closest(Ray r, inout Hit h) { return inst_closest(r, h); }
+bool scene_any(Ray r) { return inst_any(r); }
+bool scene_closest_coherent(Ray r, inout Hit h) { return inst_closest(r, h); }
+bool scene_any_coherent(Ray r) { return inst_any(r); }
+#else
+bool scene_closest(Ray r, inout Hit h) { return accel_closest(r, h); }
+bool scene_any(Ray r) { return accel_any(r); }
+bool scene_closest_coherent(Ray r, inout Hit h) { return accel_closest_coherent(r, h); }
+bool scene_any_coherent(Ray r) { return accel_any_coherent(r); }
+#endif
+
 #include "common/resume_trace.glsl"
 
 // The primitive number the AOV reports: that of the flattened scene with instances.
@@ -246,159 +237,7 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 
 #include "common/bsdf.glsl"
 #include "common/path.glsl"
-
-// Whitted's glass splits: a refracted ray waiting while the reflected one is followed
-// (at most one per split on the way from the camera, so WHITTED_SPLIT_MAX entries).
-struct Branch {
-    vec3 origin;
-    uint depth;
-    vec3 dir;
-    uint splits;
-    vec3 beta;
-};
-
-// The preview: camera rays; at a Lambert, Phong or rough (microfacet) surface, the
-// point and directional lights (hard shadows), one area light sampled by power (as
-// the path tracer does, without MIS) and the ambient term, and no further bounce;
-// mirrors and smooth conductors followed (Fresnel-weighted); glass and smooth
-// dielectrics split into its reflected and refracted rays, Fresnel-weighted, up to WHITTED_SPLIT
-// splits a path, then only the stronger of the two. No random choice but the pixel
-// jitter of samples after 0 and the area-light points.
-void whitted_main() {
-    uint local;
-    if (!job_begin(local)) return;
-    uint slot = local - DISPATCH_BASE;
-    uvec3 at = window_pixel(local);
-    uint pixel = at.x;
-    uint i = at.y;
-    uint j = at.z;
-
-    Pixel out_px = pixel_start(slot);
-    if (pixel_behind(out_px)) return;
-
-    g_rays = 0u;
-    for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {
-        sample_start();
-        uint rng = rng_init(pixel, s, params.seed);
-        // Sample 0 goes through the pixel centre (and feeds the AOVs); others jitter.
-        float fx = 0.5, fy = 0.5;
-        if (s > 0u) { fx = rng_next(rng); fy = rng_next(rng); }
-        Ray r;
-        r.origin = params.cam_eye;
-        r.dir = camera_ray_dir(i, j, fx, fy);
-        r.tmin = 0.0;
-        r.tmax = uintBitsToFloat(0x7f800000u);
-        vec3 L = vec3(0.0);
-        vec3 beta = vec3(1.0);
-        uint depth = 0u;
-        uint splits = 0u;
-        Branch waiting[WHITTED_SPLIT_MAX];
-        uint n_waiting = 0u;
-        // One ray a pass: at depth d at most 2^min(d, WHITTED_SPLIT) of them.
-        for (uint pass = 0u; pass < (MAX_DEPTH << WHITTED_SPLIT); pass++) {
-            Hit h;
-            h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
-            g_nodes = 0u; g_tests = 0u;
-            g_rays += 1u;
-            bool hit = trace_closest(r, h);
-            if (g_suspended) break;
-            vec3 p, err, gn, sn;
-            uint mat;
-            vec2 uv;
-            Material m;
-            if (hit) {
-                surface(h, r, p, err, gn, sn, mat, uv);
-                m = material_hit(mat, uv);
-            }
-            if (s == 0u && pass == 0u) {
-                out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-                out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
-                out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
-            }
-            bool follow = false;
-            if (!hit) {
-                L += beta * params.background;
-            } else {
-                L += beta * emitted(m, gn, r.dir);
-                bool front = dot(gn, r.dir) < 0.0;
-                vec3 gnf = front ? gn : -gn;
-                vec3 n = dot(sn, r.dir) < 0.0 ? sn : -sn;
-                vec3 wo = -r.dir;
-                bool more = depth + 1u < MAX_DEPTH;
-                if (m.kind == MAT_LAMBERT || m.kind == MAT_PHONG || is_rough_conductor(m)
-                    || is_rough_dielectric(m) || is_pbr(m)) {
-                    L += beta * (bsdf_colour(m) * params.ambient * params.background
-                                 + delta_lights(m, p, err, n, gnf, wo, front));
-                    if (EMITTER_COUNT > 0u) {
-                        vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-                        L += beta * area_light(m, p, err, n, gnf, wo, front, u3, false);
-                    }
-                } else if (((kind_used(MAT_MIRROR) && m.kind == MAT_MIRROR) || is_smooth_conductor(m)) && more) {
-                    beta *= m.kind == MAT_MIRROR ? m.albedo : conductor_fresnel(m, min(dot(n, wo), 1.0));
-                    r.dir = normalize(reflect(r.dir, n));
-                    r.origin = offset_ray_origin(p, err, gnf, r.dir);
-                    follow = true;
-                } else if (is_glass(m) && more) {
-                    float eta = front ? 1.0 / m.ior : m.ior;  // incident over transmitted, for refract
-                    float cos_t;
-                    float fresnel = fresnel_dielectric(clamp(dot(-r.dir, n), 0.0, 1.0), 1.0 / eta, cos_t);
-                    vec3 reflected = normalize(reflect(r.dir, n));
-                    vec3 w_reflect = vec3(fresnel);
-                    vec3 w_refract = (1.0 - fresnel) * m.albedo;
-                    bool take_reflect = true;
-                    if (fresnel < 1.0) {
-                        vec3 refracted = normalize(refract(r.dir, n, eta));
-                        if (splits < WHITTED_SPLIT && n_waiting < WHITTED_SPLIT_MAX) {
-                            Branch b;
-                            b.origin = offset_ray_origin(p, err, gnf, refracted);
-                            b.dir = refracted;
-                            b.depth = depth + 1u;
-                            b.splits = splits + 1u;
-                            b.beta = beta * w_refract;
-                            waiting[n_waiting] = b;
-                            n_waiting += 1u;
-                            splits += 1u;
-                        } else if (luminance(w_refract) > luminance(w_reflect)) {
-                            take_reflect = false;
-                            beta *= w_refract;
-                            r.dir = refracted;
-                        }
-                    }
-                    if (take_reflect) {
-                        beta *= w_reflect;
-                        r.dir = reflected;
-                    }
-                    r.origin = offset_ray_origin(p, err, gnf, r.dir);
-                    follow = true;
-                }
-            }
-            if (follow) {
-                depth += 1u;
-            } else if (WHITTED_SPLIT > 0u && n_waiting > 0u) {
-                n_waiting -= 1u;
-                Branch b = waiting[n_waiting];
-                r.origin = b.origin;
-                r.dir = b.dir;
-                depth = b.depth;
-                splits = b.splits;
-                beta = b.beta;
-            } else {
-                break;
-            }
-            r.tmin = 0.0;
-            r.tmax = uintBitsToFloat(0x7f800000u);
-        }
-        if (g_suspended) break;
-        out_px.radiance += vec4(L, 1.0);
-        float y = luminance(L);
-        out_px.albedo_m2.w += y * y;
-        sample_done();
-    }
-    out_px.prim_cost.w += job_rays();
-    if (g_overflow) out_px.prim_cost.w |= OVERFLOW_FLAG;
-    job_end();
-    pixels[slot] = out_px;
-}
+#include "common/whitted.glsl"
 
 // The benchmark's probe kernel (INTEGRATOR 2): the camera ray of sample 0 and, with
 // DIFFUSE_PROBE, one cosine-distributed ray from its hit, on the side the camera ray

@@ -1,10 +1,11 @@
 // BVH traversal, for every builder (bvh-sah, lbvh, trbvh). Mirrors Bvh::traverse in
 // src/accel/bvh/mod.rs, where the layout is documented: 64-byte inner nodes holding
 // both children's boxes and references; a reference with bit 31 set is a leaf
-// (first index << 3 | count - 1), 0xffffffff no child.
+// (first index << BVH_LEAF_COUNT_BITS | count - 1), 0xffffffff no child.
 //
 // Front to back: both child boxes are tested against [tmin, best t (1 + 1e-5)]; the
-// nearer hit child is visited and the other pushed. Inner nodes are descended in an
+// nearer hit child is visited and the other pushed (BVH_NODE_STEP, the step the
+// instances' top level takes too, common/bvh_leaf.glsl). Inner nodes are descended in an
 // inner loop and leaves tested after it ("while-while"). The stack holds STACK_SIZE
 // references (tree depth + 1, checked at build time); every trace takes at most
 // TREE_STEPS steps (nodes + primitive tests), beyond which it stops and is resumed
@@ -28,32 +29,7 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
         while ((cur & BVH_LEAF) == 0u && steps < TREE_STEPS) {
             steps += 1u;
             g_nodes += 1u;
-            uvec4 a = node_texel(4u * cur);
-            uvec4 b = node_texel(4u * cur + 1u);
-            uvec4 c = node_texel(4u * cur + 2u);
-            uvec4 d = node_texel(4u * cur + 3u);
-            uint lref = a.w;
-            uint rref = b.w;
-            precise float limit = h.t * (1.0 + BVH_T_MARGIN);
-            float l0, l1, r0, r1;
-            bool hl = lref != BVH_EMPTY
-                && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1);
-            bool hr = rref != BVH_EMPTY
-                && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1);
-            if (hl && hr) {
-                bool left_first = l0 <= r0;
-                stack[sp] = left_first ? rref : lref;
-                sp += 1u;
-                cur = left_first ? lref : rref;
-            } else if (hl) {
-                cur = lref;
-            } else if (hr) {
-                cur = rref;
-            } else {
-                if (sp == 0u) return found;
-                sp -= 1u;
-                cur = stack[sp];
-            }
+            BVH_NODE_STEP(node_texel, 4u * cur)
         }
         if ((cur & BVH_LEAF) == 0u) break;
         uint tested = steps;
@@ -142,23 +118,23 @@ bool bvh_traverse_packet(Ray r, inout Hit h, bool any_hit) {
     return found;
 }
 
-bool trace_closest(Ray r, inout Hit h) {
+bool accel_closest(Ray r, inout Hit h) {
     return bvh_traverse(r, h, false);
 }
 
 // The resume kernel traces one ray per lane: a continued trace has its own stack, and
 // packets change the work, not the result.
-bool trace_closest_coherent(Ray r, inout Hit h) {
+bool accel_closest_coherent(Ray r, inout Hit h) {
     return PACKET && !RESUME_PASS ? bvh_traverse_packet(r, h, false) : bvh_traverse(r, h, false);
 }
 
-bool trace_any_coherent(Ray r) {
+bool accel_any_coherent(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     return PACKET && !RESUME_PASS ? bvh_traverse_packet(r, h, true) : bvh_traverse(r, h, true);
 }
 
-bool trace_any(Ray r) {
+bool accel_any(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     return bvh_traverse(r, h, true);

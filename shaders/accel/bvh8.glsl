@@ -1,16 +1,17 @@
 // 8-wide BVH (bvh8): how a node's children are read, for the shared traversal of
-// common/wide8.glsl. Layout documented in src/accel/bvh/wide.rs: 14 texels per node,
+// common/wide.glsl. Layout documented in src/accel/bvh/wide.rs: 14 texels per node,
 // the eight children's boxes as structure of arrays (min x, min y, min z, max x,
 // max y, max z; two texels each, children 0..3 then 4..7) and their references (the
-// binary BVH's encoding: bit 31 leaf, first << 3 | count - 1; 0xffffffff none).
+// binary BVH's encoding: bit 31 leaf, first << BVH_LEAF_COUNT_BITS | count - 1;
+// 0xffffffff none).
 
 #include "common/bvh_leaf.glsl"
 
-void wide8_keys(uint node, Ray r, vec3 inv, float limit,
-                out float k0, out float k1, out float k2, out float k3,
-                out float k4, out float k5, out float k6, out float k7,
-                out uint r0, out uint r1, out uint r2, out uint r3,
-                out uint r4, out uint r5, out uint r6, out uint r7) {
+void wide_keys(uint node, Ray r, vec3 inv, float limit,
+               out float k0, out float k1, out float k2, out float k3,
+               out float k4, out float k5, out float k6, out float k7,
+               out uint r0, out uint r1, out uint r2, out uint r3,
+               out uint r4, out uint r5, out uint r6, out uint r7) {
     uint base = WIDE_NODE_PLANES * 2u * node;
     vec4 lxa = uintBitsToFloat(node_texel(base)), lxb = uintBitsToFloat(node_texel(base + 1u));
     vec4 lya = uintBitsToFloat(node_texel(base + 2u)), lyb = uintBitsToFloat(node_texel(base + 3u));
@@ -32,4 +33,5 @@ void wide8_keys(uint node, Ray r, vec3 inv, float limit,
     k7 = wide_enter(r7, vec3(lxb.w, lyb.w, lzb.w), vec3(hxb.w, hyb.w, hzb.w), r, inv, limit);
 }
 
-#include "common/wide8.glsl"
+#define WIDE_WIDTH 8
+#include "common/wide.glsl"

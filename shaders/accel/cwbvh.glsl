@@ -1,8 +1,8 @@
 // Compressed 8-wide BVH (cwbvh): how a node's children are read, for the shared
-// traversal of common/wide8.glsl. Layout documented in src/accel/bvh/cwbvh.rs: 6 texels
+// traversal of common/wide.glsl. Layout documented in src/accel/bvh/cwbvh.rs: 6 texels
 // per node, the grid origin and exponents, the eight children's box planes as bytes on
 // that grid, and their references (the binary BVH's encoding: bit 31 leaf,
-// first << 3 | count - 1; 0xffffffff none).
+// first << BVH_LEAF_COUNT_BITS | count - 1; 0xffffffff none).
 //
 // A child box decodes to p + q * s per plane (q * s is exact, so one rounding, as on
 // the CPU) and is tested as a full-precision box; quantisation only enlarges boxes.
@@ -22,11 +22,11 @@ float cw_enter(uint k, uint ref, vec3 p, vec3 s, uvec4 t1, uvec4 t2, uvec4 t3, R
     return wide_enter(ref, lo, hi, r, inv, limit);
 }
 
-void wide8_keys(uint node, Ray r, vec3 inv, float limit,
-                out float k0, out float k1, out float k2, out float k3,
-                out float k4, out float k5, out float k6, out float k7,
-                out uint r0, out uint r1, out uint r2, out uint r3,
-                out uint r4, out uint r5, out uint r6, out uint r7) {
+void wide_keys(uint node, Ray r, vec3 inv, float limit,
+               out float k0, out float k1, out float k2, out float k3,
+               out float k4, out float k5, out float k6, out float k7,
+               out uint r0, out uint r1, out uint r2, out uint r3,
+               out uint r4, out uint r5, out uint r6, out uint r7) {
     uint base = 6u * node;
     uvec4 t0 = node_texel(base);
     uvec4 t1 = node_texel(base + 1u);
@@ -48,4 +48,5 @@ void wide8_keys(uint node, Ray r, vec3 inv, float limit,
     k7 = cw_enter(7u, r7, p, s, t1, t2, t3, r, inv, limit);
 }
 
-#include "common/wide8.glsl"
+#define WIDE_WIDTH 8
+#include "common/wide.glsl"

@@ -125,11 +125,11 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
     return found;
 }
 
-bool trace_closest(Ray r, inout Hit h) {
+bool accel_closest(Ray r, inout Hit h) {
     return grid_traverse(r, h, false);
 }
 
-bool trace_any(Ray r) {
+bool accel_any(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     return grid_traverse(r, h, true);

@@ -1,8 +1,9 @@
 // Brute force with a scene-box early-out: every primitive against every ray.
 // Interface shared by every shaders/accel/*.glsl:
-//   bool trace_closest(Ray r, inout Hit h);   // nearest hit in (tmin, tmax)
-//   bool trace_any(Ray r);                    // any hit in (tmin, tmax)
-// Both count into g_nodes / g_tests.
+//   bool accel_closest(Ray r, inout Hit h);   // nearest hit in (tmin, tmax)
+//   bool accel_any(Ray r);                    // any hit in (tmin, tmax)
+// Both count into g_nodes / g_tests. (bvh.glsl adds accel_closest_coherent and
+// accel_any_coherent, its packet traversals; trace.comp gives the others these.)
 //
 // llvmpipe (lavapipe) allows each shader invocation 65535 loop iterations in total,
 // over all loops, and silently breaks the invocation beyond that. For scenes whose
@@ -63,7 +64,7 @@ layout(constant_id = SPEC_SPHERE_COUNT) const uint SPHERE_COUNT = 0u;
 #define BRUTE_ALL BRUTE_LOOP(SPHERE_COUNT, TEST_SPH)
 #endif
 
-bool trace_closest(Ray r, inout Hit h) {
+bool accel_closest(Ray r, inout Hit h) {
     if (!scene_box(r)) return false;
     bool found = false;
 #define ANY_EXIT
@@ -72,7 +73,7 @@ bool trace_closest(Ray r, inout Hit h) {
     return found;
 }
 
-bool trace_any(Ray r) {
+bool accel_any(Ray r) {
     if (!scene_box(r)) return false;
     Hit h;
     h.t = r.tmax;

@@ -11,12 +11,39 @@
 // an ancestor's centre, so the next descent crosses it. Stops when the best hit lies
 // before the cell's exit or the exit is the root's. At most TREE_STEPS steps (nodes
 // and primitive tests) per trace, beyond which it stops and is resumed
-// (common/resume.glsl). Its state: words 0 t, 1 start, 2..5 start_mn, 5..8 start_mx,
-// 8 found, 9 where (0 the next descent, 1 within a descent at `node`, 2 in leaf
-// `node`), 10 node, 11..14 its box min, 14..17 max, 17 parent, 18..21 its box min,
-// 21..24 max, 24 the primitives of the leaf already tested.
+// (common/resume.glsl), with the state of OCT_RS_* below.
 
 #define ACCEL_RESUMABLE 1
+
+// The traversal's resume state, words of its level (rs_get / rs_put): t, the
+// descent's start node and box, found, where (0 the next descent, 1 within a descent
+// at r_node, 2 in leaf r_node), r_node and its box, its parent and the parent's box,
+// and the primitives of the leaf already tested. A box is six words, min xyz then
+// max xyz. Plain integers, so that the preprocessor can check the bound.
+#define OCT_RS_T 0
+#define OCT_RS_START 1
+#define OCT_RS_START_BOX 2
+#define OCT_RS_FOUND 8
+#define OCT_RS_WHERE 9
+#define OCT_RS_NODE 10
+#define OCT_RS_NODE_BOX 11
+#define OCT_RS_PARENT 17
+#define OCT_RS_PARENT_BOX 18
+#define OCT_RS_K_FIRST 24
+#define OCT_RESUME_WORDS (OCT_RS_K_FIRST + 1)
+#if OCT_RESUME_WORDS > RESUME_LEVEL_WORDS
+#error the octree's resume state does not fit in RESUME_LEVEL_WORDS
+#endif
+
+// Box [mn, mx] at words at..at + 6 of the resume state, and back.
+void oct_box_put(uint at, vec3 mn, vec3 mx) {
+    rs_putf(at, mn.x); rs_putf(at + 1u, mn.y); rs_putf(at + 2u, mn.z);
+    rs_putf(at + 3u, mx.x); rs_putf(at + 4u, mx.y); rs_putf(at + 5u, mx.z);
+}
+void oct_box_get(uint at, out vec3 mn, out vec3 mx) {
+    mn = vec3(rs_getf(at), rs_getf(at + 1u), rs_getf(at + 2u));
+    mx = vec3(rs_getf(at + 3u), rs_getf(at + 4u), rs_getf(at + 5u));
+}
 
 // The head of this block is GpuOctreeHeader in src/accel/gpu_layout.rs.
 // Node buffer: oct_min (16 bytes), oct_max (16 bytes), then 8-byte nodes.
@@ -56,19 +83,16 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
     vec3 r_mn = vec3(0.0), r_mx = vec3(0.0), r_pmn = vec3(0.0), r_pmx = vec3(0.0);
     if (RESUME_PASS && g_resuming) {
         g_resuming = false;
-        t = rs_getf(0u);
-        start = rs_get(1u);
-        start_mn = vec3(rs_getf(2u), rs_getf(3u), rs_getf(4u));
-        start_mx = vec3(rs_getf(5u), rs_getf(6u), rs_getf(7u));
-        found = rs_get(8u) != 0u;
-        where = rs_get(9u);
-        r_node = rs_get(10u);
-        r_mn = vec3(rs_getf(11u), rs_getf(12u), rs_getf(13u));
-        r_mx = vec3(rs_getf(14u), rs_getf(15u), rs_getf(16u));
-        r_parent = rs_get(17u);
-        r_pmn = vec3(rs_getf(18u), rs_getf(19u), rs_getf(20u));
-        r_pmx = vec3(rs_getf(21u), rs_getf(22u), rs_getf(23u));
-        k_first = rs_get(24u);
+        t = rs_getf(OCT_RS_T);
+        start = rs_get(OCT_RS_START);
+        oct_box_get(OCT_RS_START_BOX, start_mn, start_mx);
+        found = rs_get(OCT_RS_FOUND) != 0u;
+        where = rs_get(OCT_RS_WHERE);
+        r_node = rs_get(OCT_RS_NODE);
+        oct_box_get(OCT_RS_NODE_BOX, r_mn, r_mx);
+        r_parent = rs_get(OCT_RS_PARENT);
+        oct_box_get(OCT_RS_PARENT_BOX, r_pmn, r_pmx);
+        k_first = rs_get(OCT_RS_K_FIRST);
     }
     while (steps < TREE_STEPS) {
         bool within = RESUME_PASS && where != 0u;
@@ -143,28 +167,25 @@ bool oct_traverse(Ray r, inout Hit h, bool any_hit) {
         t = t_exit;
     }
     if (trace_suspend()) {
-        rs_putf(0u, t);
-        rs_put(1u, start);
-        rs_putf(2u, start_mn.x); rs_putf(3u, start_mn.y); rs_putf(4u, start_mn.z);
-        rs_putf(5u, start_mx.x); rs_putf(6u, start_mx.y); rs_putf(7u, start_mx.z);
-        rs_put(8u, uint(found));
-        rs_put(9u, where);
-        rs_put(10u, r_node);
-        rs_putf(11u, r_mn.x); rs_putf(12u, r_mn.y); rs_putf(13u, r_mn.z);
-        rs_putf(14u, r_mx.x); rs_putf(15u, r_mx.y); rs_putf(16u, r_mx.z);
-        rs_put(17u, r_parent);
-        rs_putf(18u, r_pmn.x); rs_putf(19u, r_pmn.y); rs_putf(20u, r_pmn.z);
-        rs_putf(21u, r_pmx.x); rs_putf(22u, r_pmx.y); rs_putf(23u, r_pmx.z);
-        rs_put(24u, k_first);
+        rs_putf(OCT_RS_T, t);
+        rs_put(OCT_RS_START, start);
+        oct_box_put(OCT_RS_START_BOX, start_mn, start_mx);
+        rs_put(OCT_RS_FOUND, uint(found));
+        rs_put(OCT_RS_WHERE, where);
+        rs_put(OCT_RS_NODE, r_node);
+        oct_box_put(OCT_RS_NODE_BOX, r_mn, r_mx);
+        rs_put(OCT_RS_PARENT, r_parent);
+        oct_box_put(OCT_RS_PARENT_BOX, r_pmn, r_pmx);
+        rs_put(OCT_RS_K_FIRST, k_first);
     }
     return found;
 }
 
-bool trace_closest(Ray r, inout Hit h) {
+bool accel_closest(Ray r, inout Hit h) {
     return oct_traverse(r, h, false);
 }
 
-bool trace_any(Ray r) {
+bool accel_any(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
     return oct_traverse(r, h, true);

@@ -81,9 +81,9 @@ bool rq_trace(Ray r, inout Hit h, bool any_hit) {
     return true;
 }
 
-bool trace_closest(Ray r, inout Hit h) { return rq_trace(r, h, false); }
+bool accel_closest(Ray r, inout Hit h) { return rq_trace(r, h, false); }
 
-bool trace_any(Ray r) {
+bool accel_any(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
 #ifdef HAS_INSTANCES

@@ -1,6 +1,7 @@
-// What the BVH kernels (bvh.glsl with its single-ray and packet traversals, bvh4.glsl,
-// bvh8.glsl, cwbvh.glsl) share: the child-reference encoding of src/accel/bvh/mod.rs,
-// the test of one leaf, and the wide kernels' child ordering.
+// What the BVH kernels (bvh.glsl with its single-ray and packet traversals, the wide
+// ones of common/wide.glsl, the top level of common/instances.glsl) share: the
+// child-reference encoding of src/accel/bvh/mod.rs, the binary node step, the test of
+// one leaf, and the wide kernels' child boxes and comparator.
 #ifndef ARBOR_BVH_LEAF_GLSL
 #define ARBOR_BVH_LEAF_GLSL
 
@@ -10,13 +11,18 @@ const uint BVH_LEAF = BVH_LEAF_REF;
 const uint BVH_EMPTY = BVH_EMPTY_REF;
 const float BVH_T_MARGIN = 1e-5;
 
-// Tests the primitives of leaf reference `ref` (first << 3 | count - 1), each a step of
-// the trace's budget, and says whether one was hit. With `first_hit`, stops at the
-// first hit. `testing` false counts the steps but tests nothing (a packet lane riding
-// along), so that every lane takes the same steps.
+// A leaf reference's fields (src/gpu/bindings.rs, BVH_LEAF_COUNT_BITS, with a worked
+// example): BVH_LEAF | first << BVH_LEAF_COUNT_BITS | count - 1.
+uint bvh_leaf_first(uint ref) { return (ref & ~BVH_LEAF) >> BVH_LEAF_COUNT_BITS; }
+uint bvh_leaf_count(uint ref) { return (ref & BVH_LEAF_COUNT_MASK) + 1u; }
+
+// Tests the primitives of leaf reference `ref`, each a step of the trace's budget, and
+// says whether one was hit. With `first_hit`, stops at the first hit. `testing` false
+// counts the steps but tests nothing (a packet lane riding along), so that every lane
+// takes the same steps.
 bool bvh_leaf(uint ref, Ray r, inout Hit h, bool first_hit, bool testing, inout uint steps) {
-    uint first = (ref & ~BVH_LEAF) >> 3u;
-    uint count = (ref & 7u) + 1u;
+    uint first = bvh_leaf_first(ref);
+    uint count = bvh_leaf_count(ref);
     bool found = false;
     for (uint k = 0u; k < count && steps < TREE_STEPS; k++) {
         steps += 1u;
@@ -30,9 +36,42 @@ bool bvh_leaf(uint ref, Ray r, inout Hit h, bool first_hit, bool testing, inout 
 
 // The part of leaf reference `ref` after its first `tested` primitives (tested < count).
 uint bvh_leaf_rest(uint ref, uint tested) {
-    uint first = (ref & ~BVH_LEAF) >> 3u;
-    return BVH_LEAF | ((first + tested) << 3u) | ((ref & 7u) - tested);
+    uint first = bvh_leaf_first(ref);
+    return BVH_LEAF | ((first + tested) << BVH_LEAF_COUNT_BITS) | ((ref & BVH_LEAF_COUNT_MASK) - tested);
 }
+
+// One inner node of the binary BVH on a traversal's locals r, inv, h, cur, stack, sp
+// and found: the node's four texels (src/accel/bvh/mod.rs) are `fetch(at)` ..
+// `fetch(at + 3u)`; both child boxes are tested against [tmin, best t (1 + 1e-5)], the
+// nearer child entered becomes cur and the other is pushed; with neither entered, cur
+// is popped, and the traversal returns `found` when the stack is empty.
+#define BVH_NODE_STEP(fetch, at) \
+    uvec4 a = fetch(at); \
+    uvec4 b = fetch((at) + 1u); \
+    uvec4 c = fetch((at) + 2u); \
+    uvec4 d = fetch((at) + 3u); \
+    uint lref = a.w; \
+    uint rref = b.w; \
+    precise float limit = h.t * (1.0 + BVH_T_MARGIN); \
+    float l0, l1, r0, r1; \
+    bool hl = lref != BVH_EMPTY \
+        && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1); \
+    bool hr = rref != BVH_EMPTY \
+        && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1); \
+    if (hl && hr) { \
+        bool left_first = l0 <= r0; \
+        stack[sp] = left_first ? rref : lref; \
+        sp += 1u; \
+        cur = left_first ? lref : rref; \
+    } else if (hl) { \
+        cur = lref; \
+    } else if (hr) { \
+        cur = rref; \
+    } else { \
+        if (sp == 0u) return found; \
+        sp -= 1u; \
+        cur = stack[sp]; \
+    }
 
 // Resuming the BVH kernels' traversals (common/resume.glsl), on their locals cur, sp,
 // found and stack: words 0 the next reference, 1 sp, 2 found, the stack from
@@ -48,7 +87,7 @@ uint bvh_leaf_rest(uint ref, uint tested) {
     }
 #define BVH_LEAF_CUT(tested) \
     tested = steps - tested; \
-    if (tested <= (cur & 7u)) { \
+    if (tested <= (cur & BVH_LEAF_COUNT_MASK)) { \
         cur = bvh_leaf_rest(cur, tested); \
         break; \
     }
@@ -78,26 +117,5 @@ void wide_swap(inout float ka, inout uint ra, inout float kb, inout uint rb) {
     kb = s ? k : kb;
     rb = s ? r : rb;
 }
-
-// The 8-wide kernels' child order and pushes, on their locals: keys k0..k7 (entry
-// distance, +inf for a child not entered), references r0..r7, n children entered,
-// the stack and sp. WIDE_SORT8 is SORT8 of src/accel/bvh/wide.rs, comparator for
-// comparator; WIDE_PUSH8 pushes r7..r1 as unconditional writes with conditional
-// increments (the entered ones, farthest first), leaving r0 the nearest.
-#define WIDE_SORT8 \
-    wide_swap(k0, r0, k2, r2); wide_swap(k1, r1, k3, r3); wide_swap(k4, r4, k6, r6); wide_swap(k5, r5, k7, r7); \
-    wide_swap(k0, r0, k4, r4); wide_swap(k1, r1, k5, r5); wide_swap(k2, r2, k6, r6); wide_swap(k3, r3, k7, r7); \
-    wide_swap(k0, r0, k1, r1); wide_swap(k2, r2, k3, r3); wide_swap(k4, r4, k5, r5); wide_swap(k6, r6, k7, r7); \
-    wide_swap(k2, r2, k4, r4); wide_swap(k3, r3, k5, r5); \
-    wide_swap(k1, r1, k4, r4); wide_swap(k3, r3, k6, r6); \
-    wide_swap(k1, r1, k2, r2); wide_swap(k3, r3, k4, r4); wide_swap(k5, r5, k6, r6)
-#define WIDE_PUSH8 \
-    stack[sp] = r7; sp += n > 7u ? 1u : 0u; \
-    stack[sp] = r6; sp += n > 6u ? 1u : 0u; \
-    stack[sp] = r5; sp += n > 5u ? 1u : 0u; \
-    stack[sp] = r4; sp += n > 4u ? 1u : 0u; \
-    stack[sp] = r3; sp += n > 3u ? 1u : 0u; \
-    stack[sp] = r2; sp += n > 2u ? 1u : 0u; \
-    stack[sp] = r1; sp += n > 1u ? 1u : 0u
 
 #endif

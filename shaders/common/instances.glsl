@@ -1,14 +1,14 @@
 // Two-level traversal for instanced scenes (HAS_INSTANCES), the layout of
 // src/accel/instance.rs: a top-level BVH (the `bvh` node layout) over entries, each an
 // instance of a prototype or the scene's own primitives, each with its own structure
-// of the kernel's kind, traversed by the structure's own code (blas_closest /
-// blas_any, renamed in trace.comp) after `inst_enter` points it at that structure and
-// moves the ray into its space. Mirrors TwoLevel::traverse. Every step of both levels
-// counts against the one budget, TREE_STEPS, beyond which the trace stops and is
-// resumed (common/resume.glsl). The top level's state: words 0 cur, 1 sp, 2 found,
-// 3 the entries of leaf cur already done, 4 whether the next one was stopped inside
-// (its structure then saved the bottom level, at RS_LEVEL); the stack from
-// RESUME_LEVEL_WORDS.
+// of the kernel's kind, traversed by the structure's own code (accel_closest /
+// accel_any) after `inst_enter` points it at that structure and moves the ray into its
+// space. inst_closest / inst_any are the scene's traces (trace.comp). Mirrors
+// TwoLevel::traverse. Every step of both levels counts against the one budget,
+// TREE_STEPS, beyond which the trace stops and is resumed (common/resume.glsl). The
+// top level's state: words 0 cur, 1 sp, 2 found, 3 the entries of leaf cur already
+// done, 4 whether the next one was stopped inside (its structure then saved the bottom
+// level, at RS_LEVEL); the stack from RESUME_LEVEL_WORDS.
 #ifndef ARBOR_INSTANCES_GLSL
 #define ARBOR_INSTANCES_GLSL
 
@@ -76,36 +76,11 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
             g_steps += 1u;
             g_nodes += 1u;
             uint n = hdr.x + 4u * cur;
-            uvec4 a = inst_texel(n);
-            uvec4 b = inst_texel(n + 1u);
-            uvec4 c = inst_texel(n + 2u);
-            uvec4 d = inst_texel(n + 3u);
-            uint lref = a.w;
-            uint rref = b.w;
-            precise float limit = h.t * (1.0 + BVH_T_MARGIN);
-            float l0, l1, r0, r1;
-            bool hl = lref != BVH_EMPTY
-                && ray_box(uintBitsToFloat(a.xyz), uintBitsToFloat(b.xyz), r.origin, inv, r.tmin, limit, l0, l1);
-            bool hr = rref != BVH_EMPTY
-                && ray_box(uintBitsToFloat(c.xyz), uintBitsToFloat(d.xyz), r.origin, inv, r.tmin, limit, r0, r1);
-            if (hl && hr) {
-                bool left_first = l0 <= r0;
-                stack[sp] = left_first ? rref : lref;
-                sp += 1u;
-                cur = left_first ? lref : rref;
-            } else if (hl) {
-                cur = lref;
-            } else if (hr) {
-                cur = rref;
-            } else {
-                if (sp == 0u) return found;
-                sp -= 1u;
-                cur = stack[sp];
-            }
+            BVH_NODE_STEP(inst_texel, n)
         }
         if ((cur & BVH_LEAF) == 0u) break;
-        uint first = (cur & ~BVH_LEAF) >> 3u;
-        uint count = (cur & 7u) + 1u;
+        uint first = bvh_leaf_first(cur);
+        uint count = bvh_leaf_count(cur);
         uint k = k_first;
         for (; k < count && g_steps < TREE_STEPS; k++) {
             // An entry costs the passes its structure's loops make even when they do
@@ -117,9 +92,9 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
             g_level = RS_LEVEL;
             bool hit;
             if (any_hit) {
-                hit = blas_any(o);
+                hit = accel_any(o);
             } else {
-                hit = blas_closest(o, h);
+                hit = accel_closest(o, h);
             }
             g_level = 0u;
             if (g_suspended) {
@@ -153,15 +128,12 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
     return found;
 }
 
-bool trace_closest(Ray r, inout Hit h) { return inst_traverse(r, h, false); }
-bool trace_any(Ray r) {
+bool inst_closest(Ray r, inout Hit h) { return inst_traverse(r, h, false); }
+bool inst_any(Ray r) {
     Hit h;
     h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0; h.inst = 0u;
     return inst_traverse(r, h, true);
 }
-// No packet traversal across instances: coherent rays trace one by one.
-bool trace_closest_coherent(Ray r, inout Hit h) { return trace_closest(r, h); }
-bool trace_any_coherent(Ray r) { return trace_any(r); }
 #endif
 
 // A hit on an instance, computed in its prototype's space, into the world: the point

@@ -1,8 +1,8 @@
 // The traces the integrators call (trace_closest, trace_any and their coherent forms)
-// around the structure's own (accel_*), and the invocation's job: which pixel, which
-// sample, what to replay (common/resume.glsl has the layout). In the trace kernel
-// these only number the traces and stop a sample once one ran out of steps; families
-// that cannot suspend a trace (no ACCEL_RESUMABLE) get the structure's traces as
+// around the scene's (scene_*, trace.comp), and the invocation's job: which pixel,
+// which sample, what to replay (common/resume.glsl has the layout). In the trace
+// kernel these only number the traces and stop a sample once one ran out of steps;
+// families that cannot suspend a trace (no ACCEL_RESUMABLE) get the scene's traces as
 // they are, their pixels flagged (g_overflow) when a trace runs out.
 #ifndef ARBOR_RESUME_TRACE_GLSL
 #define ARBOR_RESUME_TRACE_GLSL
@@ -140,7 +140,7 @@ bool trace_closest(Ray r, inout Hit h) {
     g_trace = i + 1u;
     bool hit;
     if (trace_enter(i, h, hit)) return hit;
-    hit = accel_closest(r, h);
+    hit = scene_closest(r, h);
     trace_done(i, hit, h);
     return hit;
 }
@@ -150,7 +150,7 @@ bool trace_closest_coherent(Ray r, inout Hit h) {
     g_trace = i + 1u;
     bool hit;
     if (trace_enter(i, h, hit)) return hit;
-    hit = accel_closest_coherent(r, h);
+    hit = scene_closest_coherent(r, h);
     trace_done(i, hit, h);
     return hit;
 }
@@ -161,7 +161,7 @@ bool trace_any(Ray r) {
     Hit h = no_hit(r);
     bool hit;
     if (trace_enter(i, h, hit)) return hit;
-    hit = accel_any(r);
+    hit = scene_any(r);
     trace_done(i, hit, h);
     return hit;
 }
@@ -172,7 +172,7 @@ bool trace_any_coherent(Ray r) {
     Hit h = no_hit(r);
     bool hit;
     if (trace_enter(i, h, hit)) return hit;
-    hit = accel_any_coherent(r);
+    hit = scene_any_coherent(r);
     trace_done(i, hit, h);
     return hit;
 }

@@ -59,11 +59,16 @@ pub const BINDING_BUILD_WIDE: u32 = 13;
 pub const BINDING_BUILD_WIDE_NODES: u32 = 14;
 /// The binary BVH's child references, as the CPU and GPU builders write them and the
 /// trace kernels read them (`accel::bvh::{LEAF_REF, EMPTY_REF}`): a leaf is
-/// `BVH_LEAF_REF | first << 3 | count - 1` (at most `BVH_MAX_LEAF` primitives), a
-/// missing child `BVH_EMPTY_REF`.
+/// `BVH_LEAF_REF | first << BVH_LEAF_COUNT_BITS | count - 1` (at most `BVH_MAX_LEAF`
+/// primitives), a missing child `BVH_EMPTY_REF`. Bits 0..3 (`BVH_LEAF_COUNT_MASK`) hold
+/// count - 1, bits 3..31 the first entry of the primitive-index array, bit 31 the flag;
+/// a leaf of 3 primitives at entry 40: 0x8000_0000 | 40 << 3 | 2 = 0x8000_0142.
 pub const BVH_LEAF_REF: u32 = 0x8000_0000;
 pub const BVH_EMPTY_REF: u32 = 0xffff_ffff;
 pub const BVH_MAX_LEAF: u32 = 8;
+pub const BVH_LEAF_COUNT_BITS: u32 = 3;
+pub const BVH_LEAF_COUNT_MASK: u32 = (1 << BVH_LEAF_COUNT_BITS) - 1;
+const _: () = assert!(1 << BVH_LEAF_COUNT_BITS == BVH_MAX_LEAF);
 /// Flag of a canonical binary node's left word marking a leaf (`accel::bvh::LEAF_FLAG`;
 /// the GPU builders' `LEAF_FLAG`).
 pub const BUILD_LEAF_FLAG: u32 = 0x8000_0000;
@@ -400,6 +405,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BVH_LEAF_REF", BVH_LEAF_REF),
     ("BVH_EMPTY_REF", BVH_EMPTY_REF),
     ("BVH_MAX_LEAF", BVH_MAX_LEAF),
+    ("BVH_LEAF_COUNT_BITS", BVH_LEAF_COUNT_BITS),
+    ("BVH_LEAF_COUNT_MASK", BVH_LEAF_COUNT_MASK),
     ("BUILD_LEAF_FLAG", BUILD_LEAF_FLAG),
     ("WIDE_NODE_PLANES", WIDE_NODE_PLANES),
     ("INST_ENTRY_TEXELS", INST_ENTRY_TEXELS),

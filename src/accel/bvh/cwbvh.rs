@@ -30,7 +30,8 @@
 //! uvec4 3: qhi y 0..3, 4..7;             qhi z 0..3, 4..7
 //!          (child k in byte k mod 4 of its word, least significant first)
 //! uvec4 4: child references 0..3, encoded as the binary BVH's (bit 31: leaf, first
-//!          index << 3 | count - 1; 0xffffffff: no child, its bytes all zero)
+//!          index << BVH_LEAF_COUNT_BITS | count - 1; 0xffffffff: no child, its
+//!          bytes all zero)
 //! uvec4 5: child references 4..7
 //! ```
 //!

@@ -21,7 +21,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{GpuBvhNode, Nodes, PrimRefs, EMPTY_REF, LEAF_REF, MAX_LEAF};
+use super::{leaf_ref, GpuBvhNode, Nodes, PrimRefs, EMPTY_REF, LEAF_REF, MAX_LEAF};
+use crate::gpu::bindings::BVH_LEAF_COUNT_BITS;
 use crate::math::Aabb;
 
 /// Levels below the root whose subtrees are flattened as parallel parts (at most
@@ -208,7 +209,7 @@ fn assemble<T: Nodes>(f: &Flattener<T>, parts: &[Part]) -> (Vec<GpuBvhNode>, Vec
         Src::Part(p, nb, ib) => {
             let moved = |r: u32| match r {
                 EMPTY_REF => r,
-                r if r & LEAF_REF != 0 => r + (ib << 3),
+                r if r & LEAF_REF != 0 => r + (ib << BVH_LEAF_COUNT_BITS),
                 r => r + nb,
             };
             for (d, s) in dn.iter_mut().zip(&p.nodes) {
@@ -364,7 +365,7 @@ impl<'a, 'o, T: Nodes> Flattener<'a, 'o, T> {
     fn leaf(&mut self, list: &[u32]) -> u32 {
         let first = self.next_index();
         self.indices.extend(list);
-        LEAF_REF | (first << 3) | (list.len() as u32 - 1)
+        leaf_ref(first, list.len() as u32)
     }
 
     /// Emits `c` below an inner node at `depth`: its reference and box.
@@ -375,7 +376,7 @@ impl<'a, 'o, T: Nodes> Flattener<'a, 'o, T> {
                 let first = self.next_index();
                 let src = if gathered { &self.gathered } else { self.bin.prims() };
                 self.indices.extend(&src[start..start + len]);
-                (LEAF_REF | (first << 3) | (len as u32 - 1), b)
+                (leaf_ref(first, len as u32), b)
             }
             Child::Range(start, len, _, gathered) => {
                 let src = if gathered { &self.gathered } else { self.bin.prims() };

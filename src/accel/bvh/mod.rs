@@ -24,8 +24,10 @@
 //! child reference: bit 31 clear        -> inner node index
 //!                  bit 31 set          -> leaf: bits 3..31 first index, bits 0..3 count - 1
 //!                  0xffffffff          -> no child (empty scene, or a one-leaf root)
-//! example: a leaf of 3 primitives at index entry 40 -> 0x80000000 | 40 << 3 | 2 = 0x80000142
 //! ```
+//!
+//! The leaf's fields and a worked example: `BVH_LEAF_COUNT_BITS` in src/gpu/bindings.rs
+//! ([`leaf_ref`] encodes, [`leaf_range`] decodes).
 
 use crate::accel::validate::ValidateError;
 use std::time::Instant;
@@ -35,6 +37,7 @@ use glam::Vec3;
 use super::prim::{self, Prims};
 use super::sah::{self, SahCosts};
 use super::{BuildStats, Phase};
+use crate::gpu::bindings::{BVH_LEAF_COUNT_BITS, BVH_LEAF_COUNT_MASK, BVH_MAX_LEAF};
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
@@ -47,12 +50,13 @@ pub mod lbvh;
 pub mod treelet;
 pub mod wide;
 
-/// Most primitives in one leaf (3 bits of the child reference).
-pub const MAX_LEAF: usize = crate::gpu::bindings::BVH_MAX_LEAF as usize;
+/// Most primitives in one leaf (`BVH_LEAF_COUNT_BITS` bits of the child reference).
+pub const MAX_LEAF: usize = BVH_MAX_LEAF as usize;
 /// Deepest tree (inner nodes on a path) the kernel's stack is allowed to hold.
 pub const MAX_BVH_DEPTH: u32 = 128;
-/// Most primitives a BVH can index (28 bits of the child reference).
-pub const MAX_BVH_PRIMS: usize = 1 << 28;
+/// Most primitives a BVH can index (the 28 bits of the child reference between the
+/// count and the leaf flag).
+pub const MAX_BVH_PRIMS: usize = 1 << (31 - BVH_LEAF_COUNT_BITS);
 /// Child reference flag: a leaf.
 pub const LEAF_REF: u32 = crate::gpu::bindings::BVH_LEAF_REF;
 /// Child reference of a missing child.
@@ -322,9 +326,14 @@ fn unpack_box(min: [u32; 4], max: [u32; 4]) -> Aabb {
     Aabb { min: v(min), max: v(max) }
 }
 
+/// Leaf reference of `count` (1..=MAX_LEAF) primitives from index entry `first`.
+pub fn leaf_ref(first: u32, count: u32) -> u32 {
+    LEAF_REF | (first << BVH_LEAF_COUNT_BITS) | (count - 1)
+}
+
 /// Leaf reference → (first index, count).
 pub fn leaf_range(r: u32) -> (usize, usize) {
-    (((r & !LEAF_REF) >> 3) as usize, (r & 7) as usize + 1)
+    (((r & !LEAF_REF) >> BVH_LEAF_COUNT_BITS) as usize, (r & BVH_LEAF_COUNT_MASK) as usize + 1)
 }
 
 impl Bvh {

@@ -21,7 +21,8 @@
 //! row 4: max y
 //! row 5: max z
 //! row 6: child references, encoded as the binary BVH's (bit 31: leaf, first
-//!        index << 3 | count - 1; 0xffffffff: no child, its box all zeros)
+//!        index << BVH_LEAF_COUNT_BITS | count - 1; 0xffffffff: no child, its box
+//!        all zeros)
 //! ```
 //!
 //! Traversal (`shaders/accel/bvh4.glsl`, `bvh8.glsl`, mirrored by [`WideBvh`]'s CPU
