@@ -161,9 +161,9 @@ fn named((kind, build): Candidate) -> String {
 
 fn why(scene: &Scene, pixels: u64, spp: u32, est: &[(Candidate, f64)], dropped: &str, costs: &Costs) -> String {
     let (best, ms) = est[0];
-    let runner = est.get(1).map(|&(c, t)| format!(", then {} at {t:.0} ms", named(c))).unwrap_or_default();
+    let runner = est.get(1).map(|&(c, t)| format!(", then {} at {t:.0}", named(c))).unwrap_or_default();
     format!(
-        "{} primitives, {pixels} pixels x {spp} spp: {} expected fastest at {ms:.0} ms build + trace{runner}{dropped} ({}; docs/auto.md)",
+        "{} primitives, {pixels} pixels x {spp} spp: {} ranked fastest (model cost {ms:.0}{runner}: a ranking, not a forecast of the render's time){dropped} ({}; docs/auto.md)",
         scene.drawn_triangles() + scene.spheres.len() as u64,
         named(best),
         costs.source

@@ -58,6 +58,10 @@ use crate::math::aabb::FLAT_RCP;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
 
+/// 16-byte texel fetches of one cell visit in shaders/accel/grid.glsl: its two range
+/// words, `start[c]` and `start[c + 1]`, each a `node_word` fetch.
+pub const CELL_TEXELS: u32 = 2;
+
 /// Most cells along one axis.
 pub const MAX_RES: u32 = 4096;
 /// Insertion tests at most this many (cell, primitive) candidate pairs per primitive

@@ -39,6 +39,7 @@
 //! here and in the kernel, so a child's faces are bit for bit its ancestors' centres.
 
 use super::validate::ValidateError;
+use super::{AccelKind, LeafTally};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -54,6 +55,10 @@ use super::BuildStats;
 use crate::math::aabb::FLAT_RCP;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
+
+/// 16-byte texel fetches of one node visit in shaders/accel/octree.glsl: an 8-byte
+/// node is half a texel (`node_pair`), one fetch.
+pub const NODE_TEXELS: u32 = 1;
 
 /// Deepest octree the builder makes.
 pub const MAX_OCTREE_DEPTH: u32 = 24;
@@ -273,49 +278,27 @@ impl Octree {
     pub fn stats(&self) -> BuildStats {
         let costs = SahCosts::default();
         let root = f64::from(sah::area(&self.bounds).max(f32::MIN_POSITIVE));
-        let (mut leaves, mut empty, mut depth_sum, mut refs, mut cost) = (0u64, 0u64, 0u64, 0u64, 0.0f64);
-        let mut absent = (0u64, 0u64, 0.0f64);
+        let (mut stored, mut absent) = (LeafTally::default(), LeafTally::default());
         self.walk(
             |b, n, d| {
                 let [w0, _] = self.nodes[n];
                 let p = f64::from(sah::area(b)) / root;
                 if w0 & LEAF != 0 {
                     let count = w0 & !LEAF;
-                    leaves += 1;
-                    depth_sum += u64::from(d);
-                    refs += u64::from(count);
-                    empty += u64::from(count == 0);
-                    cost += p * f64::from(costs.intersect) * f64::from(count);
+                    stored.leaf(d, u64::from(count), p * f64::from(costs.intersect) * f64::from(count));
                 } else {
-                    cost += p * f64::from(costs.traversal);
+                    stored.inner(p * f64::from(costs.traversal));
                 }
             },
-            |b, d| {
-                absent.0 += 1;
-                absent.1 += u64::from(d);
-                absent.2 += f64::from(sah::area(b)) / root * f64::from(costs.traversal);
-            },
+            // An absent octant is an empty leaf, and costs the descent that finds it.
+            |b, d| absent.leaf(d, 0, f64::from(sah::area(b)) / root * f64::from(costs.traversal)),
         );
-        let stored_leaves = leaves;
+        // Stored records (inner nodes and leaves) plus the absent octants.
+        let nodes = self.nodes.len() as u64 + absent.leaves;
         BuildStats {
-            kind: "octree".into(),
             build_ms: self.build_ms,
-            bytes: self.bytes(),
-            // Stored records (inner nodes and leaves) plus the absent octants.
-            nodes: self.nodes.len() as u64 + absent.0,
-            max_depth: self.depth,
-            leaves: leaves + absent.0,
-            empty_leaves: empty + absent.0,
-            mean_leaf_depth: (depth_sum + absent.1) as f64 / (leaves + absent.0).max(1) as f64,
-            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
-            prims_per_leaf: refs as f64 / (stored_leaves - empty).max(1) as f64,
-            // An absent octant costs the descent that finds it empty.
-            sah_cost: cost + absent.2,
             phases: self.phases.clone(),
-            resolution: None,
-            levels: None,
-            opaque: None,
-            on_device: None,
+            ..stored.and(absent).stats(AccelKind::Octree.name(), nodes, self.depth, self.bytes(), self.prims)
         }
     }
 

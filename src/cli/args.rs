@@ -6,6 +6,10 @@ use arbor::accel::{AccelKind, AccelParams};
 use arbor::bench::RayKind;
 
 use clap::{Parser, Subcommand};
+
+/// The structure `render` and `info` build unless `--accel` says otherwise: the cost
+/// model's pick for the scene, image size and samples.
+pub(crate) const DEFAULT_ACCEL: &str = "auto";
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -88,12 +92,15 @@ impl StructureArgs {
     /// Every structure's parameters: each flag's spec applied over the defaults.
     pub(crate) fn params(&self) -> Result<AccelParams> {
         let mut p = AccelParams { build: self.build.first().copied().unwrap_or_default(), ..Default::default() };
+        use arbor::accel::params::Params;
+        use arbor::accel::{bvh::treelet::TreeletParams, grid::GridParams, kdtree::KdParams};
+        use arbor::accel::{octree::OctreeParams, rayquery::RayQueryParams};
         for (flag, spec) in [
-            ("kd", &self.kd),
-            ("grid", &self.grid),
-            ("octree", &self.octree),
-            ("trbvh", &self.trbvh),
-            ("rayquery", &self.rayquery),
+            (KdParams::FLAG, &self.kd),
+            (GridParams::FLAG, &self.grid),
+            (OctreeParams::FLAG, &self.octree),
+            (TreeletParams::FLAG, &self.trbvh),
+            (RayQueryParams::FLAG, &self.rayquery),
         ] {
             p.set_flag(flag, spec).map_err(crate::common::usage)?;
         }
@@ -298,7 +305,7 @@ pub(crate) struct RenderArgs {
     /// same image; both has the least noise.
     #[arg(long, default_value = "both", value_parser = ["both", "light", "bsdf"])]
     pub(crate) mis: String,
-    /// Acceleration structure: kdtree (SAH, default), bsp-course (the lecture's
+    /// Acceleration structure: kdtree (SAH kd-tree), bsp-course (the lecture's
     /// tree), bvh-sah (binned SAH BVH), lbvh (linear BVH, fastest build), trbvh
     /// (LBVH + treelet restructuring), bvh4 (bvh-sah collapsed into 4-wide nodes),
     /// bvh8 (the same, 8-wide), cwbvh (8-wide with 8-bit quantised boxes),
@@ -308,7 +315,7 @@ pub(crate) struct RenderArgs {
     /// image size and sample count fastest (the default; the summary line and `arbor
     /// info --accel auto` say which and why). Aliases: brute-force (= none), kd (=
     /// kdtree), bvh (= bvh-sah).
-    #[arg(long, default_value = "auto", value_name = "KIND|auto")]
+    #[arg(long, default_value = DEFAULT_ACCEL, value_name = "KIND|auto")]
     pub(crate) accel: String,
     /// Draw instances as transformed copies of their meshes, under one structure,
     /// instead of one structure per instanced mesh and a BVH over the instances
@@ -424,9 +431,10 @@ pub(crate) struct MergeArgs {
 pub(crate) struct InfoArgs {
     /// Scene: file.toml, mesh.obj|ply|off, or builtin:NAME.
     pub(crate) scene: String,
-    /// Acceleration structure to build and describe, or auto (see `render --accel`;
-    /// chosen for the scene's own film size and 1 sample per pixel).
-    #[arg(long, default_value = "kdtree", value_name = "KIND|auto")]
+    /// Acceleration structure to build and describe, or auto (the default, as for
+    /// `render --accel`: chosen for the scene's own film size and the default render's
+    /// 64 samples per pixel, so that `info` describes what `render` builds).
+    #[arg(long, default_value = DEFAULT_ACCEL, value_name = "KIND|auto")]
     pub(crate) accel: String,
     /// Describe the scene with its instances flattened into copies (see `render --flatten`).
     #[arg(long)]

@@ -18,7 +18,7 @@ pub(crate) fn run(a: &InfoArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
     crate::common::warn_scene(&scene);
     let pixels = u64::from(scene.width) * u64::from(scene.height);
-    let (accel, why) = resolve_accel(&a.accel, &scene, pixels, 1, params.build)?;
+    let (accel, why) = resolve_accel(&a.accel, &scene, pixels, crate::common::DEFAULT_PATH_SPP, params.build)?;
     let scene = flatten_if(scene, a.flatten, accel, true)?;
     // The driver's structure exists only on a device: it is built there, as on the GPU.
     let built = match params.build {

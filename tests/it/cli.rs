@@ -120,7 +120,7 @@ fn auto_drops_structures_that_do_not_fit_the_device() {
     };
     let (code, err) = run(&[], None);
     assert_eq!(code, Some(0), "{err}");
-    assert!(err.contains("accel auto: ") && err.contains("lbvh expected fastest"), "{err}");
+    assert!(err.contains("accel auto: ") && err.contains("lbvh ranked fastest"), "{err}");
     // lbvh's nodes (68 bytes a primitive, 1.3 MB) exceed 1 MB; trbvh's (39) do not.
     let (code, err) = run(&[], Some("1000000"));
     assert_eq!(code, Some(0), "{err}");

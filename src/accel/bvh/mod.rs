@@ -30,6 +30,7 @@
 //! ([`leaf_ref`] encodes, [`leaf_range`] decodes).
 
 use crate::accel::validate::ValidateError;
+use crate::accel::LeafTally;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -525,42 +526,23 @@ fn tree_stats<const W: usize>(
     let costs = SahCosts::default();
     let root = children(0).iter().filter(|(r, _)| *r != EMPTY_REF).fold(Aabb::EMPTY, |a, (_, b)| a.union(b));
     let root_area = f64::from(sah::area(&root));
-    let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
+    let mut tally = LeafTally::default();
     // The root counts as a traversal step too.
-    let mut cost = f64::from(costs.traversal) * root_area;
+    tally.inner(f64::from(costs.traversal) * root_area);
     walk_tree(children, |r, b, d| {
         let a = f64::from(sah::area(b));
         if r == EMPTY_REF {
-            leaves += 1;
-            empty += 1;
-            depth_sum += u64::from(d);
+            tally.leaf(d, 0, 0.0);
         } else if r & LEAF_REF != 0 {
             let (_, count) = leaf_range(r);
-            leaves += 1;
-            depth_sum += u64::from(d);
-            refs += count as u64;
-            cost += f64::from(costs.intersect) * a * count as f64;
+            tally.leaf(d, count as u64, f64::from(costs.intersect) * a * count as f64);
         } else {
-            cost += f64::from(costs.traversal) * a;
+            tally.inner(f64::from(costs.traversal) * a);
         }
     });
     BuildStats {
-        kind: kind.into(),
-        build_ms: 0.0,
-        bytes,
-        nodes: node_count as u64 + leaves,
-        max_depth: depth,
-        leaves,
-        empty_leaves: empty,
-        mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
-        refs_per_prim: refs as f64 / prims.max(1) as f64,
-        prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
-        sah_cost: if root_area > 0.0 { cost / root_area } else { 0.0 },
-        phases: Vec::new(),
-        resolution: None,
-        levels: None,
-        opaque: None,
-        on_device: None,
+        sah_cost: if root_area > 0.0 { tally.cost / root_area } else { 0.0 },
+        ..tally.stats(kind, node_count as u64 + tally.leaves, depth, bytes, prims)
     }
 }
 

@@ -22,6 +22,7 @@ mod sah_build;
 pub use sah_build::{REF_BUDGET_EXTRA, REF_BUDGET_PER_PRIM};
 
 use crate::accel::validate::ValidateError;
+use crate::accel::{AccelKind, LeafTally};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -33,6 +34,10 @@ use super::sah::{self, SahCosts};
 use super::BuildStats;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::Scene;
+
+/// 16-byte texel fetches of one node visit in shaders/accel/kdtree.glsl: an 8-byte
+/// node is half a texel (`node_pair`), one fetch.
+pub const NODE_TEXELS: u32 = 1;
 
 /// Deepest tree the GPU kernel accepts (its stack has one entry per level).
 pub const MAX_KD_DEPTH: u32 = 64;
@@ -282,45 +287,26 @@ impl KdTree {
 
     /// Statistics for `arbor info` and the stats JSON.
     pub fn stats(&self) -> BuildStats {
-        let (mut leaves, mut empty, mut depth_sum, mut refs) = (0u64, 0u64, 0u64, 0u64);
         let root_area = sah::area(&self.bounds).max(f32::MIN_POSITIVE);
         let costs = SahCosts::default();
-        let mut cost = 0.0f64;
+        let mut tally = LeafTally::default();
         self.walk(|b, n, d| {
             let [w0, w1] = self.nodes[n];
             let p = f64::from(sah::area(b) / root_area);
             if w1 & 3 == LEAF {
-                leaves += 1;
-                depth_sum += u64::from(d);
-                refs += u64::from(w0);
-                if w0 == 0 {
-                    empty += 1;
-                }
-                cost += p * f64::from(costs.intersect) * f64::from(w0);
+                tally.leaf(d, u64::from(w0), p * f64::from(costs.intersect) * f64::from(w0));
             } else {
-                cost += p * f64::from(costs.traversal);
+                tally.inner(p * f64::from(costs.traversal));
             }
         });
+        let kind = match self.builder {
+            KdBuilder::Sah => AccelKind::Kdtree,
+            KdBuilder::Course => AccelKind::BspCourse,
+        };
         BuildStats {
-            kind: match self.builder {
-                KdBuilder::Sah => "kdtree".into(),
-                KdBuilder::Course => "bsp-course".into(),
-            },
             build_ms: self.build_ms,
-            bytes: self.bytes(),
-            nodes: self.nodes.len() as u64,
-            max_depth: self.depth,
-            leaves,
-            empty_leaves: empty,
-            mean_leaf_depth: depth_sum as f64 / leaves.max(1) as f64,
-            refs_per_prim: refs as f64 / self.prims.max(1) as f64,
-            prims_per_leaf: refs as f64 / (leaves - empty).max(1) as f64,
-            sah_cost: cost,
             phases: self.phases.clone(),
-            resolution: None,
-            levels: None,
-            opaque: None,
-            on_device: None,
+            ..tally.stats(kind.name(), self.nodes.len() as u64, self.depth, self.bytes(), self.prims)
         }
     }
 
