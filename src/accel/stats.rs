@@ -6,7 +6,7 @@
 /// empty leaf, and brute force as one leaf holding everything.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct BuildStats {
-    /// The structure's name ([`AccelKind::name`]).
+    /// The structure's name ([`super::AccelKind::name`]).
     pub kind: String,
     /// CPU wall-clock build time.
     pub build_ms: f64,

@@ -400,8 +400,8 @@ impl GpuBuilder {
     /// the host's read of the header (with, for a wide tree, the allocation of its
     /// nodes); `build_ms` is the wall clock of all. The stages: the binary tree's
     /// steps (`GpuBuilder::binary_steps`), for a wide target the collapse's plan
-    /// ([`GpuBuilder::wide_plan_steps`]), one submission of them, the header read, and
-    /// for a wide target the write of its nodes ([`GpuBuilder::write_wide`]).
+    /// (`GpuBuilder::wide_plan_steps`), one submission of them, the header read, and
+    /// for a wide target the write of its nodes (`GpuBuilder::write_wide`).
     pub fn build_target(
         &mut self,
         ctx: &Context,

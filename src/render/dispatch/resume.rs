@@ -15,7 +15,7 @@
 //! loop's ring (the queue runs them before these passes), and the host lands them only
 //! after these passes, in order. The host waits for each pass: the count it
 //! gives out sizes the next one and splits it in two (the jobs that hold a record
-//! first), and bounds the passes ([`MAX_PASSES`]). An indirect dispatch would size one
+//! first), and bounds the passes (`MAX_PASSES`). An indirect dispatch would size one
 //! pass without the host, but not split it.
 
 use super::kernel::Variant;
