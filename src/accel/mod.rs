@@ -20,20 +20,21 @@
 #![forbid(unsafe_code)]
 
 pub mod auto;
+mod build_params;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod bvh;
 pub mod calibrate;
 pub mod family;
-mod image;
-pub mod kinds;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod gpu_layout;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod grid;
+mod image;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod instance;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod kdtree;
+pub mod kinds;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod none;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
@@ -48,13 +49,13 @@ mod stats;
 #[allow(missing_docs)] // builder internals, documented in docs/ (one page per structure); not the stable API
 pub mod validate;
 
+pub use build_params::{AccelParams, BuildOn};
 pub use family::{Geometry, KernelFamily};
 pub use image::{resume_words, AccelBuffers, GpuImage, TraceLoop};
 pub use kinds::{AccelKind, KindRow, KINDS};
-pub use params::{AccelParams, BuildOn};
 pub use prim::Prims;
-pub use stats::{BuildStats, LeafTally, Phase};
 pub(crate) use stats::lap;
+pub use stats::{BuildStats, LeafTally, Phase};
 pub use validate::{Site, ValidateError};
 
 /// CPU traversal, the test oracle of every structure: each implements `traverse` (in
