@@ -317,7 +317,7 @@ fn trace(
         };
         (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
     });
-    let control = render::path::Control {
+    let control = render::Control {
         progress: Box::new(|done, total| progress.update(done, total)),
         interrupted: Box::new(interrupt::requested),
         checkpoint,

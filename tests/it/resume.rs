@@ -371,7 +371,7 @@ fn crops_sample_ranges_and_checkpoints_under_a_small_budget() {
     assert_same(&a, &b, "samples 1..4");
     // Checkpoints read the chunk after every sample wave; the end is the same.
     let mut seen = 0;
-    let control = path::Control {
+    let control = arbor::render::Control {
         progress: Box::new(|_, _| {}),
         interrupted: Box::new(|| false),
         checkpoint: Some((

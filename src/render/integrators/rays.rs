@@ -22,7 +22,7 @@ use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
-use crate::render::dispatch::kernel::{base_params, Entry};
+use crate::render::dispatch::kernel::{base_params, Entry, Film};
 use crate::render::dispatch::pacing::Sizer;
 use crate::render::dispatch::prepare::{LoopSettings, Prepared, Request};
 use crate::render::dispatch::upload::GpuScene;
@@ -171,7 +171,7 @@ impl<'a> RayTracer<'a> {
             rays_per_sample: 1,
             spec: vec![(SPEC_LIGHTS, 0), (SPEC_MAX_DEPTH, 1)],
             // No camera: the rays come from the batch.
-            params: base_params(scene, (1, 1), 0, accel),
+            params: base_params(scene, Film { width: 1, height: 1, seed: 0 }, accel),
             scene: GpuScene::new(scene),
             extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
             chunk_most: settings.pixels,
