@@ -10,8 +10,8 @@ use crate::gpu::Context;
 use crate::scene::Scene;
 
 pub use super::dispatch::dispatch_shape;
-pub use super::kernel::{kernel_geometry, trace_bindings};
-pub use super::upload::GpuScene;
+pub use super::dispatch::kernel::{kernel_geometry, trace_bindings};
+pub use super::dispatch::upload::GpuScene;
 
 /// Renders `scene` on `ctx`. `progress(done, total)` is called after each dispatch.
 pub fn render(
@@ -61,7 +61,7 @@ fn run(
     control: Control<'_>,
 ) -> Result<(Frame, RenderStats)> {
     match settings.integrator {
-        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, accel, control.progress),
-        Integrator::Path => super::path::render_with(ctx, scene, settings, accel, control),
+        Integrator::Whitted => super::integrators::whitted::render_with(ctx, scene, settings, accel, control.progress),
+        Integrator::Path => super::integrators::path::render_with(ctx, scene, settings, accel, control),
     }
 }

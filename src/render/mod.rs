@@ -20,12 +20,6 @@ pub mod gpu;
 pub mod integrators;
 pub mod output;
 
-// The stages' modules by their short names, as the command line, the benchmarks and
-// the library's users reach them.
-pub use dispatch::{kernel, readback, resume, upload};
-pub use integrators::{envdist, path, rays, whitted};
-pub use output::{compare, heatmap, memory, merge, part, shard, timeline_png};
-
 use serde::Serialize;
 
 use crate::accel::AccelKind;
@@ -50,11 +44,11 @@ pub enum KernelChoice {
 #[serde(rename_all = "kebab-case")]
 pub enum Integrator {
     /// Direct light from point and directional lights, hard shadows, mirror and glass
-    /// ([`whitted`]); the library's default, which the structure tests pin.
+    /// ([`integrators::whitted`]); the library's default, which the structure tests pin.
     #[default]
     Whitted,
     /// Unidirectional path tracing with next-event estimation and multiple importance
-    /// sampling ([`path`]); the default of `arbor render`.
+    /// sampling ([`integrators::path`]); the default of `arbor render`.
     Path,
 }
 

@@ -9,7 +9,8 @@ use crate::common;
 
 use arbor::accel::{Accel, AccelKind, AccelParams, KernelFamily};
 use arbor::gpu::Context;
-use arbor::render::{cpu, gpu, path, Crop, Frame, Integrator, RenderSettings, RenderStats, Traversal};
+use arbor::render::integrators::path;
+use arbor::render::{cpu, gpu, Crop, Frame, Integrator, RenderSettings, RenderStats, Traversal};
 use arbor::scene::{procedural, Light, Scene, SceneBuilder, Sphere};
 use common::scenes::{gpu_matches_reference, scene_from, tris, Rng};
 use glam::{Affine3A, Quat, Vec3};

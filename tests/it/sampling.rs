@@ -9,7 +9,7 @@ use crate::common;
 
 use arbor::gpu::bindings::*;
 use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind, Context};
-use arbor::render::upload::GpuScene;
+use arbor::render::dispatch::upload::GpuScene;
 use arbor::scene::{Material, MaterialKind, SceneBuilder, Sphere};
 use glam::Vec3;
 

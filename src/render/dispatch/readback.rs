@@ -18,7 +18,7 @@ impl Frame {
         let too_big = || {
             Error::Failed(format!(
                 "--size {width}x{height}: cannot allocate the frame (about {} MiB); use a smaller --size",
-                (n as u64 * crate::render::memory::FRAME_BYTES_PER_PIXEL) >> 20
+                (n as u64 * crate::render::output::memory::FRAME_BYTES_PER_PIXEL) >> 20
             ))
         };
         Ok(Frame {
