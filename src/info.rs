@@ -62,7 +62,7 @@ impl Report {
             spheres: scene.spheres.len(),
             materials: scene.materials.len(),
             lights: scene.lights.len(),
-            emitters: crate::render::integrators::path::emitters(scene).len(),
+            emitters: crate::render::dispatch::tables::emitters(scene).len(),
             film: [scene.width, scene.height],
             bounds_min: bounds.min.to_array(),
             bounds_max: bounds.max.to_array(),

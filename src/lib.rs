@@ -65,7 +65,7 @@ pub mod gpu;
 pub mod info;
 pub mod math;
 // The renderer's parts, public for the binary, the tests and the benchmarks (their
-// settings are documented in the CLI help and docs/); `render::rays`, the ray-batch
+// settings are documented in the CLI help and docs/); `render::integrators::rays`, the ray-batch
 // API, is documented in full and re-exported at the crate root.
 #[allow(missing_docs)]
 pub mod render;
@@ -80,5 +80,5 @@ pub use accel::{Accel, AccelKind, AccelParams, BuildStats};
 pub use error::{Error, Result};
 pub use gpu::{Context, ContextOptions};
 pub use math::{Hit, Ray};
-pub use render::rays::{trace_rays, BatchStats, RayTracer, TraceOptions};
+pub use render::integrators::rays::{trace_rays, BatchStats, RayTracer, TraceOptions};
 pub use scene::Scene;

@@ -274,7 +274,7 @@ impl Accel {
 
     /// The CPU reference for a batch of rays: each ray's closest hit in order, `None`
     /// where it meets nothing in `(tmin, tmax]`, with the watertight ray/triangle test,
-    /// on every core. The same answer as [`crate::render::rays::RayTracer::trace`]
+    /// on every core. The same answer as [`crate::render::integrators::rays::RayTracer::trace`]
     /// (same primitive; t and barycentrics to rounding).
     pub fn trace_cpu(&self, scene: &crate::scene::Scene, rays: &[crate::math::Ray]) -> Vec<Option<crate::math::Hit>> {
         self.trace_cpu_with(scene, rays, crate::math::intersect::IntersectMode::Watertight)

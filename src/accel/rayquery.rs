@@ -140,7 +140,7 @@ impl RayQuery {
 
 /// The build inputs in the kernel's numbering: stored triangles are prototypes' first
 /// (prototype k from its first stored triangle), then the scene's own, as the trace
-/// kernel's triangle buffer holds them (`render::upload::GpuScene`).
+/// kernel's triangle buffer holds them (`render::dispatch::upload::GpuScene`).
 struct Inputs {
     positions: Vec<[f32; 4]>,
     indices: Vec<u32>,

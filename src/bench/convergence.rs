@@ -1,7 +1,7 @@
 //! `arbor bench --reference REF.exr`: the speed-for-accuracy trade. For each structure
 //! and integrator, a ladder of sample counts is rendered; each row has the time to
 //! image (build + trace, wall clock), the error against the reference (relative MSE,
-//! MSE, PSNR; `render::compare`) and the efficiency 1 / (relMSE x seconds), the figure
+//! MSE, PSNR; `render::output::compare`) and the efficiency 1 / (relMSE x seconds), the figure
 //! of merit for equal-time and equal-error comparisons. `--out DIR` adds
 //! `convergence.csv` and a log-log plot of error against time.
 
@@ -11,7 +11,7 @@ use std::time::Instant;
 use crate::accel::{Accel, AccelKind, AccelParams};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
-use crate::render::compare::{compare, read_linear, ErrorStats};
+use crate::render::output::compare::{compare, read_linear, ErrorStats};
 use crate::render::output::OutputSet;
 use crate::render::{Integrator, RenderSettings};
 use crate::scene::Scene;

@@ -64,7 +64,7 @@ pub struct Options {
     /// caller) with bench.json and bench.csv: all of them or none.
     pub trace_events: Option<PathBuf>,
     /// Colour scale of the cost figures (`plots/cost_<scene>.png`).
-    pub heatmap_scale: crate::render::heatmap::Scale,
+    pub heatmap_scale: crate::render::output::heatmap::Scale,
     /// The structures were not named (`--accel` left at its default): the driver's
     /// structure (`rayquery`) joins them on a device that has ray queries.
     pub with_driver: bool,

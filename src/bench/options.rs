@@ -46,7 +46,7 @@ pub struct Request {
     /// See [`Options::trace_events`].
     pub trace_events: Option<PathBuf>,
     /// Colour scale of the cost figures.
-    pub heatmap_scale: crate::render::heatmap::Scale,
+    pub heatmap_scale: crate::render::output::heatmap::Scale,
 }
 
 impl Request {
@@ -151,7 +151,7 @@ mod tests {
             out: None,
             json: None,
             trace_events: None,
-            heatmap_scale: crate::render::heatmap::Scale::Linear,
+            heatmap_scale: crate::render::output::heatmap::Scale::Linear,
         }
     }
 

@@ -1,10 +1,10 @@
 //! Benchmark plots (PNG and SVG, drawn with plotters): Mrays/s per structure, build
 //! time against triangle count (log-log), time to image against samples per pixel,
 //! and one cost figure per scene: the nodes each structure visits per pixel, side by side
-//! on one colour scale ([`crate::render::heatmap`]).
+//! on one colour scale ([`crate::render::output::heatmap`]).
 //!
 //! Text is drawn in the font built into the binary (DejaVu Sans), or the one
-//! `ARBOR_FONT=path.ttf` names ([`crate::render::heatmap::font`]); no system font is
+//! `ARBOR_FONT=path.ttf` names ([`crate::render::output::heatmap::font`]); no system font is
 //! needed. SVG files name the family `sans-serif` and leave the font to the viewer.
 //! `bench_plots` draws every chart of a run.
 
@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 /// Pixel size of the chart images.
 pub const CHART_SIZE: (u32, u32) = (900, 560);
 
-use crate::render::heatmap::{font, Figure, Panel, Scale};
+use crate::render::output::heatmap::{font, Figure, Panel, Scale};
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Failed(format!("{}: drawing the plot failed: {e}", path.display()))

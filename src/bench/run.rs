@@ -69,7 +69,7 @@ pub fn load_scenes(opts: &Options) -> Result<Vec<Scene>> {
     let mut scenes = Vec::with_capacity(opts.scenes.len());
     for name in &opts.scenes {
         let scene = Scene::load(name)?;
-        crate::render::memory::check_render(&what, w, h, scene.prim_count(), &[])?;
+        crate::render::output::memory::check_render(&what, w, h, scene.prim_count(), &[])?;
         scenes.push(scene);
     }
     Ok(scenes)

@@ -20,7 +20,7 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     }
     // `--out` draws plots at the end: a bad ARBOR_FONT is refused before any work.
     if args.out.is_some() && args.shards.is_empty() {
-        arbor::render::heatmap::font()?;
+        arbor::render::output::heatmap::font()?;
     }
     if let Some(reference) = &args.reference {
         return convergence(args, reference);

@@ -107,7 +107,7 @@ pub(crate) fn flatten_if(scene: Scene, asked: bool, accel: AccelKind, quiet: boo
 pub(crate) fn start_trace(t: &TraceArgs, command: &str) -> Result<Option<arbor::timeline::Recording>> {
     let Some(path) = &t.trace_events else { return Ok(None) };
     if arbor::render::output::trace_is_png(path)? {
-        arbor::render::heatmap::font()?;
+        arbor::render::output::heatmap::font()?;
     }
     let opts = arbor::timeline::Options { align_at_submit: t.trace_align_submit, process: format!("arbor {command}") };
     let rec = arbor::timeline::start(opts)?;
@@ -131,9 +131,9 @@ pub(crate) fn trace_device(ctx: &Context) {
 pub(crate) fn aov_scale(
     arg: Option<&str>,
     aovs: &[(String, std::path::PathBuf)],
-) -> Result<arbor::render::heatmap::Scale> {
+) -> Result<arbor::render::output::heatmap::Scale> {
     if arbor::render::output::has_heatmap(aovs) {
-        arbor::render::heatmap::font()?;
+        arbor::render::output::heatmap::font()?;
     } else if let Some(s) = arg {
         return Err(usage(format!(
             "--aov-scale {s}: it sets the colour scale of the heatmap AOVs written as .png ({}), and no --aov is one",

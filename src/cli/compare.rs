@@ -8,7 +8,7 @@ use crate::common::{print_out, usage};
 
 /// `arbor compare`: both images are read and checked before --diff is written.
 pub(crate) fn run(a: &CompareArgs) -> Result<()> {
-    use arbor::render::compare as cmp;
+    use arbor::render::output::compare as cmp;
     if let Some(d) = a.diff.as_ref().filter(|d| !d.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))) {
         return Err(usage(format!("{}: --diff must end in .png", d.display())));
     }

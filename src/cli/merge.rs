@@ -20,13 +20,14 @@ pub(crate) fn run(a: &MergeArgs) -> Result<()> {
     // Parts decode in parallel (each decoder on one thread); the first failure in the
     // order given is reported.
     use rayon::prelude::*;
-    let read: Vec<_> = a.parts.par_iter().map(|path| render::part::read(path).map(|(i, f)| (path, i, f))).collect();
+    let read: Vec<_> =
+        a.parts.par_iter().map(|path| render::output::part::read(path).map(|(i, f)| (path, i, f))).collect();
     for r in read {
         let (path, info, frame) = r?;
-        parts.push(render::merge::Part { path: path.clone(), info, frame });
+        parts.push(render::output::merge::Part { path: path.clone(), info, frame });
     }
     let n = parts.len();
-    let (info, frame) = render::merge::merge(parts, a.allow_partial)?;
+    let (info, frame) = render::output::merge::merge(parts, a.allow_partial)?;
     let mut set = output::OutputSet::new();
     output::write_frame(&mut set, &a.output, &info, &frame)?;
     let heat = output::HeatmapInfo { subject: format!("{}, merged from {n} parts", info.scene), scale };

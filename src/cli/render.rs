@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use arbor::gpu::Context;
-use arbor::render::{self, memory, output, KernelChoice, RenderSettings};
+use arbor::render::output::{self, memory};
+use arbor::render::{self, KernelChoice, RenderSettings};
 use arbor::scene::Scene;
 
 use crate::args::RenderArgs;
@@ -89,7 +90,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
         }
     }
     settings.check()?;
-    let mut part = render::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
+    let mut part = render::output::part::PartInfo::new(&scene, &settings, spp_total, shard_name);
     if let Some(path) = &a.resume {
         settings.resume = Some(std::sync::Arc::new(resumable(path, &part)?));
     }
@@ -116,7 +117,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
                 settings.accel = kind;
                 settings.params.build = on;
                 heat.subject = format!("{}, {kind}", scene.name);
-                part = render::part::PartInfo::new(&scene, &settings, part_args.0, part_args.1);
+                part = render::output::part::PartInfo::new(&scene, &settings, part_args.0, part_args.1);
             }
             Some(why)
         }
@@ -202,7 +203,7 @@ fn write_outputs(
     (aovs, heat): Aovs,
     frame: &render::Frame,
     st: Option<&render::RenderStats>,
-    part: &render::part::PartInfo,
+    part: &render::output::part::PartInfo,
 ) -> Result<()> {
     let (w, h) = (frame.width, frame.height);
     let mut set = output::OutputSet::new();
@@ -240,14 +241,15 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32,
         window.check(settings.width, settings.height)?;
     }
     let first = a.sample_offset.unwrap_or(0);
-    let by: render::shard::ShardBy = a.shard_by.parse().map_err(usage)?;
-    let shard = a.shard.as_deref().map(|s| render::shard::Shard::parse(s, |v| std::env::var(v).ok())).transpose()?;
+    let by: render::output::shard::ShardBy = a.shard_by.parse().map_err(usage)?;
+    let shard =
+        a.shard.as_deref().map(|s| render::output::shard::Shard::parse(s, |v| std::env::var(v).ok())).transpose()?;
     let (window, first, count) = match &shard {
         Some(s) => s.plan(by, window, first, settings.spp)?,
         None => (window, first, settings.spp),
     };
     // Only a sample shard is a part of a known total; other parts may be extended.
-    let total = if a.shard.is_some() && by == render::shard::ShardBy::Samples { settings.spp } else { 0 };
+    let total = if a.shard.is_some() && by == render::output::shard::ShardBy::Samples { settings.spp } else { 0 };
     settings.crop = (window != render::Crop::full(settings.width, settings.height)).then_some(window);
     settings.first_sample = first;
     settings.spp = count;
@@ -256,8 +258,8 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32,
 
 /// Reads the part `--resume` names and checks that this command renders the same
 /// window and samples of the same image.
-fn resumable(path: &std::path::Path, part: &render::part::PartInfo) -> Result<render::Frame> {
-    let (info, frame) = render::part::read(path)?;
+fn resumable(path: &std::path::Path, part: &render::output::part::PartInfo) -> Result<render::Frame> {
+    let (info, frame) = render::output::part::read(path)?;
     let why = if info.hash != part.hash || info.version != part.version {
         Some("it was rendered from another scene or other settings than this command's".to_string())
     } else if (info.width, info.height) != (part.width, part.height) || info.crop != part.crop {
@@ -305,7 +307,7 @@ fn trace(
     settings: &RenderSettings,
     a: &RenderArgs,
     aovs: Aovs,
-    part: &render::part::PartInfo,
+    part: &render::output::part::PartInfo,
 ) -> Result<(render::Frame, render::RenderStats)> {
     interrupt::install();
     let progress = Reporter::new("render", a.quiet, false);
@@ -317,7 +319,7 @@ fn trace(
         };
         (every, Box::new(write) as Box<dyn FnMut(&render::Frame) -> arbor::error::Result<()>>)
     });
-    let control = render::path::Control {
+    let control = render::Control {
         progress: Box::new(|done, total| progress.update(done, total)),
         interrupted: Box::new(interrupt::requested),
         checkpoint,

@@ -56,6 +56,27 @@ pub struct Landed {
     pub submitted: Instant,
 }
 
+/// One submission of a ring: `header` written into `buffer` at byte `header_at`,
+/// `kernel` over `groups` workgroups, then the [`COPY_BACK_BYTES`] of `buffer` at
+/// `copy_back_at` (the counters the kernel left) copied back for [`Landed::words`].
+#[derive(Debug, Clone, Copy)]
+pub struct HeaderDispatch<'s> {
+    /// The kernel dispatched.
+    pub kernel: &'s Kernel,
+    /// Workgroups in x, y, z.
+    pub groups: [u32; 3],
+    /// The buffer the header goes into and the counters come back from.
+    pub buffer: &'s Buffer,
+    /// Byte of `buffer` the header is written at.
+    pub header_at: u64,
+    /// The header's bytes (at most 65536, a multiple of 4: vkCmdUpdateBuffer's limits).
+    pub header: &'s [u8],
+    /// Byte of `buffer` whose [`COPY_BACK_BYTES`] come back.
+    pub copy_back_at: u64,
+    /// The submission's debug name and timeline label.
+    pub label: &'s str,
+}
+
 /// Up to `depth` dispatches in flight on `ctx`'s queue.
 pub struct DispatchRing<'a> {
     ctx: &'a Context,
@@ -126,19 +147,19 @@ impl DispatchRing<'_> {
         !self.free.is_empty()
     }
 
-    /// Submits: `data` written into `buffer` at byte `offset`, a barrier, `kernel`
-    /// over `groups` workgroups, a barrier, then the 16 bytes of `buffer` at
-    /// `copy_offset` copied back. Fails when the ring is full (land one first).
-    #[allow(clippy::too_many_arguments)]
-    pub fn submit(
-        &mut self,
-        kernel: &Kernel,
-        buffer: &Buffer,
-        (offset, data): (u64, &[u8]),
-        groups: [u32; 3],
-        copy_offset: u64,
-        label: &str,
-    ) -> Result<()> {
+    /// Submits `d`: its header written into its buffer, a barrier, its kernel, a
+    /// barrier, then the 16 bytes it names copied back. Fails when the ring is full
+    /// (land one first).
+    pub fn submit(&mut self, d: &HeaderDispatch<'_>) -> Result<()> {
+        let HeaderDispatch {
+            kernel,
+            groups,
+            buffer,
+            header_at: offset,
+            header: data,
+            copy_back_at: copy_offset,
+            label,
+        } = *d;
         self.ctx.check_dispatch(kernel, &[], groups)?;
         check_update(kernel, buffer, offset, data)?;
         if copy_offset % 4 != 0 || copy_offset.checked_add(COPY_BACK_BYTES).is_none_or(|end| end > buffer.size()) {

@@ -31,7 +31,7 @@ pub use buffer::{Buffer, BufferKind};
 pub use cache::KernelCacheStats;
 pub use context::{Context, ContextOptions, DeviceInfo};
 pub use descriptor::{BindingDesc, BindingKind};
-pub use flight::{DispatchRing, Landed, COPY_BACK_BYTES, MAX_DEPTH as MAX_IN_FLIGHT};
+pub use flight::{DispatchRing, HeaderDispatch, Landed, COPY_BACK_BYTES, MAX_DEPTH as MAX_IN_FLIGHT};
 pub use kernel::{Kernel, Step};
 pub use raytrace::{BlasDesc, RayBuildOptions, RayBuildReport, RayInputs, RayStructure, TlasInstance};
 

@@ -3,15 +3,15 @@
 //! waves); each pixel sums its samples in index order inside the kernel, so the
 //! image is bit-identical whatever the split.
 
-use super::{Frame, Integrator, RenderSettings, RenderStats};
+use super::{Control, Frame, Integrator, RenderSettings, RenderStats};
 use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::Context;
 use crate::scene::Scene;
 
 pub use super::dispatch::dispatch_shape;
-pub use super::kernel::{kernel_geometry, trace_bindings};
-pub use super::upload::GpuScene;
+pub use super::dispatch::kernel::{kernel_geometry, trace_bindings};
+pub use super::dispatch::upload::GpuScene;
 
 /// Renders `scene` on `ctx`. `progress(done, total)` is called after each dispatch.
 pub fn render(
@@ -35,7 +35,7 @@ pub fn render_with(
     accel: &Accel,
     progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
-    run(ctx, scene, settings, accel, super::path::Control::progress_only(progress))
+    run(ctx, scene, settings, accel, Control::progress_only(progress))
 }
 
 /// Builds the structure and renders with `control`: progress, and for the path
@@ -45,7 +45,7 @@ pub fn render_controlled(
     ctx: &Context,
     scene: &Scene,
     settings: &RenderSettings,
-    control: super::path::Control<'_>,
+    control: Control<'_>,
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
     let accel = Accel::build_on(ctx, settings.accel, scene, &settings.params)?;
@@ -58,10 +58,10 @@ fn run(
     scene: &Scene,
     settings: &RenderSettings,
     accel: &Accel,
-    control: super::path::Control<'_>,
+    control: Control<'_>,
 ) -> Result<(Frame, RenderStats)> {
     match settings.integrator {
-        Integrator::Whitted => super::whitted::render_with(ctx, scene, settings, accel, control.progress),
-        Integrator::Path => super::path::render_with(ctx, scene, settings, accel, control),
+        Integrator::Whitted => super::integrators::whitted::render_with(ctx, scene, settings, accel, control.progress),
+        Integrator::Path => super::integrators::path::render_with(ctx, scene, settings, accel, control),
     }
 }

@@ -20,12 +20,6 @@ pub mod gpu;
 pub mod integrators;
 pub mod output;
 
-// The stages' modules by their short names, as the command line, the benchmarks and
-// the library's users reach them.
-pub use dispatch::{kernel, readback, resume, upload};
-pub use integrators::{envdist, path, rays, whitted};
-pub use output::{compare, heatmap, memory, merge, part, shard, timeline_png};
-
 use serde::Serialize;
 
 use crate::accel::AccelKind;
@@ -50,11 +44,11 @@ pub enum KernelChoice {
 #[serde(rename_all = "kebab-case")]
 pub enum Integrator {
     /// Direct light from point and directional lights, hard shadows, mirror and glass
-    /// ([`whitted`]); the library's default, which the structure tests pin.
+    /// ([`integrators::whitted`]); the library's default, which the structure tests pin.
     #[default]
     Whitted,
     /// Unidirectional path tracing with next-event estimation and multiple importance
-    /// sampling ([`path`]); the default of `arbor render`.
+    /// sampling ([`integrators::path`]); the default of `arbor render`.
     Path,
 }
 
@@ -153,6 +147,34 @@ pub struct RenderSettings {
     /// For tests: hold at most this many trace records per pass (at least 1), so that
     /// stopped samples without one run again from their start.
     pub resume_records: Option<u32>,
+}
+
+/// Called with the image so far at each checkpoint.
+pub type CheckpointWriter<'a> = Box<dyn FnMut(&Frame) -> Result<()> + 'a>;
+
+/// What a render is told from outside: progress, and for the path integrator
+/// interruption and checkpoints (the Whitted integrator reports progress only).
+pub struct Control<'a> {
+    /// `(done, total)` pixel-samples after every dispatch.
+    pub progress: Box<dyn FnMut(u64, u64) + 'a>,
+    /// Polled after every sample wave: true stops the render; the image so far is
+    /// returned.
+    pub interrupted: Box<dyn Fn() -> bool + 'a>,
+    /// Every so many seconds (checked after each wave), the image so far.
+    pub checkpoint: Option<(f64, CheckpointWriter<'a>)>,
+}
+
+impl std::fmt::Debug for Control<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Control").field("checkpoint", &self.checkpoint.as_ref().map(|c| c.0)).finish_non_exhaustive()
+    }
+}
+
+impl<'a> Control<'a> {
+    /// Progress only: never interrupted, no checkpoints.
+    pub fn progress_only(progress: impl FnMut(u64, u64) + 'a) -> Control<'a> {
+        Control { progress: Box::new(progress), interrupted: Box::new(|| false), checkpoint: None }
+    }
 }
 
 /// A pixel window of the image: columns `x0..x1`, rows `y0..y1` (half-open, from the
@@ -439,19 +461,17 @@ pub struct RenderStats {
 }
 
 impl RenderStats {
-    /// The figures of a finished render.
-    #[allow(clippy::too_many_arguments)]
+    /// The figures of a finished render of `prep`'s kernel over a structure whose
+    /// figures are `build`.
     pub fn new(
-        ctx: &crate::gpu::Context,
-        scene: &crate::scene::Scene,
+        prep: &dispatch::prepare::Prepared<'_>,
         settings: &RenderSettings,
-        frame: &Frame,
         build: crate::accel::BuildStats,
-        kernel: String,
-        bindings: Vec<String>,
+        frame: &Frame,
         totals: &dispatch::DispatchTotals,
         wall_ms: f64,
     ) -> RenderStats {
+        let (ctx, scene) = (prep.ctx, prep.scene);
         let (mean, median, longest) = dispatch::length_summary(&totals.lengths_ms);
         let total_pixels = frame.depth.len().max(1) as f64;
         let rays: u64 = frame.rays.iter().map(|&r| u64::from(r)).sum();
@@ -470,13 +490,13 @@ impl RenderStats {
             samples_done: frame.samples.iter().copied().min().unwrap_or(0),
             crop: settings.crop,
             first_sample: settings.first_sample,
-            interrupted: false,
+            interrupted: totals.stopped,
             accel: settings.accel.name().to_string(),
             build_ms: build.build_ms,
             accel_bytes: build.bytes,
             build,
-            kernel,
-            bindings,
+            kernel: prep.variant.name.clone(),
+            bindings: prep.bound.names.clone(),
             trace_ms: totals.gpu_ms,
             wall_ms,
             loop_ms: totals.loop_ms,
@@ -486,7 +506,7 @@ impl RenderStats {
             dispatch_median_ms: median,
             dispatch_max_ms: longest,
             in_flight: totals.in_flight,
-            kernel_ms: 0.0,
+            kernel_ms: prep.kernel_ms + totals.resumes.kernel_ms,
             load_ms: 0.0,
             device_ms: 0.0,
             dispatches: totals.dispatches,

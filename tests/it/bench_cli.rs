@@ -143,7 +143,7 @@ fn a_bad_arbor_font_is_refused_before_any_work() {
 /// 256x256 side by side (each a block of viridis colours, not one colour), then the
 /// colour bar from viridis(1) at the top to viridis(0) at the bottom, beside both.
 fn check_cost_figure(img: &image::RgbImage) {
-    use arbor::render::heatmap::viridis;
+    use arbor::render::output::heatmap::viridis;
     let px = |x: u32, y: u32| img.get_pixel(x, y).0;
     // Viridis colours: blue never far below red and green, unlike white, black or grey text.
     let palette: Vec<[u8; 3]> = (0..=1000).map(|k| viridis(f64::from(k) / 1000.0)).collect();

@@ -75,7 +75,7 @@ fn emissive_only_scene_lights_the_preview() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("warning"), "{err}");
-    let (_, frame) = arbor::render::part::read(&exr).expect("read the EXR");
+    let (_, frame) = arbor::render::output::part::read(&exr).expect("read the EXR");
     // The white sphere fills the right half: its side facing the glow is lit.
     let lit = (0..frame.radiance.len()).filter(|&k| k % 32 >= 16 && frame.radiance[k][0] > 0.01).count();
     assert!(lit > 20, "{lit} pixels of the white sphere are lit");

@@ -81,8 +81,8 @@ fn known_difference_gives_the_exact_figures_and_a_diff_image() {
     let img = image::open(&diff).expect("diff PNG").into_rgb8();
     assert_eq!(img.dimensions(), (2, 1));
     // Relative errors 0.287 (between yellow and red) and 0.083 (just under yellow).
-    assert_eq!(img.get_pixel(0, 0).0, arbor::render::compare::error_color((0.0625 / 0.0725) / 3.0));
-    assert_eq!(img.get_pixel(1, 0).0, arbor::render::compare::error_color((0.25 / 1.01) / 3.0));
+    assert_eq!(img.get_pixel(0, 0).0, arbor::render::output::compare::error_color((0.0625 / 0.0725) / 3.0));
+    assert_eq!(img.get_pixel(1, 0).0, arbor::render::output::compare::error_color((0.25 / 1.01) / 3.0));
 }
 
 #[test]

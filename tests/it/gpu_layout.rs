@@ -102,11 +102,11 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
 }
 
 /// Each material kind and both light kinds go through their encoder
-/// (`render::upload::{material_record, light_record}`) and come back through the
+/// (`render::dispatch::upload::{material_record, light_record}`) and come back through the
 /// kernels' decoders (`material_at`, `light_at`) as the fields they were made from.
 #[test]
 fn material_and_light_records_decode_as_encoded() {
-    use arbor::render::upload::{light_record, material_record};
+    use arbor::render::dispatch::upload::{light_record, material_record};
     use arbor::scene::{ComplexIor, Light, Material, MaterialKind};
     use glam::Vec3;
     let Some(ctx) = common::gpu() else { return };

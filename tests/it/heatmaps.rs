@@ -9,7 +9,7 @@ use crate::common;
 use std::path::Path;
 use std::process::{Command, Output};
 
-use arbor::render::heatmap::{colour, viridis, Scale, MIN_MAP_SIDE};
+use arbor::render::output::heatmap::{colour, viridis, Scale, MIN_MAP_SIDE};
 use arbor::render::output::read_pfm;
 use image::RgbImage;
 

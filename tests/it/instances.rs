@@ -300,12 +300,12 @@ fn ten_thousand_instances_of_an_80k_mesh_fit() {
 fn the_part_hash_sees_instances_and_prototypes() {
     let s = scene(200, 1);
     let settings = RenderSettings::for_size(32, 24);
-    let base = arbor::render::part::settings_hash(&s, &settings);
-    assert_eq!(base, arbor::render::part::settings_hash(&s.clone(), &settings));
+    let base = arbor::render::output::part::settings_hash(&s, &settings);
+    assert_eq!(base, arbor::render::output::part::settings_hash(&s.clone(), &settings));
     let mut moved = s.clone();
     moved.instancing.as_mut().unwrap().instances[3].transform.translation.x += 0.5;
-    assert_ne!(base, arbor::render::part::settings_hash(&moved, &settings));
+    assert_ne!(base, arbor::render::output::part::settings_hash(&moved, &settings));
     let mut reshaped = s.clone();
     reshaped.instancing.as_mut().unwrap().prototypes[0].geometry.positions[5].y += 0.01;
-    assert_ne!(base, arbor::render::part::settings_hash(&reshaped, &settings));
+    assert_ne!(base, arbor::render::output::part::settings_hash(&reshaped, &settings));
 }

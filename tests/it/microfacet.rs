@@ -11,7 +11,7 @@ use crate::path;
 use crate::sampling::{dir, probe, ChiSquare, Rng};
 
 use arbor::accel::gpu_layout::GpuParams;
-use arbor::render::upload::GpuScene;
+use arbor::render::dispatch::upload::GpuScene;
 use arbor::render::{Integrator, Mis};
 use arbor::scene::procedural::quad;
 use arbor::scene::{Camera, ComplexIor, Light, Material, MaterialKind, SceneBuilder, Sphere};

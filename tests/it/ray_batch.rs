@@ -148,7 +148,7 @@ fn a_batch_over_many_dispatches_and_chunks_is_one_batch() {
     let (whole, one_stats) = one.trace_stats(&rays).expect("trace");
     assert_eq!(one_stats.dispatches, 1);
     // A batch holds up to 1M rays on the device by default, not an image's worth.
-    assert_eq!(one.chunk_rays(), arbor::render::rays::DEFAULT_CHUNK_RAYS);
+    assert_eq!(one.chunk_rays(), arbor::render::integrators::rays::DEFAULT_CHUNK_RAYS);
     assert_eq!(hits, whole, "splitting changed a hit");
     assert_same("split", &rays, &hits, &accel.trace_cpu(&scene, &rays));
     // The same tracer traces a second batch.
@@ -185,12 +185,12 @@ fn bad_rays_are_typed_errors_naming_the_ray() {
     ];
     for (bad, what) in cases {
         let batch = [good, good, bad, good];
-        match arbor::render::rays::check_rays(&batch) {
+        match arbor::render::integrators::rays::check_rays(&batch) {
             Err(Error::BadRay { index: 2, reason }) => assert!(reason.contains(what), "{reason}"),
             other => panic!("{bad:?}: {other:?}"),
         }
     }
-    arbor::render::rays::check_rays(&[good, Ray { tmin: 1.0, tmax: 1.0, ..good }]).expect("good rays");
+    arbor::render::integrators::rays::check_rays(&[good, Ray { tmin: 1.0, tmax: 1.0, ..good }]).expect("good rays");
     // The device path refuses them the same way, before tracing anything.
     let Some(ctx) = common::gpu() else { return };
     let scene = mixed_scene(Vec3::new(0.0, 0.5, 4.0));

@@ -9,7 +9,8 @@ use crate::common;
 
 use arbor::accel::{Accel, AccelKind, AccelParams, KernelFamily};
 use arbor::gpu::Context;
-use arbor::render::{cpu, gpu, path, Crop, Frame, Integrator, RenderSettings, RenderStats, Traversal};
+use arbor::render::integrators::path;
+use arbor::render::{cpu, gpu, Crop, Frame, Integrator, RenderSettings, RenderStats, Traversal};
 use arbor::scene::{procedural, Light, Scene, SceneBuilder, Sphere};
 use common::scenes::{gpu_matches_reference, scene_from, tris, Rng};
 use glam::{Affine3A, Quat, Vec3};
@@ -371,7 +372,7 @@ fn crops_sample_ranges_and_checkpoints_under_a_small_budget() {
     assert_same(&a, &b, "samples 1..4");
     // Checkpoints read the chunk after every sample wave; the end is the same.
     let mut seen = 0;
-    let control = path::Control {
+    let control = arbor::render::Control {
         progress: Box::new(|_, _| {}),
         interrupted: Box::new(|| false),
         checkpoint: Some((

@@ -9,7 +9,7 @@ use crate::common;
 
 use arbor::gpu::bindings::*;
 use arbor::gpu::{spirv, BindingDesc, BindingKind, BufferKind, Context};
-use arbor::render::upload::GpuScene;
+use arbor::render::dispatch::upload::GpuScene;
 use arbor::scene::{Material, MaterialKind, SceneBuilder, Sphere};
 use glam::Vec3;
 
@@ -271,7 +271,7 @@ fn environment_samples_follow_the_map() {
     });
     let scene = b.finish().expect("scene");
     let mut shading = GpuScene::new(&scene).shading;
-    let ex = arbor::render::path::extras(&scene, shading.len() as u32, true).expect("extras");
+    let ex = arbor::render::dispatch::tables::extras(&scene, shading.len() as u32, true).expect("extras");
     shading.extend_from_slice(&ex.rows);
     let mut params = arbor::accel::gpu_layout::GpuParams {
         env_intensity: 2.0,
@@ -287,7 +287,7 @@ fn environment_samples_follow_the_map() {
         input.push([0.0; 4]);
     }
     let out = probe(&ctx, 2, &input, &shading, &params, (w as u32, h as u32));
-    let seen = arbor::render::path::env_texels_as_seen(&texels);
+    let seen = arbor::render::dispatch::tables::env_texels_as_seen(&texels);
     let lum = |c: [f32; 3]| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
     let weight: Vec<f64> =
         (0..w * h).map(|i| lum(seen[i]) * (std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64).sin()).collect();

@@ -164,8 +164,8 @@ fn refused(args: &[&str], code: i32, what: &str) -> String {
     err
 }
 
-fn read(p: &Path) -> (arbor::render::part::PartInfo, Frame) {
-    arbor::render::part::read(p).expect("a part")
+fn read(p: &Path) -> (arbor::render::output::part::PartInfo, Frame) {
+    arbor::render::output::part::read(p).expect("a part")
 }
 
 fn s(p: &Path) -> &str {

@@ -108,7 +108,7 @@ fn slurm_job_array_and_merge_equal_a_single_render() {
     // Three array tasks wrote three tiles; the merge job assembled them.
     for i in 0..3 {
         let part = dir.path().join(format!("frame.exr.parts/part-{i}.exr"));
-        let (info, _) = arbor::render::part::read(&part).expect("a part");
+        let (info, _) = arbor::render::output::part::read(&part).expect("a part");
         assert_eq!(info.shard, format!("{i}/3 tiles"));
     }
     let single = dir.path().join("single.exr");
@@ -118,8 +118,8 @@ fn slurm_job_array_and_merge_equal_a_single_render() {
         .status()
         .expect("render");
     assert!(status.success());
-    let (_, merged) = arbor::render::part::read(&image).expect("the merged image");
-    let (_, whole) = arbor::render::part::read(&single).expect("the single render");
+    let (_, merged) = arbor::render::output::part::read(&image).expect("the merged image");
+    let (_, whole) = arbor::render::output::part::read(&single).expect("the single render");
     assert_eq!(merged.sum, whole.sum, "the cluster's image is the single render's, bit for bit");
     assert_eq!(merged.radiance, whole.radiance);
     assert_eq!(merged.prim, whole.prim);

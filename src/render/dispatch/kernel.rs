@@ -285,38 +285,27 @@ pub fn chunk_pixels(ctx: &Context, total_pixels: u64, most: u64) -> u64 {
     total_pixels.min(most).min(fits.max(1))
 }
 
-/// Refuses a loop in which `overflow` pixels (or rays: `entry`'s unit) ran out of
-/// traversal steps, in a family that cannot resume a trace.
-pub fn check_overflow(
-    ctx: &Context,
-    scene: &Scene,
-    (bounds, entry): (&LoopBounds, Entry),
-    overflow: u64,
-) -> Result<()> {
-    if overflow == 0 {
-        return Ok(());
+/// The image a kernel renders into: its size (of the whole image, not the window)
+/// and the seed of its samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    pub seed: u32,
+}
+
+impl Film {
+    /// The image of `settings`.
+    pub fn of(settings: &crate::render::RenderSettings) -> Film {
+        Film { width: settings.width, height: settings.height, seed: settings.seed }
     }
-    let result = if entry == Entry::Rays { "no hits are returned" } else { "nothing was written" };
-    Err(Error::scene(
-        scene.name.clone(),
-        format!(
-            "{overflow} {} needed more than {} traversal steps per ray (the per-trace budget on {}) in a structure that cannot resume a trace; their results would be wrong, so {result}",
-            entry.unit(),
-            bounds.steps,
-            ctx.info().name
-        ),
-    ))
 }
 
 /// The uniform parameters every integrator shares: camera, scene box, image size and
 /// primitive counts, materials, seed and background (ambient 0, no lights counted,
 /// no path-integrator tables); each integrator fills in the rest.
-pub fn base_params(
-    scene: &Scene,
-    (w, h): (u32, u32),
-    seed: u32,
-    accel: &crate::accel::Accel,
-) -> crate::accel::gpu_layout::GpuParams {
+pub fn base_params(scene: &Scene, film: Film, accel: &crate::accel::Accel) -> crate::accel::gpu_layout::GpuParams {
+    let Film { width: w, height: h, seed } = film;
     let basis = scene.camera.basis(w, h);
     let bounds = accel.bounds();
     crate::accel::gpu_layout::GpuParams {

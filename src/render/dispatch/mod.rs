@@ -24,9 +24,11 @@ pub mod pacing;
 pub mod prepare;
 pub mod readback;
 pub mod resume;
+pub mod tables;
 pub mod upload;
 
 use std::collections::VecDeque;
+use std::ops::Range;
 use std::time::Instant;
 
 use self::pacing::Sizer;
@@ -34,7 +36,7 @@ use self::resume::{ResumeTotals, Resumer};
 use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch, GpuPixel, GpuRay, PIXEL_HEADER_BYTES};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::{OVERFLOW_FLAG, PASS_TRACE, WORKGROUP_SIZE};
-use crate::gpu::{Buffer, Context, DispatchRing, Kernel};
+use crate::gpu::{Buffer, Context, DispatchRing, HeaderDispatch, Kernel};
 
 pub use self::pacing::{dispatch_shape, Pacing, PacingChoice};
 
@@ -74,13 +76,15 @@ impl Waves {
         }
     }
 
-    fn header(&self, (chunk, first, n): (u64, u64, u64), (s, s_end): (u32, u32), tree_steps: u32) -> GpuDispatch {
+    /// The header of a dispatch of the chunk from pixel `chunk` over `pixels` and
+    /// `samples`, each trace within `tree_steps` steps.
+    fn header(&self, chunk: u64, pixels: Range<u64>, samples: Range<u32>, tree_steps: u32) -> GpuDispatch {
         let [x0, y0, w] = self.window;
         GpuDispatch {
-            first: first as u32,
-            count: n as u32,
-            sample_begin: s,
-            sample_end: s_end,
+            first: pixels.start as u32,
+            count: (pixels.end - pixels.start) as u32,
+            sample_begin: samples.start,
+            sample_end: samples.end,
             chunk: DispatchChunk { base: chunk as u32, resumed: u32::from(self.resumed), pass: PASS_TRACE, counter: 0 },
             window_left: x0,
             window_top: y0,
@@ -164,14 +168,15 @@ impl Flight<'_, '_> {
         let (first, n, s, s_end) = (header.first, header.count, header.sample_begin, header.sample_end);
         let label = format!("trace pixels {first}+{n} samples {s}..{s_end}");
         let groups = n.div_ceil(WORKGROUP_SIZE);
-        self.ring.submit(
-            self.kernel,
-            self.pixel_buf,
-            (0, bytemuck::bytes_of(&header)),
-            [groups, 1, 1],
-            HEADER_COUNTERS,
-            &label,
-        )?;
+        self.ring.submit(&HeaderDispatch {
+            kernel: self.kernel,
+            groups: [groups, 1, 1],
+            buffer: self.pixel_buf,
+            header_at: 0,
+            header: bytemuck::bytes_of(&header),
+            copy_back_at: HEADER_COUNTERS,
+            label: &label,
+        })?;
         self.pending.push_back(Pending { header, units });
         self.totals.in_flight = self.totals.in_flight.max(self.ring.in_flight() as u32);
         self.totals.dispatches += 1;
@@ -386,7 +391,8 @@ fn run_chunks(flight: &mut Flight<'_, '_>, waves: &Waves, policy: &mut dyn WaveP
             while p < len {
                 flight.make_room()?;
                 let n = if m > 1 { len - p } else { flight.sizer.pixels(len - p) };
-                let header = waves.header((chunk_start, chunk_start + p, n), (s, s_end), flight.tree_steps);
+                let pixels = chunk_start + p..chunk_start + p + n;
+                let header = waves.header(chunk_start, pixels, s..s_end, flight.tree_steps);
                 flight.submit(header, n * u64::from(m))?;
                 p += n;
             }

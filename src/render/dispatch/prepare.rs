@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use super::kernel::{self, Entry, LoopBounds, Variant};
 use super::pacing::{Pacing, Sizer};
-use super::readback::{FrameWaves, Steer};
+use super::readback::FrameWaves;
 use super::resume::Resumer;
 use super::upload::{self, Bound, GpuScene};
 use super::{DispatchTotals, LoopInput, PacingChoice, WavePolicy, Waves};
@@ -19,7 +19,7 @@ use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, Context, Kernel};
 use crate::math::intersect::IntersectMode;
-use crate::render::{Frame, KernelChoice, RenderSettings, RenderStats, Traversal};
+use crate::render::{Control, Frame, KernelChoice, RenderSettings, RenderStats, Traversal};
 use crate::scene::Scene;
 
 /// What the loop takes of a render's settings; ray batches give their own
@@ -220,20 +220,6 @@ impl<'a> Prepared<'a> {
         Sizer::new(&self.pacing, self.chunk_pixels, spp, self.cost_per_sample, self.most_samples)
     }
 
-    /// The resume passes of this kernel (created only if a trace stops).
-    fn resumer(&self) -> Result<Resumer<'_>> {
-        Resumer::new(
-            self.ctx,
-            self.resume_records,
-            &self.scene.name,
-            (&self.variant, &self.spec),
-            &self.bound,
-            &self.image,
-            (self.traces, self.bounds.steps),
-            self.chunk_pixels,
-        )
-    }
-
     /// Runs the loop ([`super::run`]) over `waves` with `policy`, and its resume passes;
     /// then checks the validation layer and refuses work whose traces ran out of steps
     /// in a family that cannot resume them.
@@ -244,7 +230,8 @@ impl<'a> Prepared<'a> {
         progress: &mut dyn FnMut(u64, u64),
         policy: &mut dyn WavePolicy,
     ) -> Result<DispatchTotals> {
-        let mut resumer = self.resumer()?;
+        // The resume passes of this kernel (created only if a trace stops).
+        let mut resumer = Resumer::new(self)?;
         let input = LoopInput {
             ctx: self.ctx,
             kernel: &self.kernel,
@@ -260,32 +247,58 @@ impl<'a> Prepared<'a> {
         let totals = super::run(input, progress, policy)?;
         drop(resumer);
         self.ctx.check_validation()?;
-        kernel::check_overflow(self.ctx, self.scene, (&self.bounds, self.entry), totals.overflow)?;
+        self.check_overflow(totals.overflow)?;
         Ok(totals)
     }
 
-    /// Renders `settings`' window and samples into a frame, `steer` deciding between
-    /// waves; the render's figures. The set-up and end every integrator shares.
+    /// Refuses a loop in which `overflow` pixels (or rays: the entry's unit) ran out of
+    /// traversal steps, in a family that cannot resume a trace.
+    fn check_overflow(&self, overflow: u64) -> Result<()> {
+        if overflow == 0 {
+            return Ok(());
+        }
+        let entry = self.entry;
+        let result = if entry == Entry::Rays { "no hits are returned" } else { "nothing was written" };
+        Err(Error::scene(
+            self.scene.name.clone(),
+            format!(
+                "{overflow} {} needed more than {} traversal steps per ray (the per-trace budget on {}) in a structure that cannot resume a trace; their results would be wrong, so {result}",
+                entry.unit(),
+                self.bounds.steps,
+                self.ctx.info().name
+            ),
+        ))
+    }
+
+    /// Renders `settings`' window and samples into a frame, told from outside by
+    /// `control` and, with `budget`, moving on once each chunk's share of that many
+    /// seconds is spent ([`FrameWaves`] decides between waves); the render's figures.
+    /// The set-up and end every integrator shares.
     pub fn render(
         &self,
-        (settings, accel): (&RenderSettings, &Accel),
+        settings: &RenderSettings,
+        accel: &Accel,
         sizer: &mut Sizer,
-        progress: &mut dyn FnMut(u64, u64),
-        steer: &mut dyn Steer,
+        control: Control<'_>,
+        budget: Option<f64>,
     ) -> Result<(Frame, RenderStats)> {
         let start = Instant::now();
         let win = settings.window();
         let frame = Frame::new(win.width(), win.height())?;
-        steer.started();
-        let mut policy = FrameWaves { frame, resume: settings.resume.as_deref(), steer };
-        let totals = self.run(sizer, Waves::new(settings, self.chunk_pixels), progress, &mut policy)?;
+        let Control { mut progress, interrupted, checkpoint } = control;
+        let mut policy = FrameWaves {
+            frame,
+            resume: settings.resume.as_deref(),
+            interrupted,
+            checkpoint,
+            budget: budget.map(|b| (b, win.pixels())),
+            last_checkpoint: Instant::now(),
+            chunk_started: Instant::now(),
+        };
+        let totals = self.run(sizer, Waves::new(settings, self.chunk_pixels), &mut *progress, &mut policy)?;
         let frame = policy.frame;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        let (name, names) = (self.variant.name.clone(), self.bound.names.clone());
-        let build = accel.stats(self.scene);
-        let mut stats = RenderStats::new(self.ctx, self.scene, settings, &frame, build, name, names, &totals, wall_ms);
-        stats.kernel_ms = self.kernel_ms + totals.resumes.kernel_ms;
-        stats.interrupted = totals.stopped;
+        let stats = RenderStats::new(self, settings, accel.stats(self.scene), &frame, &totals, wall_ms);
         Ok((frame, stats))
     }
 }

@@ -2,11 +2,13 @@
 //! averaged over samples, the AOVs of the pixel's first camera ray), and the wave
 //! policy every render shares ([`FrameWaves`]).
 
+use std::time::Instant;
+
 use super::{ChunkInput, Next, Wave, WavePolicy};
 use crate::accel::gpu_layout::GpuPixel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::OVERFLOW_FLAG;
-use crate::render::Frame;
+use crate::render::{CheckpointWriter, Frame};
 
 impl Frame {
     /// An empty frame: black, misses everywhere. An error (not an abort) when the host
@@ -16,7 +18,7 @@ impl Frame {
         let too_big = || {
             Error::Failed(format!(
                 "--size {width}x{height}: cannot allocate the frame (about {} MiB); use a smaller --size",
-                (n as u64 * crate::render::memory::FRAME_BYTES_PER_PIXEL) >> 20
+                (n as u64 * crate::render::output::memory::FRAME_BYTES_PER_PIXEL) >> 20
             ))
         };
         Ok(Frame {
@@ -92,40 +94,46 @@ fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
     Some(out)
 }
 
-/// What a render's integrator says between waves: the path integrator interrupts,
-/// writes checkpoints and keeps a time budget; the Whitted integrator says nothing
-/// (`()`).
-pub trait Steer {
-    /// Just before the first dispatch (the frame is allocated): clocks start here.
-    fn started(&mut self) {}
-
-    /// After a wave that is not its chunk's last: [`Next::ReadBack`] gives the frame
-    /// the chunk's pixels so far and then asks [`Steer::stored`].
-    fn wave(&mut self, _wave: Wave) -> Next {
-        Next::Continue
-    }
-
-    /// After the frame took a chunk's pixels: at the chunk's end (`wave.complete`), or
-    /// after [`Next::ReadBack`].
-    fn stored(&mut self, _frame: &Frame, _wave: Wave) -> Result<Next> {
-        Ok(Next::Continue)
-    }
-}
-
-impl Steer for () {}
-
-/// The wave policy of a render: each chunk starts from the resumed part's pixels
-/// (or zero), and its pixels go into the frame; `steer` decides the rest.
+/// The wave policy of a render, which decides alone what follows each wave: each chunk
+/// starts from the resumed part's pixels (or zero) and its pixels go into the frame;
+/// between waves it stops when interrupted, reads the chunk back for a checkpoint every
+/// so often, and moves to the next chunk once this one's share of the time budget is
+/// spent. (The Whitted integrator's is never interrupted, writes no checkpoint and has
+/// no budget: it always goes on.)
 pub struct FrameWaves<'s> {
     pub frame: Frame,
     /// A resumed part's image, whose sums the pixels start from.
     pub resume: Option<&'s Frame>,
-    pub steer: &'s mut dyn Steer,
+    /// Polled after every wave and at the end of every chunk: true stops the render.
+    pub interrupted: Box<dyn Fn() -> bool + 's>,
+    /// Every so many seconds (checked after each wave), the image so far.
+    pub checkpoint: Option<(f64, CheckpointWriter<'s>)>,
+    /// The time budget (seconds) and the pixels it is shared among.
+    pub budget: Option<(f64, u64)>,
+    pub last_checkpoint: Instant,
+    pub chunk_started: Instant,
 }
 
 impl std::fmt::Debug for FrameWaves<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FrameWaves").field("resumed", &self.resume.is_some()).finish_non_exhaustive()
+        f.debug_struct("FrameWaves")
+            .field("resumed", &self.resume.is_some())
+            .field("budget", &self.budget)
+            .finish_non_exhaustive()
+    }
+}
+
+impl FrameWaves<'_> {
+    /// The next chunk once this one (of `len` pixels) has spent its share of the budget.
+    fn within_budget(&self, len: u64) -> Next {
+        match self.budget {
+            Some((budget, total))
+                if self.chunk_started.elapsed().as_secs_f64() >= budget * len as f64 / total as f64 =>
+            {
+                Next::NextChunk
+            }
+            _ => Next::Continue,
+        }
     }
 }
 
@@ -138,11 +146,27 @@ impl WavePolicy for FrameWaves<'_> {
     }
 
     fn after_wave(&mut self, wave: Wave) -> Result<Next> {
-        Ok(self.steer.wave(wave))
+        if (self.interrupted)() {
+            return Ok(Next::Stop);
+        }
+        if let Some((every, _)) = &self.checkpoint {
+            if self.last_checkpoint.elapsed().as_secs_f64() >= *every {
+                return Ok(Next::ReadBack);
+            }
+        }
+        Ok(self.within_budget(wave.len))
     }
 
     fn pixels(&mut self, wave: Wave, pixels: &[GpuPixel]) -> Result<Next> {
         self.frame.store(wave.first, pixels);
-        self.steer.stored(&self.frame, wave)
+        if wave.complete {
+            self.chunk_started = Instant::now();
+            return Ok(if (self.interrupted)() { Next::Stop } else { Next::Continue });
+        }
+        if let Some((_, write)) = self.checkpoint.as_mut() {
+            write(&self.frame)?;
+            self.last_checkpoint = Instant::now();
+        }
+        Ok(self.within_budget(wave.len))
     }
 }

@@ -18,14 +18,14 @@
 //! first), and bounds the passes (`MAX_PASSES`). An indirect dispatch would size one
 //! pass without the host, but not split it.
 
-use super::kernel::Variant;
-use super::upload::{self, Bound};
+use super::prepare::Prepared;
+use super::upload;
 use super::{add_ms, HEADER_COUNTERS};
 use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch};
 use crate::accel::GpuImage;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
-use crate::gpu::{Buffer, BufferKind, Context, DispatchRing, Kernel};
+use crate::gpu::{Buffer, BufferKind, DispatchRing, HeaderDispatch, Kernel};
 
 /// Bytes of trace records the pool holds at most (two halves), besides its job lists.
 /// More pixels stopped in one pass than the records fit run their sample again from
@@ -95,18 +95,11 @@ struct Passes<'a> {
 
 /// Runs the resume passes of a render's trace dispatches.
 pub struct Resumer<'a> {
-    ctx: &'a Context,
-    scene: &'a str,
-    variant: &'a Variant,
-    /// The trace kernel's specialization constants.
-    spec: Vec<(u32, u32)>,
-    bound: &'a Bound,
-    /// Words of the family's traversal state; 0: it cannot stop a trace.
-    resume_words: u32,
+    /// The trace kernel: its variant, specialization, buffers, image and bounds.
+    prep: &'a Prepared<'a>,
     shape: PoolShape,
     /// Trace results a record logs.
     log: u32,
-    steps: u64,
     /// The resume kernel, its pool and the ring its passes go through, once needed.
     kernel: Option<Passes<'a>>,
     pub totals: ResumeTotals,
@@ -119,57 +112,36 @@ impl std::fmt::Debug for Resumer<'_> {
 }
 
 impl<'a> Resumer<'a> {
-    /// For the kernel of `variant` with specialization `spec` and buffers `bound`,
-    /// `traces` traces a sample, `steps` a trace, dispatches of `pixels` pixels at most
-    /// (a chunk).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        ctx: &'a Context,
-        resume_records: Option<u32>,
-        scene: &'a str,
-        (variant, spec): (&'a Variant, &[(u32, u32)]),
-        bound: &'a Bound,
-        image: &GpuImage,
-        (traces, steps): (u64, u64),
-        pixels: u64,
-    ) -> Result<Resumer<'a>> {
-        let log = u32::try_from(traces).unwrap_or(u32::MAX);
+    /// For the trace kernel of `prep`: its traces a sample, steps a trace, and
+    /// dispatches of a chunk's pixels at most.
+    pub fn new(prep: &'a Prepared<'a>) -> Result<Resumer<'a>> {
+        let log = u32::try_from(prep.traces).unwrap_or(u32::MAX);
+        let image = &prep.image;
         let shape = if image.resume_words > 0 {
-            PoolShape::new(image, log, pixels, ctx.max_storage_range(), resume_records)?
+            PoolShape::new(image, log, prep.chunk_pixels, prep.ctx.max_storage_range(), prep.resume_records)?
         } else {
             PoolShape { record_words: 0, records: 0, jobs: 0 }
         };
-        Ok(Resumer {
-            ctx,
-            scene,
-            variant,
-            spec: spec.to_vec(),
-            bound,
-            resume_words: image.resume_words,
-            shape,
-            log,
-            steps,
-            kernel: None,
-            totals: ResumeTotals { gpu_ms: Some(0.0), ..Default::default() },
-        })
+        Ok(Resumer { prep, shape, log, kernel: None, totals: ResumeTotals { gpu_ms: Some(0.0), ..Default::default() } })
     }
 
     fn passes(&mut self) -> Result<&mut Passes<'a>> {
         if self.kernel.is_none() {
             let start = std::time::Instant::now();
             let s = self.shape;
-            let pool = self.ctx.create_buffer("resume pool", s.bytes(), BufferKind::Storage)?;
-            let mut spec = self.spec.clone();
+            let (ctx, variant) = (self.prep.ctx, &self.prep.variant);
+            let pool = ctx.create_buffer("resume pool", s.bytes(), BufferKind::Storage)?;
+            let mut spec = self.prep.spec.clone();
             spec.extend([
                 (SPEC_RESUME_PASS, 1),
                 (SPEC_RESUME_LOG, self.log),
                 (SPEC_RESUME_RECORDS, s.records),
                 (SPEC_RESUME_JOBS, s.jobs),
             ]);
-            let name = format!("{}.resume", self.variant.name);
-            let mut kernel = self.ctx.create_kernel(&name, self.variant.spirv, &self.variant.bindings, &spec, 0)?;
-            upload::bind_again(self.ctx, &mut kernel, &self.variant.bindings, self.bound, (BINDING_RESUME, &pool))?;
-            let ring = self.ctx.dispatch_ring(1)?;
+            let name = format!("{}.resume", variant.name);
+            let mut kernel = ctx.create_kernel(&name, variant.spirv, &variant.bindings, &spec, 0)?;
+            upload::bind_again(ctx, &mut kernel, &variant.bindings, &self.prep.bound, (BINDING_RESUME, &pool))?;
+            let ring = ctx.dispatch_ring(1)?;
             self.totals.kernel_ms += start.elapsed().as_secs_f64() * 1e3;
             self.kernel = Some(Passes { kernel, _pool: pool, ring });
         }
@@ -185,8 +157,15 @@ impl<'a> Resumer<'a> {
             _ => format!("resume: jobs {}+{}", h.first, h.count),
         };
         let passes = self.passes()?;
-        let header = (0, bytemuck::bytes_of(h));
-        passes.ring.submit(&passes.kernel, pixel_buf, header, [groups, 1, 1], HEADER_COUNTERS, &label)?;
+        passes.ring.submit(&HeaderDispatch {
+            kernel: &passes.kernel,
+            groups: [groups, 1, 1],
+            buffer: pixel_buf,
+            header_at: 0,
+            header: bytemuck::bytes_of(h),
+            copy_back_at: HEADER_COUNTERS,
+            label: &label,
+        })?;
         let landed = passes
             .ring
             .land_oldest()?
@@ -214,7 +193,7 @@ impl<'a> Resumer<'a> {
         stopped: u32,
         gpu_ms: &mut Option<f64>,
     ) -> Result<()> {
-        if self.resume_words == 0 || stopped == 0 {
+        if self.prep.image.resume_words == 0 || stopped == 0 {
             return Ok(());
         }
         self.totals.samples += u64::from(stopped);
@@ -227,10 +206,10 @@ impl<'a> Resumer<'a> {
         while jobs > 0 {
             if passes == MAX_PASSES {
                 return Err(Error::scene(
-                    self.scene.to_string(),
+                    self.prep.scene.name.clone(),
                     format!(
                         "{jobs} pixel samples still had a trace to resume after {passes} resume passes: a trace makes no progress within its budget of {} steps",
-                        self.steps
+                        self.prep.bounds.steps
                     ),
                 ));
             }

@@ -215,16 +215,13 @@ pub fn bind_all(
         let buf = match (b.binding, &image.buffers) {
             (BINDING_ACCEL_NODES, Some(AccelBuffers::Device { nodes, .. })) => Arc::clone(nodes),
             (BINDING_ACCEL_INDICES, Some(AccelBuffers::Device { indices, .. })) => Arc::clone(indices),
-            _ => Arc::new(upload_one(
-                ctx,
-                (b.binding, b.kind),
-                scene,
-                image,
-                chunk_pixels,
-                (&mut pixels, &mut rays),
-                storage.len(),
-            )?),
+            _ => Arc::new(upload_one(ctx, b, scene, image, chunk_pixels)?),
         };
+        match b.binding {
+            BINDING_PIXELS => pixels = Some(storage.len()),
+            BINDING_RAYS => rays = Some(storage.len()),
+            _ => {}
+        }
         ctx.bind(kernel, b.binding, &buf)?;
         names.push(b.name.to_string());
         storage.push(buf);
@@ -248,18 +245,10 @@ fn built_geometry(binding: u32, scene: &GpuScene, image: &GpuImage) -> Option<Ar
     (buf.size() == bytes as u64).then(|| Arc::clone(buf))
 }
 
-/// Creates the buffer of one binding of [`bind_all`] (uploading what the host has),
-/// noting where the pixel and ray buffers are (`at`: its index in the storage list).
-fn upload_one(
-    ctx: &Context,
-    (binding, kind): (u32, BindingKind),
-    scene: &GpuScene,
-    image: &GpuImage,
-    chunk_pixels: u64,
-    (pixels, rays): (&mut Option<usize>, &mut Option<usize>),
-    at: usize,
-) -> Result<Buffer> {
-    Ok(match binding {
+/// Creates the buffer of one binding of [`bind_all`] (uploading what the host has).
+fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage, chunk_pixels: u64) -> Result<Buffer> {
+    let kind = b.kind;
+    Ok(match b.binding {
         BINDING_VERTICES => upload_checked(ctx, kind, "vertices", bytemuck::cast_slice(&scene.vertices))?,
         BINDING_TRIANGLES => upload_checked(ctx, kind, "triangles", bytemuck::cast_slice(&scene.triangles))?,
         BINDING_SPHERES => upload_checked(ctx, kind, "spheres", bytemuck::cast_slice(&scene.spheres))?,
@@ -279,7 +268,6 @@ fn upload_one(
         BINDING_PIXELS => {
             let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
             check_range(ctx, kind, "pixels", size)?;
-            *pixels = Some(at);
             let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
             // Cleared here so that on a CPU device the first touch of its pages
             // (the kernel zeroing them) is not charged to the first trace.
@@ -289,7 +277,6 @@ fn upload_one(
         BINDING_RAYS => {
             let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
             check_range(ctx, kind, "rays", size)?;
-            *rays = Some(at);
             ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
         }
         other => return Err(Error::Failed(format!("trace kernel has unexpected binding {other}"))),

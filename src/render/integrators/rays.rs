@@ -1,15 +1,15 @@
 //! Ray batches on the device: arbitrary rays in, closest hits out, through any
 //! structure arbor builds (and the driver's, `rayquery`, where the device has ray
 //! queries). The rays go through the render loop as a render's pixels do: the
-//! `rays_<family>_<geometry>` variant of `trace.comp` ([`crate::render::kernel`]),
-//! [`crate::render::upload`] (the scene, the structure, a pixel buffer that holds one
+//! `rays_<family>_<geometry>` variant of `trace.comp` ([`crate::render::dispatch::kernel`]),
+//! [`crate::render::dispatch::upload`] (the scene, the structure, a pixel buffer that holds one
 //! hit per ray and a ray buffer), and [`crate::render::dispatch`] (chunks of rays
 //! uploaded in turn, dispatches sized to the work budget on one ring, each followed by
 //! the resume passes of the traces that ran out of steps, and each chunk read back);
 //! a batch's [`WavePolicy`] gives the loop its rays and takes the hits.
 //!
 //! Results are exact: a trace that runs out of its step budget is resumed
-//! ([`crate::render::resume`]) and ends where it would have without one; a family that
+//! ([`crate::render::dispatch::resume`]) and ends where it would have without one; a family that
 //! cannot resume (the driver's structure) makes the batch fail rather than report a
 //! miss. Rays are checked first ([`check_rays`]); a bad one is an [`Error::BadRay`].
 
@@ -22,7 +22,7 @@ use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Context};
 use crate::math::intersect::IntersectMode;
 use crate::math::{Hit, Ray};
-use crate::render::dispatch::kernel::{base_params, Entry};
+use crate::render::dispatch::kernel::{base_params, Entry, Film};
 use crate::render::dispatch::pacing::Sizer;
 use crate::render::dispatch::prepare::{LoopSettings, Prepared, Request};
 use crate::render::dispatch::upload::GpuScene;
@@ -171,7 +171,7 @@ impl<'a> RayTracer<'a> {
             rays_per_sample: 1,
             spec: vec![(SPEC_LIGHTS, 0), (SPEC_MAX_DEPTH, 1)],
             // No camera: the rays come from the batch.
-            params: base_params(scene, (1, 1), 0, accel),
+            params: base_params(scene, Film { width: 1, height: 1, seed: 0 }, accel),
             scene: GpuScene::new(scene),
             extra_bindings: vec![BindingDesc { binding: BINDING_RAYS, kind: BindingKind::Texel, name: "rays" }],
             chunk_most: settings.pixels,

@@ -11,11 +11,11 @@ use crate::accel::Accel;
 use crate::error::Result;
 use crate::gpu::bindings::*;
 use crate::gpu::Context;
-use crate::render::dispatch::kernel::Entry;
+use crate::render::dispatch::kernel::{base_params, Entry, Film};
 use crate::render::dispatch::prepare::{Prepared, Request};
+use crate::render::dispatch::tables::{extras, Extras};
 use crate::render::dispatch::upload::GpuScene;
-use crate::render::integrators::path::{extras, Extras};
-use crate::render::{Frame, RenderSettings, RenderStats};
+use crate::render::{Control, Frame, RenderSettings, RenderStats};
 use crate::scene::Scene;
 
 /// Most pixels held on the device at once (64 bytes each).
@@ -89,8 +89,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
 /// The uniform parameters: camera, scene box, counts, background, the area lights'
 /// and textures' tables.
 fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
-    let mut p =
-        crate::render::dispatch::kernel::base_params(scene, (settings.width, settings.height), settings.seed, accel);
+    let mut p = base_params(scene, Film::of(settings), accel);
     p.light_count = lights_used(scene, settings);
     p.ambient = scene.ambient;
     ex.set_tables(&mut p);
@@ -103,7 +102,7 @@ pub fn render_with(
     scene: &Scene,
     settings: &RenderSettings,
     accel: &Accel,
-    mut progress: impl FnMut(u64, u64),
+    progress: impl FnMut(u64, u64),
 ) -> Result<(Frame, RenderStats)> {
     settings.check()?;
     let mut gs = GpuScene::new(scene);
@@ -132,7 +131,7 @@ pub fn render_with(
     };
     let prep = Prepared::new(ctx, scene, &settings.loop_settings(), accel, request)?;
     let mut sizer = prep.sizer(settings.spp);
-    prep.render((settings, accel), &mut sizer, &mut progress, &mut ())
+    prep.render(settings, accel, &mut sizer, Control::progress_only(progress), None)
 }
 
 #[cfg(test)]

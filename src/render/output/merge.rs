@@ -1,4 +1,4 @@
-//! `arbor merge`: parts ([`crate::render::part`]) back into one image. Parts with the same
+//! `arbor merge`: parts ([`crate::render::output::part`]) back into one image. Parts with the same
 //! window are sample ranges of it and add up: their sums, squared luminance, sample
 //! and ray counts add in sample order, and the AOVs of sample 0's camera ray come from
 //! the part that holds sample 0 (the one that traced it). Windows are tiles and are
@@ -16,7 +16,7 @@
 use std::path::PathBuf;
 
 use crate::error::{Error, Result};
-use crate::render::part::PartInfo;
+use crate::render::output::part::PartInfo;
 use crate::render::{Crop, Frame};
 
 /// One part read from a file.

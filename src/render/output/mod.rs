@@ -224,11 +224,11 @@ pub fn encode_pfm(width: u32, height: u32, channels: usize, data: &[f32]) -> Vec
 }
 
 /// A timeline ([`crate::timeline`]) as the file `path` names: Chrome trace-event JSON
-/// (`.json`) or a picture of it (`.png`, [`crate::render::timeline_png`]).
+/// (`.json`) or a picture of it (`.png`, [`crate::render::output::timeline_png`]).
 pub fn encode_trace(path: &Path, trace: &crate::timeline::Trace) -> Result<Vec<u8>> {
     let _span = encode_span(path);
     if trace_is_png(path)? {
-        crate::render::timeline_png::png(trace)
+        crate::render::output::timeline_png::png(trace)
     } else {
         Ok(trace.to_chrome_json())
     }
@@ -260,17 +260,17 @@ pub fn write_image(set: &mut OutputSet, path: &Path, width: u32, height: u32, rg
 }
 
 /// Adds a rendered frame as `path` to `set`: a PNG of its radiance, or an EXR part
-/// ([`crate::render::part`]: the window in the full image, every sum and AOV, the header
+/// ([`crate::render::output::part`]: the window in the full image, every sum and AOV, the header
 /// `info`) that `arbor merge` and `--resume` read.
 pub fn write_frame(
     set: &mut OutputSet,
     path: &Path,
-    info: &crate::render::part::PartInfo,
+    info: &crate::render::output::part::PartInfo,
     frame: &Frame,
 ) -> Result<()> {
     let _span = encode_span(path);
     match format_of(path, "image")? {
-        Format::Exr => set.add(path, &crate::render::part::encode(info, frame)?),
+        Format::Exr => set.add(path, &crate::render::output::part::encode(info, frame)?),
         f => set.add(path, &encode_image(f, frame.width, frame.height, &frame.radiance)?),
     }
 }
@@ -375,7 +375,7 @@ pub fn aov_channels(frame: &Frame, name: &str) -> Result<(usize, Vec<f32>)> {
 pub struct HeatmapInfo {
     /// Written in the title after the AOV's name: the scene and the structure.
     pub subject: String,
-    pub scale: crate::render::heatmap::Scale,
+    pub scale: crate::render::output::heatmap::Scale,
 }
 
 /// What each pixel's count is, as the picture says (the frame holds the counts of the
@@ -405,8 +405,8 @@ pub fn aov_heatmap(frame: &Frame, name: &str, info: &HeatmapInfo) -> Result<Vec<
     } else {
         format!("{name} per pixel: {}, {w}x{h}", info.subject)
     };
-    let panel = crate::render::heatmap::Panel { title: String::new(), width: w, height: h, values: &values };
-    crate::render::heatmap::Figure { title, counted, scale: info.scale, panels: vec![panel] }.png()
+    let panel = crate::render::output::heatmap::Panel { title: String::new(), width: w, height: h, values: &values };
+    crate::render::output::heatmap::Figure { title, counted, scale: info.scale, panels: vec![panel] }.png()
 }
 
 /// Adds each (name, path) of `aovs` from `frame` (`width` x `height`) to `set`; a .png

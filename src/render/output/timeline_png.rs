@@ -7,7 +7,7 @@
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::render::heatmap::{encode_png, font};
+use crate::render::output::heatmap::{encode_png, font};
 use crate::timeline::{Event, GpuClock, Trace, Track};
 
 const WIDTH: u32 = 1600;
