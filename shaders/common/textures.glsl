@@ -1,4 +1,4 @@
-// Texture lookup (section tables.y of the shading buffer, common/path.glsl): one row
+// Texture lookup (section params.texture_table of the shading buffer, common/path.glsl): one row
 // per texture, x first texel row (uint bits), y width (TEXTURE_WRAP_* bits above it),
 // z height, w the mean luminance an emission texture scales its light's power by;
 // texels 4 per row, each 0x00BBGGRR, row-major from the top row. Colour textures are

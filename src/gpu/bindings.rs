@@ -167,7 +167,7 @@ pub const MAX_STORAGE_BUFFERS_PER_STAGE: u32 = 8;
 
 /// Specialization constant ids.
 /// Lights the trace kernel shades with (0: no shadow rays). A constant, not the
-/// uniform `counts.x`: a loop bounded by a uniform makes lavapipe compile the kernel
+/// uniform `light_count`: a loop bounded by a uniform makes lavapipe compile the kernel
 /// again at every dispatch (docs/kernels.md, "Per-dispatch values live in storage").
 pub const SPEC_LIGHTS: u32 = 0;
 pub const SPEC_MAX_DEPTH: u32 = 1;
@@ -236,7 +236,7 @@ pub const SPEC_RESUME_PASS: u32 = 40;
 pub const SPEC_RESUME_LOG: u32 = 41;
 pub const SPEC_RESUME_RECORDS: u32 = 42;
 pub const SPEC_RESUME_JOBS: u32 = 43;
-/// Material kind codes (row 0, w of a material, below MAT_MAP_SHIFT; the emission
+/// Material kind codes (the kind word `MAT_W_KIND`, below MAT_MAP_SHIFT; the emission
 /// texture's index + 1 is above it; `scene::MaterialKind` takes its values from these).
 pub const MAT_LAMBERT: u32 = 0;
 pub const MAT_PHONG: u32 = 1;
@@ -245,11 +245,10 @@ pub const MAT_GLASS: u32 = 3;
 pub const MAT_EMISSIVE: u32 = 4;
 pub const MAT_CONDUCTOR: u32 = 5;
 pub const MAT_DIELECTRIC: u32 = 6;
-/// glTF 2.0's metallic-roughness material (docs/materials.md): rows 1 = (metallic,
-/// specular weight, normal-map scale, roughness), 2.w = metallic-roughness texture + 1
-/// | normal texture + 1 << MAT_MAP_SHIFT (uint bits), 3.rgb = the dielectric F0.
+/// glTF 2.0's metallic-roughness material (docs/materials.md; its record's words are
+/// in the table at `MAT_W_COLOR_RGB`).
 pub const MAT_PBR: u32 = 7;
-/// Bit of a material's flags word (row 3, w): emits on both sides.
+/// Bit of a material's flags word (`MAT_W_FLAGS`): emits on both sides.
 pub const MAT_FLAG_TWO_SIDED: u32 = 1;
 /// Bit of a material's flags word: a conductor's Fresnel is Schlick's from its colour
 /// (the reflectance at normal incidence), not from its complex index (eta, k).
@@ -262,8 +261,8 @@ pub const MAT_TEXTURE_SHIFT: u32 = 8;
 pub const TEXTURE_WRAP_U_SHIFT: u32 = 24;
 pub const TEXTURE_WRAP_V_SHIFT: u32 = 26;
 /// Shift of the normal texture index + 1 in a metallic-roughness material's map word
-/// (row 2, w), the metallic-roughness texture's index + 1 below it; and of the
-/// emission texture index + 1 in any material's kind word (row 0, w), the kind below.
+/// (`MAT_W_MAPS`), the metallic-roughness texture's index + 1 below it; and of the
+/// emission texture index + 1 in any material's kind word (`MAT_W_KIND`), the kind below.
 pub const MAT_MAP_SHIFT: u32 = 16;
 /// Shading rows (16-byte texels) of one material record, and of one light record (the
 /// lights follow every material).
