@@ -11,7 +11,7 @@
 // in the two-level records (common/instances.glsl), whose word 6.z is the entry's
 // first stored triangle; the scene's own primitives are the last entry (or the only
 // instance, custom index 0, first triangle 0, without instancing); a sphere is
-// dims.z + its box's index.
+// params.triangle_count + its box's index.
 #extension GL_EXT_ray_query : require
 
 layout(set = 0, binding = BINDING_TLAS) uniform accelerationStructureEXT tlas;

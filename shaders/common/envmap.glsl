@@ -23,7 +23,7 @@ uint cdf_search(uint base, uint first, uint n, float u) {
 
 // --- environment ---------------------------------------------------------------
 
-// The map's direction convention (render::envdist::uv_to_dir / dir_to_uv): v = theta
+// The map's direction convention (render::integrators::envdist::uv_to_dir / dir_to_uv): v = theta
 // / pi from +y (row 0 at the top); u = 0.5 looks along -z, 0.75 along +x; the map
 // turns by params.env_rotation radians about +y (counter-clockwise seen from above).
 vec2 env_dir_to_uv(vec3 d) {
@@ -75,7 +75,7 @@ vec3 env_radiance(vec3 d) {
     return env_texel(c.x, c.y);
 }
 
-// One dimension of render::envdist's sampler: the cell of u in the n-cell CDF at
+// One dimension of render::integrators::envdist's sampler: the cell of u in the n-cell CDF at
 // float `first`, the continuous position in [0, 1) and the cell's density.
 float env_sample_1d(uint first, uint n, float u, out uint cell, out float pdf) {
     u = clamp(u, 0.0, ONE_MINUS_EPSILON);

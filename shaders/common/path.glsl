@@ -11,7 +11,7 @@
 // without a map no environment code, without textures no texture code.
 //
 // Shading-buffer sections after the materials and lights (row bases in
-// params, `*_table`; src/render/integrators/path.rs writes them):
+// params, `*_table`; src/render/dispatch/tables.rs writes them):
 //   emitters (emitter_table): one row each: x primitive (uint bits), y CDF at its start,
 //     z its probability; params.emitter_power is the total power
 //   textures (texture_table): one row each: x first texel row (uint bits), y width and wrap
@@ -20,7 +20,7 @@
 //   environment texels (env_texel_table): 2 per row, each two words packHalf2x16(r, g),
 //     packHalf2x16(b, 0), row-major from the top row (the +y pole)
 //   environment distribution (env_distribution_table): floats 4 per row, the layout of
-//     `render::envdist` (marginal CDF, then one conditional CDF per row)
+//     `render::integrators::envdist` (marginal CDF, then one conditional CDF per row)
 #ifndef ARBOR_PATH_GLSL
 #define ARBOR_PATH_GLSL
 

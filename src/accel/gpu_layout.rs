@@ -76,8 +76,8 @@ pub fn gpu_spheres(scene: &Scene) -> Vec<GpuSphere> {
 /// One material record: `MATERIAL_ROWS` vec4 rows of the shading buffer, as words
 /// named in src/gpu/bindings.rs (`MAT_W_*`, with the table of which kind uses which).
 /// Written through [`GpuMaterial::set`] and its siblings by the one encoder per kind
-/// (src/render/dispatch/upload.rs); read by `material_at` in
-/// shaders/common/records.glsl.
+/// (`material_record` in src/render/dispatch/upload.rs); read by `material_at` in
+/// shaders/common/bsdf.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -124,7 +124,7 @@ record_setters!(GpuLight);
 // Every named word lies in its record, and a three-word field fills lanes 0..2 of one
 // row (the GLSL decoder reads it as `row.rgb`).
 const _: () = {
-    let rgb = [
+    let material_rgb = [
         MAT_W_COLOR_RGB,
         MAT_W_SPECULAR_RGB,
         MAT_W_ETA_RGB,
@@ -132,15 +132,13 @@ const _: () = {
         MAT_W_ABSORPTION_RGB,
         MAT_W_K_RGB,
         MAT_W_F0_RGB,
-        LIGHT_W_POSITION_RGB,
-        LIGHT_W_RADIANCE_RGB,
     ];
     let mut i = 0;
-    while i < rgb.len() {
-        assert!(rgb[i] % 4 == 0);
+    while i < material_rgb.len() {
+        assert!(material_rgb[i] % 4 == 0 && material_rgb[i] + 2 < MATERIAL_ROWS * 4);
         i += 1;
     }
-    let words = [
+    let material_words = [
         MAT_W_KIND,
         MAT_W_SHININESS,
         MAT_W_ALPHA,
@@ -151,14 +149,19 @@ const _: () = {
         MAT_W_IOR,
         MAT_W_MAPS,
         MAT_W_FLAGS,
-        MAT_W_ABSORPTION_RGB + 2,
     ];
     let mut i = 0;
-    while i < words.len() {
-        assert!(words[i] < MATERIAL_ROWS * 4);
+    while i < material_words.len() {
+        assert!(material_words[i] < MATERIAL_ROWS * 4);
         i += 1;
     }
-    assert!(LIGHT_W_IS_POINT < LIGHT_ROWS * 4 && LIGHT_W_RADIANCE_RGB + 2 < LIGHT_ROWS * 4);
+    let light_rgb = [LIGHT_W_POSITION_RGB, LIGHT_W_RADIANCE_RGB];
+    let mut i = 0;
+    while i < light_rgb.len() {
+        assert!(light_rgb[i] % 4 == 0 && light_rgb[i] + 2 < LIGHT_ROWS * 4);
+        i += 1;
+    }
+    assert!(LIGHT_W_IS_POINT < LIGHT_ROWS * 4);
 };
 
 /// Per-pixel output of the trace kernel.

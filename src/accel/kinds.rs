@@ -291,12 +291,37 @@ mod tests {
 
     #[test]
     fn every_name_and_alias_parses_to_its_kind() {
-        for r in &KINDS {
-            assert_eq!(r.name.parse::<AccelKind>(), Ok(r.kind));
-            for a in r.aliases {
-                assert_eq!(a.parse::<AccelKind>(), Ok(r.kind));
-            }
+        // The spellings the command line has always taken.
+        let spellings = [
+            ("none", AccelKind::None),
+            ("brute-force", AccelKind::None),
+            ("kdtree", AccelKind::Kdtree),
+            ("kd", AccelKind::Kdtree),
+            ("bsp-course", AccelKind::BspCourse),
+            ("bvh-sah", AccelKind::BvhSah),
+            ("bvh", AccelKind::BvhSah),
+            ("lbvh", AccelKind::Lbvh),
+            ("trbvh", AccelKind::Trbvh),
+            ("bvh4", AccelKind::Bvh4),
+            ("bvh8", AccelKind::Bvh8),
+            ("cwbvh", AccelKind::Cwbvh),
+            ("grid", AccelKind::Grid),
+            ("octree", AccelKind::Octree),
+            ("rayquery", AccelKind::RayQuery),
+            ("ray-query", AccelKind::RayQuery),
+        ];
+        for (s, kind) in spellings {
+            assert_eq!(s.parse::<AccelKind>(), Ok(kind), "{s}");
         }
+        let names: Vec<_> = AccelKind::EVERY.iter().map(|k| k.to_string()).collect();
+        assert_eq!(names.join(" "), "none kdtree bsp-course bvh-sah lbvh trbvh bvh4 bvh8 cwbvh grid octree rayquery");
+        let flags: Vec<_> = AccelKind::EVERY.iter().filter_map(|k| k.param_flag().map(|f| (k.name(), f))).collect();
+        assert_eq!(
+            flags,
+            [("kdtree", "kd"), ("trbvh", "trbvh"), ("grid", "grid"), ("octree", "octree"), ("rayquery", "rayquery")]
+        );
+        let gpu: Vec<_> = AccelKind::EVERY.iter().filter(|k| k.builds_on_gpu()).map(|k| k.name()).collect();
+        assert_eq!(gpu, ["lbvh", "trbvh", "bvh4", "bvh8"]);
         assert!("kd-tree".parse::<AccelKind>().unwrap_err().contains("available: none, kdtree"));
     }
 

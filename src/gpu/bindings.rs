@@ -268,9 +268,9 @@ pub const MAT_MAP_SHIFT: u32 = 16;
 /// lights follow every material).
 pub const MATERIAL_ROWS: u32 = 4;
 pub const LIGHT_ROWS: u32 = 2;
-/// The words of a material record, `row * 4 + lane` (`GpuMaterial` in
-/// src/accel/gpu_layout.rs writes them, `material_at` in shaders/common/records.glsl
-/// reads them). A `_RGB` word opens three (a row's lanes 0..2). Which kind uses which:
+/// The words of a material record, `row * 4 + lane` (`material_record` in
+/// src/render/dispatch/upload.rs writes them into a `GpuMaterial`, `material_at` in
+/// shaders/common/bsdf.glsl reads them). A `_RGB` word opens three (a row's lanes 0..2). Which kind uses which:
 ///
 /// | word | every kind        | plain (Lambert, Phong, mirror, glass, emissive) | conductor  | dielectric  | metallic-roughness (PBR) |
 /// |------|-------------------|--------------------|------------|-------------|--------------------------|

@@ -368,6 +368,13 @@ impl Context {
         self.limits.named(kind)
     }
 
+    /// Fails with [`crate::error::Error::BufferTooLarge`] if `size` bytes named `name`
+    /// exceed what a binding of `kind` may cover ([`Context::binding_limit`]): the one
+    /// check `bind` makes, for a caller to make before creating the buffer.
+    pub fn check_binding(&self, kind: BindingKind, name: &str, size: u64) -> Result<()> {
+        self.limits.check(kind, name, size)
+    }
+
     /// Fails with [`Error::Validation`] if the validation layer reported any error so far.
     pub fn check_validation(&self) -> Result<()> {
         self.shared.check_validation()

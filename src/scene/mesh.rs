@@ -268,7 +268,7 @@ impl Texture {
 }
 
 /// An equirectangular environment map: linear RGB radiance, row 0 at the top (the
-/// +y pole), u = 0 at -z... see `render::integrators::path` for the exact direction mapping.
+/// +y pole), u = 0 at -z... see `render::integrators::envdist` for the exact direction mapping.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Environment {
     /// The file it came from, for messages.

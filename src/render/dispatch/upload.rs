@@ -53,7 +53,7 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
 
 /// A material's record: the words every kind has, then its kind's own (the table at
 /// `MAT_W_COLOR_RGB` in src/gpu/bindings.rs; `material_at` in
-/// shaders/common/records.glsl decodes them).
+/// shaders/common/bsdf.glsl decodes them).
 pub fn material_record(m: &Material) -> GpuMaterial {
     let mut g = GpuMaterial::default();
     // The kind, and the emission texture + 1 from MAT_MAP_SHIFT.
@@ -111,7 +111,7 @@ fn encode_pbr(m: &Material, g: &mut GpuMaterial) {
         .set_rgb(MAT_W_F0_RGB, m.dielectric_f0);
 }
 
-/// A light's record (`light_at` in shaders/common/records.glsl decodes it).
+/// A light's record (`light_at` in shaders/common/layout.glsl decodes it).
 pub fn light_record(l: &Light) -> GpuLight {
     let mut g = GpuLight::default();
     match *l {
@@ -267,7 +267,7 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
         BINDING_RESUME => ctx.create_buffer("resume", 16, crate::gpu::BufferKind::Storage)?,
         BINDING_PIXELS => {
             let size = PIXEL_HEADER_BYTES + chunk_pixels * std::mem::size_of::<GpuPixel>() as u64;
-            check_range(ctx, kind, "pixels", size)?;
+            ctx.check_binding(kind, "pixels", size)?;
             let buf = ctx.create_buffer("pixels", size, crate::gpu::BufferKind::Storage)?;
             // Cleared here so that on a CPU device the first touch of its pages
             // (the kernel zeroing them) is not charged to the first trace.
@@ -276,7 +276,7 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
         }
         BINDING_RAYS => {
             let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
-            check_range(ctx, kind, "rays", size)?;
+            ctx.check_binding(kind, "rays", size)?;
             ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
         }
         other => return Err(Error::Failed(format!("trace kernel has unexpected binding {other}"))),
@@ -304,18 +304,7 @@ pub fn bind_again(
     Ok(())
 }
 
-/// Refuses, before it is created, a buffer larger than its binding allows
-/// ([`Context::binding_limit`]: a texel view's limit for texel bindings, the storage
-/// range for storage ones).
-fn check_range(ctx: &Context, kind: BindingKind, name: &str, size: u64) -> Result<()> {
-    let (limit, per) = ctx.binding_limit_named(kind);
-    if size > limit {
-        return Err(Error::BufferTooLarge { name: name.to_string(), size, limit, per });
-    }
-    Ok(())
-}
-
 fn upload_checked(ctx: &Context, kind: BindingKind, name: &str, data: &[u8]) -> Result<Buffer> {
-    check_range(ctx, kind, name, data.len() as u64)?;
+    ctx.check_binding(kind, name, data.len() as u64)?;
     ctx.upload_storage(name, data)
 }
