@@ -350,6 +350,34 @@ pub const INST_ENTRY_OWN: u32 = 1;
 /// (llvmpipe counts them), the resume kernel's restore and save loops included.
 pub const INST_ENTRY_STEPS: u32 = 8;
 
+/// SPPM's hash grid built on the device (src/photon/device.rs, shaders/photon_grid.comp):
+/// its bindings (the header of `PHOTON_HDR_*` words; the visible points as vec4
+/// position + radius; the buckets' starts, buckets + 1 words; a cursor per bucket; the
+/// entries), its passes (push constant `mode`), and the header's words.
+pub const BINDING_PHOTON_HEADER: u32 = 0;
+pub const BINDING_PHOTON_POINTS: u32 = 1;
+pub const BINDING_PHOTON_STARTS: u32 = 2;
+pub const BINDING_PHOTON_CURSOR: u32 = 3;
+pub const BINDING_PHOTON_ENTRIES: u32 = 4;
+pub const PHOTON_GRID_BOUNDS: u32 = 0;
+pub const PHOTON_GRID_FRAME: u32 = 1;
+pub const PHOTON_GRID_COUNT: u32 = 2;
+pub const PHOTON_GRID_SCAN: u32 = 3;
+pub const PHOTON_GRID_SCATTER: u32 = 4;
+/// Header words: the spheres' box (min, max: order-preserving uints), the largest
+/// radius (float bits), cells per axis, the cell edge (float bits), the entries.
+pub const PHOTON_HDR_MIN: u32 = 0;
+pub const PHOTON_HDR_MAX: u32 = 3;
+pub const PHOTON_HDR_RADIUS: u32 = 6;
+pub const PHOTON_HDR_RES: u32 = 7;
+pub const PHOTON_HDR_EDGE: u32 = 10;
+pub const PHOTON_HDR_TOTAL: u32 = 11;
+pub const PHOTON_HDR_WORDS: u32 = 16;
+/// Most cells along one axis of the photon hash grid (`photon::hashgrid::MAX_RES`).
+pub const PHOTON_GRID_MAX_RES: u32 = 1 << 20;
+/// Threads per workgroup of the grid's passes (the scan is one workgroup).
+pub const PHOTON_GROUP: u32 = 256;
+
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_PARAMS", BINDING_PARAMS),
@@ -499,4 +527,23 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BUILD_WIDE_NUMBER", BUILD_WIDE_NUMBER),
     ("BUILD_WIDE_WRITE", BUILD_WIDE_WRITE),
     ("BUILD_WIDE_ITEMS", BUILD_WIDE_ITEMS),
+    ("BINDING_PHOTON_HEADER", BINDING_PHOTON_HEADER),
+    ("BINDING_PHOTON_POINTS", BINDING_PHOTON_POINTS),
+    ("BINDING_PHOTON_STARTS", BINDING_PHOTON_STARTS),
+    ("BINDING_PHOTON_CURSOR", BINDING_PHOTON_CURSOR),
+    ("BINDING_PHOTON_ENTRIES", BINDING_PHOTON_ENTRIES),
+    ("PHOTON_GRID_BOUNDS", PHOTON_GRID_BOUNDS),
+    ("PHOTON_GRID_FRAME", PHOTON_GRID_FRAME),
+    ("PHOTON_GRID_COUNT", PHOTON_GRID_COUNT),
+    ("PHOTON_GRID_SCAN", PHOTON_GRID_SCAN),
+    ("PHOTON_GRID_SCATTER", PHOTON_GRID_SCATTER),
+    ("PHOTON_HDR_MIN", PHOTON_HDR_MIN),
+    ("PHOTON_HDR_MAX", PHOTON_HDR_MAX),
+    ("PHOTON_HDR_RADIUS", PHOTON_HDR_RADIUS),
+    ("PHOTON_HDR_RES", PHOTON_HDR_RES),
+    ("PHOTON_HDR_EDGE", PHOTON_HDR_EDGE),
+    ("PHOTON_HDR_TOTAL", PHOTON_HDR_TOTAL),
+    ("PHOTON_HDR_WORDS", PHOTON_HDR_WORDS),
+    ("PHOTON_GRID_MAX_RES", PHOTON_GRID_MAX_RES),
+    ("PHOTON_GROUP", PHOTON_GROUP),
 ];

@@ -27,7 +27,7 @@ use super::{check_points, holds};
 
 /// Most cells along one axis: the cell coordinates hash as 32-bit integers, and a
 /// scene whose largest radius is this much smaller than its extent gets longer cells.
-pub const MAX_RES: u32 = 1 << 20;
+pub const MAX_RES: u32 = crate::gpu::bindings::PHOTON_GRID_MAX_RES;
 
 /// Teschner et al. 2003's spatial hash of a cell (pbrt-v4's, wrapping 32-bit).
 pub fn hash(c: [u32; 3], buckets: u32) -> u32 {
@@ -127,7 +127,12 @@ impl HashGrid {
     fn buckets_of(&self, p: Vec3, r: f32, out: &mut Vec<u32>) {
         out.clear();
         let lo = self.cell_of(p - Vec3::splat(r));
-        let hi = self.cell_of(p + Vec3::splat(r));
+        // Two cells past the first at most: 2 r <= 2 edges, whatever the rounding at a
+        // cell's face (the kernel loops as far).
+        let mut hi = self.cell_of(p + Vec3::splat(r));
+        for a in 0..3 {
+            hi[a] = hi[a].min(lo[a] + 2);
+        }
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {

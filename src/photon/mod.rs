@@ -16,9 +16,11 @@
 
 #![forbid(unsafe_code)]
 
+pub mod device;
 mod hashgrid;
 mod kdtree;
 
+pub use device::{build_grid, upload_points, DeviceGrid};
 pub use hashgrid::HashGrid;
 pub use kdtree::PointTree;
 

@@ -32,6 +32,7 @@ mod manual;
 mod mesh_files;
 mod microfacet;
 mod path;
+mod photon;
 mod ray_batch;
 mod rayquery;
 mod resume;

@@ -1,0 +1,158 @@
+#version 460
+// SPPM's hash grid over visible points, built on the device by a counting sort: the
+// layout and arithmetic of src/photon/hashgrid.rs, its oracle, word for word. Passes
+// (push `mode`, src/photon/device.rs runs them in order):
+//   PHOTON_GRID_BOUNDS   the spheres' box and the largest radius, by atomics on
+//                        order-preserving uints (the header starts at min = ~0, max 0)
+//   PHOTON_GRID_FRAME    one thread: cells per axis and the cell edge
+//   PHOTON_GRID_COUNT    each point's distinct buckets (at most 27), counted into starts
+//   PHOTON_GRID_SCAN     one workgroup: the counts into exclusive starts (and cursors),
+//                        starts[buckets] and the header's total
+//   PHOTON_GRID_SCATTER  each point into its buckets' entries (order within a bucket
+//                        is the atomics'; a lookup does not depend on it)
+#extension GL_GOOGLE_include_directive : require
+
+layout(local_size_x = PHOTON_GROUP) in;
+
+layout(push_constant) uniform GridPush {
+    uint mode;
+    uint n;        // visible points
+    uint buckets;  // the number of points, at least 1
+    uint unused;
+} pc;
+
+layout(std430, set = 0, binding = BINDING_PHOTON_HEADER) buffer GridHeader { uint header[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_POINTS) readonly buffer GridPoints { vec4 points[]; }; // position, radius
+layout(std430, set = 0, binding = BINDING_PHOTON_STARTS) buffer GridStarts { uint starts[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_CURSOR) buffer GridCursor { uint cursor[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_ENTRIES) writeonly buffer GridEntries { uint entries[]; };
+
+// Order-preserving map of floats to uints (for atomicMin / atomicMax) and back.
+uint float_order(float f) {
+    uint b = floatBitsToUint(f);
+    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
+}
+float order_float(uint u) {
+    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7fffffffu) : ~u);
+}
+
+vec3 grid_min() {
+    return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
+                order_float(header[PHOTON_HDR_MIN + 2u]));
+}
+
+// hashgrid::hash: Teschner et al. 2003, wrapping 32-bit.
+uint grid_hash(uvec3 c, uint buckets) {
+    return ((c.x * 73856093u) ^ (c.y * 19349663u) ^ (c.z * 83492791u)) % buckets;
+}
+
+// HashGrid::cell_of: the cell holding p, clamped into the grid.
+uvec3 grid_cell(vec3 p, vec3 lo, float edge, uvec3 res) {
+    uvec3 c;
+    for (int a = 0; a < 3; a++) {
+        precise float k = floor((p[a] - lo[a]) / edge);
+        c[a] = k > 0.0 ? uint(min(k, float(res[a] - 1u))) : 0u;
+    }
+    return c;
+}
+
+// HashGrid::buckets_of: the distinct buckets of the cells that point i's sphere box
+// overlaps, in the order first met (at most 27).
+uint point_buckets(uint i, out uint seen[27]) {
+    vec3 lo = grid_min();
+    float edge = uintBitsToFloat(header[PHOTON_HDR_EDGE]);
+    uvec3 res = uvec3(header[PHOTON_HDR_RES], header[PHOTON_HDR_RES + 1u], header[PHOTON_HDR_RES + 2u]);
+    vec4 pr = points[i];
+    precise vec3 a = pr.xyz - vec3(pr.w);
+    precise vec3 b = pr.xyz + vec3(pr.w);
+    uvec3 c0 = grid_cell(a, lo, edge, res);
+    uvec3 c1 = grid_cell(b, lo, edge, res);
+    uint m = 0u;
+    for (uint z = c0.z; z <= c1.z && z < c0.z + 3u; z++) {
+        for (uint y = c0.y; y <= c1.y && y < c0.y + 3u; y++) {
+            for (uint x = c0.x; x <= c1.x && x < c0.x + 3u; x++) {
+                uint h = grid_hash(uvec3(x, y, z), pc.buckets);
+                bool fresh = true;
+                for (uint k = 0u; k < m; k++) fresh = fresh && seen[k] != h;
+                if (fresh) {
+                    seen[m] = h;
+                    m += 1u;
+                }
+            }
+        }
+    }
+    return m;
+}
+
+shared uint s_sum[PHOTON_GROUP];
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (pc.mode == PHOTON_GRID_BOUNDS) {
+        if (i >= pc.n) return;
+        vec4 pr = points[i];
+        precise vec3 a = pr.xyz - vec3(pr.w);
+        precise vec3 b = pr.xyz + vec3(pr.w);
+        for (uint k = 0u; k < 3u; k++) {
+            atomicMin(header[PHOTON_HDR_MIN + k], float_order(a[k]));
+            atomicMax(header[PHOTON_HDR_MAX + k], float_order(b[k]));
+        }
+        // A positive float's bits order as the float does.
+        atomicMax(header[PHOTON_HDR_RADIUS], floatBitsToUint(pr.w));
+    } else if (pc.mode == PHOTON_GRID_FRAME) {
+        if (i != 0u) return;
+        vec3 lo = grid_min();
+        vec3 hi = vec3(order_float(header[PHOTON_HDR_MAX]), order_float(header[PHOTON_HDR_MAX + 1u]),
+                       order_float(header[PHOTON_HDR_MAX + 2u]));
+        float radius = uintBitsToFloat(header[PHOTON_HDR_RADIUS]);
+        precise vec3 extent = hi - lo;
+        float edge = radius;
+        for (uint a = 0u; a < 3u; a++) {
+            precise float cells = floor(extent[a] / radius);
+            uint res = cells >= float(PHOTON_GRID_MAX_RES) ? PHOTON_GRID_MAX_RES : max(uint(cells), 1u);
+            header[PHOTON_HDR_RES + a] = res;
+            precise float e = extent[a] / float(res);
+            edge = max(edge, e);
+        }
+        header[PHOTON_HDR_EDGE] = floatBitsToUint(edge);
+    } else if (pc.mode == PHOTON_GRID_COUNT) {
+        if (i >= pc.n) return;
+        uint seen[27];
+        uint m = point_buckets(i, seen);
+        for (uint k = 0u; k < m; k++) atomicAdd(starts[seen[k]], 1u);
+    } else if (pc.mode == PHOTON_GRID_SCAN) {
+        // One workgroup: each thread sums a run of counts, thread 0 scans the sums,
+        // each thread writes its run's starts.
+        uint lid = gl_LocalInvocationID.x;
+        uint per = (pc.buckets + PHOTON_GROUP - 1u) / PHOTON_GROUP;
+        uint begin = min(lid * per, pc.buckets);
+        uint end = min(begin + per, pc.buckets);
+        uint sum = 0u;
+        for (uint k = begin; k < end; k++) sum += starts[k];
+        s_sum[lid] = sum;
+        barrier();
+        if (lid == 0u) {
+            uint run = 0u;
+            for (uint t = 0u; t < PHOTON_GROUP; t++) {
+                uint v = s_sum[t];
+                s_sum[t] = run;
+                run += v;
+            }
+            starts[pc.buckets] = run;
+            header[PHOTON_HDR_TOTAL] = run;
+        }
+        barrier();
+        uint run = s_sum[lid];
+        for (uint k = begin; k < end; k++) {
+            uint c = starts[k];
+            starts[k] = run;
+            cursor[k] = run;
+            run += c;
+        }
+    } else if (pc.mode == PHOTON_GRID_SCATTER) {
+        if (i >= pc.n) return;
+        uint seen[27];
+        uint m = point_buckets(i, seen);
+        for (uint k = 0u; k < m; k++) entries[atomicAdd(cursor[seen[k]], 1u)] = i;
+    }
+}

@@ -1,0 +1,124 @@
+//! The hash grid built on the device (shaders/photon_grid.comp): the passes of
+//! [`HashGrid::build`] as kernels over visible points already in a device buffer, so
+//! an SPPM iteration builds its grid without reading the points back. The grid stays
+//! on the device; [`DeviceGrid::read_back`] brings it to the host for tests.
+
+use glam::Vec3;
+
+use super::HashGrid;
+use crate::error::{Error, Result};
+use crate::gpu::bindings::*;
+use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, BufferKind, Context};
+
+/// Most distinct buckets one visible point enters (3 cells an axis).
+pub const MAX_BUCKETS_A_POINT: u64 = 27;
+
+/// Most visible points one build takes: a one-dimensional dispatch of the per-point
+/// passes.
+pub const MAX_POINTS: u32 = 65_535 * PHOTON_GROUP;
+
+/// A hash grid on the device, in [`HashGrid`]'s layout.
+#[derive(Debug)]
+pub struct DeviceGrid {
+    /// `PHOTON_HDR_WORDS` words: the box, the largest radius, cells per axis, the edge,
+    /// the entries.
+    pub header: Buffer,
+    /// Buckets + 1 words.
+    pub starts: Buffer,
+    /// Room for [`MAX_BUCKETS_A_POINT`] entries a point; the header says how many.
+    pub entries: Buffer,
+    /// The number of buckets (the points, at least 1).
+    pub buckets: u32,
+    /// The visible points.
+    pub points: u32,
+}
+
+/// The visible points as the kernel reads them: position and radius, a vec4 each.
+pub fn upload_points(ctx: &Context, positions: &[Vec3], radii: &[f32]) -> Result<Buffer> {
+    super::check_points(positions, radii).map_err(Error::Failed)?;
+    let words: Vec<[f32; 4]> = positions.iter().zip(radii).map(|(p, &r)| [p.x, p.y, p.z, r]).collect();
+    // A buffer may not be empty; an empty set binds one unused point.
+    let words = if words.is_empty() { vec![[0.0; 4]] } else { words };
+    ctx.upload_storage("visible points", bytemuck::cast_slice(&words))
+}
+
+/// Builds the grid over the `n` visible points of `points` ([`upload_points`]'s layout)
+/// with the passes of shaders/photon_grid.comp, one submission each.
+pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> {
+    if n > MAX_POINTS {
+        return Err(Error::Failed(format!("{n} visible points; one photon grid build takes at most {MAX_POINTS}")));
+    }
+    let buckets = n.max(1);
+    let bindings = [
+        BindingDesc { binding: BINDING_PHOTON_HEADER, kind: BindingKind::Storage, name: "photon grid header" },
+        BindingDesc { binding: BINDING_PHOTON_POINTS, kind: BindingKind::Storage, name: "visible points" },
+        BindingDesc { binding: BINDING_PHOTON_STARTS, kind: BindingKind::Storage, name: "photon grid starts" },
+        BindingDesc { binding: BINDING_PHOTON_CURSOR, kind: BindingKind::Storage, name: "photon grid cursor" },
+        BindingDesc { binding: BINDING_PHOTON_ENTRIES, kind: BindingKind::Storage, name: "photon grid entries" },
+    ];
+    let spv = spirv::get("photon_grid").ok_or_else(|| Error::Failed("kernel photon_grid is not compiled in".into()))?;
+    let mut kernel = ctx.create_kernel("photon_grid", spv, &bindings, &[], 16)?;
+    let mut head = [0u32; PHOTON_HDR_WORDS as usize];
+    head[PHOTON_HDR_MIN as usize..PHOTON_HDR_MIN as usize + 3].fill(u32::MAX);
+    let header = ctx.upload_storage("photon grid header", bytemuck::cast_slice(&head))?;
+    let word_bytes = |words: u64| words.max(1) * 4;
+    let starts = ctx.create_buffer("photon grid starts", word_bytes(u64::from(buckets) + 1), BufferKind::Storage)?;
+    let cursor = ctx.create_buffer("photon grid cursor", word_bytes(u64::from(buckets)), BufferKind::Storage)?;
+    let entries =
+        ctx.create_buffer("photon grid entries", word_bytes(u64::from(n) * MAX_BUCKETS_A_POINT), BufferKind::Storage)?;
+    ctx.fill_zero(&starts)?;
+    for (binding, buffer) in [
+        (BINDING_PHOTON_HEADER, &header),
+        (BINDING_PHOTON_POINTS, points),
+        (BINDING_PHOTON_STARTS, &starts),
+        (BINDING_PHOTON_CURSOR, &cursor),
+        (BINDING_PHOTON_ENTRIES, &entries),
+    ] {
+        ctx.bind(&mut kernel, binding, buffer)?;
+    }
+    let groups = n.div_ceil(PHOTON_GROUP).max(1);
+    for (mode, groups, label) in [
+        (PHOTON_GRID_BOUNDS, groups, "photon grid: bounds"),
+        (PHOTON_GRID_FRAME, 1, "photon grid: frame"),
+        (PHOTON_GRID_COUNT, groups, "photon grid: count"),
+        (PHOTON_GRID_SCAN, 1, "photon grid: scan"),
+        (PHOTON_GRID_SCATTER, groups, "photon grid: scatter"),
+    ] {
+        if n == 0 && mode != PHOTON_GRID_SCAN {
+            continue;
+        }
+        let push = [mode, n, buckets, 0];
+        ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [groups, 1, 1], label)?;
+    }
+    ctx.check_validation()?;
+    Ok(DeviceGrid { header, starts, entries, buckets, points: n })
+}
+
+impl DeviceGrid {
+    /// The grid as the host's [`HashGrid`] (each bucket's entries in index order, as
+    /// the host build lists them).
+    pub fn read_back(&self, ctx: &Context) -> Result<HashGrid> {
+        let head: Vec<u32> = ctx.read_storage_pod(&self.header, 0, PHOTON_HDR_WORDS as usize)?;
+        let mut starts: Vec<u32> = ctx.read_storage_pod(&self.starts, 0, self.buckets as usize + 1)?;
+        let total = head[PHOTON_HDR_TOTAL as usize] as usize;
+        let mut entries: Vec<u32> =
+            if total == 0 { Vec::new() } else { ctx.read_storage_pod(&self.entries, 0, total)? };
+        for b in 0..self.buckets as usize {
+            entries[starts[b] as usize..starts[b + 1] as usize].sort_unstable();
+        }
+        let unorder = |u: u32| f32::from_bits(if u & 0x8000_0000 != 0 { u & 0x7fff_ffff } else { !u });
+        let corner = |w: u32| Vec3::from_array([0, 1, 2].map(|a| unorder(head[(w + a) as usize])));
+        if self.points == 0 {
+            starts = vec![0; 2];
+            return Ok(HashGrid { min: Vec3::ZERO, max: Vec3::ZERO, edge: 0.0, res: [1; 3], starts, entries });
+        }
+        Ok(HashGrid {
+            min: corner(PHOTON_HDR_MIN),
+            max: corner(PHOTON_HDR_MAX),
+            edge: f32::from_bits(head[PHOTON_HDR_EDGE as usize]),
+            res: [0, 1, 2].map(|a| head[(PHOTON_HDR_RES + a) as usize]),
+            starts,
+            entries,
+        })
+    }
+}

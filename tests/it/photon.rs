@@ -1,0 +1,62 @@
+//! SPPM's hash grid built on the device (src/photon/device.rs) equals the host's build
+//! (`HashGrid::build`, itself checked against testing every point): the same box,
+//! edge, cells, bucket starts, and the same points in every bucket.
+
+use crate::common;
+
+use arbor::photon::{build_grid, upload_points, HashGrid};
+use glam::Vec3;
+
+/// A small counter-based generator (splitmix64), seeded.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+#[test]
+fn the_device_builds_the_hosts_hash_grid() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut rng = Rng(3);
+    let mut sets: Vec<(&str, Vec<Vec3>, Vec<f32>)> = Vec::new();
+    let n = 5000;
+    let floor: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.next() * 4.0 - 2.0, 0.0, rng.next() * 4.0 - 2.0)).collect();
+    let radii: Vec<f32> = (0..n).map(|_| 0.02 + rng.next() * 0.05).collect();
+    sets.push(("floor", floor, radii));
+    let cloud: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.next(), rng.next(), rng.next()) * 10.0).collect();
+    let radii: Vec<f32> = (0..n).map(|_| 0.01 + rng.next() * rng.next()).collect();
+    sets.push(("cloud", cloud, radii));
+    sets.push(("one spot", vec![Vec3::new(1.0, 2.0, 3.0); 100], (0..100).map(|k| 0.01 + k as f32 * 1e-3).collect()));
+    sets.push(("one point", vec![Vec3::splat(-1.5)], vec![0.25]));
+    sets.push(("none", Vec::new(), Vec::new()));
+    for (name, positions, radii) in sets {
+        let host = HashGrid::build(&positions, &radii).expect("host build");
+        let points = upload_points(&ctx, &positions, &radii).expect("upload");
+        let grid = build_grid(&ctx, &points, positions.len() as u32).expect("device build");
+        let device = grid.read_back(&ctx).expect("read back");
+        assert_eq!(
+            (device.min, device.max, device.edge, device.res),
+            (host.min, host.max, host.edge, host.res),
+            "{name}"
+        );
+        assert_eq!(device.starts, host.starts, "{name}: bucket starts");
+        assert_eq!(device.entries, host.entries, "{name}: entries");
+        if positions.len() >= n {
+            assert!(host.entries.len() > positions.len(), "{name}: points span several cells");
+        }
+    }
+    ctx.check_validation().expect("no validation errors");
+}
+
+#[test]
+fn bad_points_are_refused_before_the_device_sees_them() {
+    let Some(ctx) = common::gpu() else { return };
+    let e = upload_points(&ctx, &[Vec3::ZERO], &[-1.0]).expect_err("a negative radius");
+    assert!(e.to_string().contains("visible point 0 has radius -1"), "{e}");
+}
