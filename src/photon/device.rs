@@ -13,9 +13,13 @@ use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, BufferKind, Context};
 /// Most distinct buckets one visible point enters (3 cells an axis).
 pub const MAX_BUCKETS_A_POINT: u64 = 27;
 
-/// Most visible points one build takes: a one-dimensional dispatch of the per-point
-/// passes.
-pub const MAX_POINTS: u32 = 65_535 * PHOTON_GROUP;
+/// Most visible points one build takes (a 2048 x 2048 image's): the one-workgroup
+/// scan's threads each run through buckets / PHOTON_GROUP counts twice, which must stay
+/// within llvmpipe's loop budget (`LLVMPIPE_LOOP_BUDGET`), and the per-point passes are
+/// one-dimensional dispatches.
+pub const MAX_POINTS: u32 = 16_384 * PHOTON_GROUP;
+
+const _: () = assert!(2 * (MAX_POINTS / PHOTON_GROUP) as u64 + PHOTON_GROUP as u64 <= LLVMPIPE_LOOP_BUDGET);
 
 /// A hash grid on the device, in [`HashGrid`]'s layout.
 #[derive(Debug)]

@@ -59,4 +59,8 @@ fn bad_points_are_refused_before_the_device_sees_them() {
     let Some(ctx) = common::gpu() else { return };
     let e = upload_points(&ctx, &[Vec3::ZERO], &[-1.0]).expect_err("a negative radius");
     assert!(e.to_string().contains("visible point 0 has radius -1"), "{e}");
+    let points = upload_points(&ctx, &[Vec3::ZERO], &[1.0]).expect("upload");
+    let too_many = arbor::photon::device::MAX_POINTS + 1;
+    let e = build_grid(&ctx, &points, too_many).expect_err("more points than one build takes");
+    assert!(e.to_string().contains("at most 4194304"), "{e}");
 }
