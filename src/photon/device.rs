@@ -29,7 +29,8 @@ pub struct DeviceGrid {
     pub header: Buffer,
     /// Buckets + 1 words.
     pub starts: Buffer,
-    /// Room for [`MAX_BUCKETS_A_POINT`] entries a point; the header says how many.
+    /// The entries, as many as the count pass found (the header's total; at most
+    /// [`MAX_BUCKETS_A_POINT`] a point).
     pub entries: Buffer,
     /// The number of buckets (the points, at least 1).
     pub buckets: u32,
@@ -68,19 +69,20 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
     let word_bytes = |words: u64| words.max(1) * 4;
     let starts = ctx.create_buffer("photon grid starts", word_bytes(u64::from(buckets) + 1), BufferKind::Storage)?;
     let cursor = ctx.create_buffer("photon grid cursor", word_bytes(u64::from(buckets)), BufferKind::Storage)?;
-    let entries =
-        ctx.create_buffer("photon grid entries", word_bytes(u64::from(n) * MAX_BUCKETS_A_POINT), BufferKind::Storage)?;
+    // Sized once the scan has counted the entries: until then a stand-in is bound.
+    let stand_in = ctx.create_buffer("photon grid entries", 4, BufferKind::Storage)?;
     ctx.fill_zero(&starts)?;
     for (binding, buffer) in [
         (BINDING_PHOTON_HEADER, &header),
         (BINDING_PHOTON_POINTS, points),
         (BINDING_PHOTON_STARTS, &starts),
         (BINDING_PHOTON_CURSOR, &cursor),
-        (BINDING_PHOTON_ENTRIES, &entries),
+        (BINDING_PHOTON_ENTRIES, &stand_in),
     ] {
         ctx.bind(&mut kernel, binding, buffer)?;
     }
     let groups = n.div_ceil(PHOTON_GROUP).max(1);
+    let mut entries = stand_in;
     for (mode, groups, label) in [
         (PHOTON_GRID_BOUNDS, groups, "photon grid: bounds"),
         (PHOTON_GRID_FRAME, 1, "photon grid: frame"),
@@ -90,6 +92,14 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
     ] {
         if n == 0 && mode != PHOTON_GRID_SCAN {
             continue;
+        }
+        if mode == PHOTON_GRID_SCATTER {
+            // The entries the scan counted (at most MAX_BUCKETS_A_POINT a point).
+            let total: Vec<u32> = ctx.read_storage_pod(&header, u64::from(PHOTON_HDR_TOTAL) * 4, 1)?;
+            let bytes = word_bytes(u64::from(total[0]));
+            ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
+            entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
+            ctx.bind(&mut kernel, BINDING_PHOTON_ENTRIES, &entries)?;
         }
         let push = [mode, n, buckets, 0];
         ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [groups, 1, 1], label)?;
