@@ -6,11 +6,18 @@
 // crosses the boundary with the smallest t, and a hit ends traversal only when it lies
 // before the current cell's exit. Every trace takes at most TREE_STEPS steps (search
 // steps, cells and primitive tests), beyond which it stops and is resumed
-// (common/resume.glsl). Its state: word 0 whether the search was done (else the trace
-// starts over), 1..3 the cell's indices, 4 the primitives of that cell already tested,
-// 5 found; the t of the next boundaries follow from the indices.
+// (common/resume.glsl). Its state: the words GRID_RS_* below; the t of the next
+// boundaries follow from the cell's indices.
 
 #define ACCEL_RESUMABLE 1
+#define GRID_RS_SEARCHED 0u  // whether the first-cell search was done (else the trace starts over)
+#define GRID_RS_CELL 1u      // the cell's indices, three words
+#define GRID_RS_K_FIRST 4u   // the primitives of that cell already tested
+#define GRID_RS_FOUND 5u
+#define GRID_RESUME_WORDS 6
+#if GRID_RESUME_WORDS > RESUME_LEVEL_WORDS
+#error "the grid's resume words exceed RESUME_LEVEL_WORDS"
+#endif
 
 // The head of this block is GpuGridHeader in src/accel/gpu_layout.rs.
 // Node buffer: grid_res (16 bytes), grid_cell (16 bytes), then the cell starts.
@@ -46,10 +53,10 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
     bool searched = false;
     if (RESUME_PASS && g_resuming) {
         g_resuming = false;
-        searched = rs_get(0u) != 0u;
-        idx = uvec3(rs_get(1u), rs_get(2u), rs_get(3u));
-        k_first = rs_get(4u);
-        found = rs_get(5u) != 0u;
+        searched = rs_get(GRID_RS_SEARCHED) != 0u;
+        idx = uvec3(rs_get(GRID_RS_CELL), rs_get(GRID_RS_CELL + 1u), rs_get(GRID_RS_CELL + 2u));
+        k_first = rs_get(GRID_RS_K_FIRST);
+        found = rs_get(GRID_RS_FOUND) != 0u;
     }
     bool cut = false;
     for (uint a = 0u; a < 3u; a++) {
@@ -115,12 +122,12 @@ bool grid_traverse(Ray r, inout Hit h, bool any_hit) {
     // The resumed trace counts that cell again.
     if (counted) g_nodes -= 1u;
     if (trace_suspend()) {
-        rs_put(0u, uint(!cut));
-        rs_put(1u, idx.x);
-        rs_put(2u, idx.y);
-        rs_put(3u, idx.z);
-        rs_put(4u, k_first);
-        rs_put(5u, uint(found));
+        rs_put(GRID_RS_SEARCHED, uint(!cut));
+        rs_put(GRID_RS_CELL, idx.x);
+        rs_put(GRID_RS_CELL + 1u, idx.y);
+        rs_put(GRID_RS_CELL + 2u, idx.z);
+        rs_put(GRID_RS_K_FIRST, k_first);
+        rs_put(GRID_RS_FOUND, uint(found));
     }
     return found;
 }

@@ -6,11 +6,22 @@
 // The stack holds SPEC_STACK_SIZE entries (tree depth + 1, checked at build time);
 // every trace takes at most TREE_STEPS steps (nodes + primitive tests), beyond which
 // it stops and is resumed (llvmpipe caps loop iterations; common/resume.glsl). Its
-// state: words 0 node, 1 tmin, 2 tmax, 3 sp, 4 found, 5 the primitives of leaf `node`
-// already tested; st_node from RESUME_LEVEL_WORDS, st_max STACK_SIZE words further.
+// state: the words KD_RS_* below; st_node from RESUME_LEVEL_WORDS, st_max STACK_SIZE
+// words further.
 
 #define ACCEL_RESUMABLE 1
 #include "common/accel_texels.glsl"
+
+#define KD_RS_NODE 0u
+#define KD_RS_TMIN 1u
+#define KD_RS_TMAX 2u
+#define KD_RS_SP 3u
+#define KD_RS_FOUND 4u
+#define KD_RS_K_FIRST 5u  // the primitives of leaf `node` already tested
+#define KD_RESUME_WORDS 6
+#if KD_RESUME_WORDS > RESUME_LEVEL_WORDS
+#error "the kd-tree's resume words exceed RESUME_LEVEL_WORDS"
+#endif
 
 // The stack holds (node, tmax) only: the cell popped next always starts where the
 // last visited cell ended (its tmin is the current tmax, carried exactly), except
@@ -34,12 +45,12 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
     uint k_first = 0u;
     if (RESUME_PASS && g_resuming) {
         g_resuming = false;
-        node = rs_get(0u);
-        tmin = rs_getf(1u);
-        tmax = rs_getf(2u);
-        sp = rs_get(3u);
-        found = rs_get(4u) != 0u;
-        k_first = rs_get(5u);
+        node = rs_get(KD_RS_NODE);
+        tmin = rs_getf(KD_RS_TMIN);
+        tmax = rs_getf(KD_RS_TMAX);
+        sp = rs_get(KD_RS_SP);
+        found = rs_get(KD_RS_FOUND) != 0u;
+        k_first = rs_get(KD_RS_K_FIRST);
         for (uint q = 0u; q < sp; q++) {
             st_node[q] = rs_get(RESUME_LEVEL_WORDS + q);
             st_max[q] = rs_getf(RESUME_LEVEL_WORDS + STACK_SIZE + q);
@@ -120,12 +131,12 @@ bool kd_traverse(Ray r, inout Hit h, bool any_hit) {
     // The resumed trace fetches that node again and counts it then.
     if (counted) g_nodes -= 1u;
     if (trace_suspend()) {
-        rs_put(0u, node);
-        rs_putf(1u, tmin);
-        rs_putf(2u, tmax);
-        rs_put(3u, sp);
-        rs_put(4u, uint(found));
-        rs_put(5u, k_first);
+        rs_put(KD_RS_NODE, node);
+        rs_putf(KD_RS_TMIN, tmin);
+        rs_putf(KD_RS_TMAX, tmax);
+        rs_put(KD_RS_SP, sp);
+        rs_put(KD_RS_FOUND, uint(found));
+        rs_put(KD_RS_K_FIRST, k_first);
         for (uint q = 0u; q < sp; q++) {
             rs_put(RESUME_LEVEL_WORDS + q, st_node[q]);
             rs_putf(RESUME_LEVEL_WORDS + STACK_SIZE + q, st_max[q]);

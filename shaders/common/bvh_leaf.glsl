@@ -74,15 +74,21 @@ uint bvh_leaf_rest(uint ref, uint tested) {
     }
 
 // Resuming the BVH kernels' traversals (common/resume.glsl), on their locals cur, sp,
-// found and stack: words 0 the next reference, 1 sp, 2 found, the stack from
-// RESUME_LEVEL_WORDS. BVH_LEAF_CUT(tested): after testing leaf cur from step count
+// found and stack: the words BVH_RS_* below, the stack from RESUME_LEVEL_WORDS. BVH_LEAF_CUT(tested): after testing leaf cur from step count
 // `tested`, a leaf the step budget cut short leaves the loop with the rest of it in cur.
+#define BVH_RS_CUR 0u    // the next reference
+#define BVH_RS_SP 1u
+#define BVH_RS_FOUND 2u
+#define BVH_RESUME_WORDS 3
+#if BVH_RESUME_WORDS > RESUME_LEVEL_WORDS
+#error "the BVH's resume words exceed RESUME_LEVEL_WORDS"
+#endif
 #define BVH_RESTORE \
     if (RESUME_PASS && g_resuming) { \
         g_resuming = false; \
-        cur = rs_get(0u); \
-        sp = rs_get(1u); \
-        found = rs_get(2u) != 0u; \
+        cur = rs_get(BVH_RS_CUR); \
+        sp = rs_get(BVH_RS_SP); \
+        found = rs_get(BVH_RS_FOUND) != 0u; \
         for (uint q = 0u; q < sp; q++) stack[q] = rs_get(RESUME_LEVEL_WORDS + q); \
     }
 #define BVH_LEAF_CUT(tested) \
@@ -93,9 +99,9 @@ uint bvh_leaf_rest(uint ref, uint tested) {
     }
 #define BVH_SUSPEND \
     if (trace_suspend()) { \
-        rs_put(0u, cur); \
-        rs_put(1u, sp); \
-        rs_put(2u, uint(found)); \
+        rs_put(BVH_RS_CUR, cur); \
+        rs_put(BVH_RS_SP, sp); \
+        rs_put(BVH_RS_FOUND, uint(found)); \
         for (uint q = 0u; q < sp; q++) rs_put(RESUME_LEVEL_WORDS + q, stack[q]); \
     }
 

@@ -6,11 +6,21 @@
 // space. inst_closest / inst_any are the scene's traces (trace.comp). Mirrors
 // TwoLevel::traverse. Every step of both levels counts against the one budget,
 // TREE_STEPS, beyond which the trace stops and is resumed (common/resume.glsl). The
-// top level's state: words 0 cur, 1 sp, 2 found, 3 the entries of leaf cur already
-// done, 4 whether the next one was stopped inside (its structure then saved the bottom
-// level, at RS_LEVEL); the stack from RESUME_LEVEL_WORDS.
+// top level's state: the words INST_RS_* below (INST_RS_INSIDE: the next entry was
+// stopped inside, and its structure saved the bottom level at RS_LEVEL); the stack
+// from RESUME_LEVEL_WORDS.
 #ifndef ARBOR_INSTANCES_GLSL
 #define ARBOR_INSTANCES_GLSL
+
+#define INST_RS_CUR 0u
+#define INST_RS_SP 1u
+#define INST_RS_FOUND 2u
+#define INST_RS_K_FIRST 3u  // the entries of leaf cur already done
+#define INST_RS_INSIDE 4u
+#define INST_RESUME_WORDS 5
+#if INST_RESUME_WORDS > RESUME_LEVEL_WORDS
+#error "the top level's resume words exceed RESUME_LEVEL_WORDS"
+#endif
 
 #ifdef ACCEL_RAYQUERY
 // The driver's structure traverses both levels (accel/rayquery.glsl); only the
@@ -63,13 +73,13 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
     uint k_first = 0u;
     bool inside = false;
     if (RESUME_PASS && g_resuming) {
-        cur = rs_get(0u);
-        sp = rs_get(1u);
-        found = rs_get(2u) != 0u;
-        k_first = rs_get(3u);
+        cur = rs_get(INST_RS_CUR);
+        sp = rs_get(INST_RS_SP);
+        found = rs_get(INST_RS_FOUND) != 0u;
+        k_first = rs_get(INST_RS_K_FIRST);
         for (uint q = 0u; q < sp; q++) stack[q] = rs_get(RESUME_LEVEL_WORDS + q);
         // The bottom level restores its own state when it was stopped inside.
-        g_resuming = rs_get(4u) != 0u;
+        g_resuming = rs_get(INST_RS_INSIDE) != 0u;
     }
     while (g_steps < TREE_STEPS) {
         while ((cur & BVH_LEAF) == 0u && g_steps < TREE_STEPS) {
@@ -118,11 +128,11 @@ bool inst_traverse(Ray r, inout Hit h, bool any_hit) {
         cur = stack[sp];
     }
     if (trace_suspend()) {
-        rs_put(0u, cur);
-        rs_put(1u, sp);
-        rs_put(2u, uint(found));
-        rs_put(3u, k_first);
-        rs_put(4u, uint(inside));
+        rs_put(INST_RS_CUR, cur);
+        rs_put(INST_RS_SP, sp);
+        rs_put(INST_RS_FOUND, uint(found));
+        rs_put(INST_RS_K_FIRST, k_first);
+        rs_put(INST_RS_INSIDE, uint(inside));
         for (uint q = 0u; q < sp; q++) rs_put(RESUME_LEVEL_WORDS + q, stack[q]);
     }
     return found;
