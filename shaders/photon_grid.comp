@@ -10,6 +10,9 @@
 //                        starts[buckets] and the header's total
 //   PHOTON_GRID_SCATTER  each point into its buckets' entries (order within a bucket
 //                        is the atomics'; a lookup does not depend on it)
+//   PHOTON_GRID_PROBE    for tests: each query photon's lookup (`grid_lookup`, as the
+//                        photon pass will make it): the points found and the sum of
+//                        their indices + 1
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = PHOTON_GROUP) in;
@@ -18,43 +21,18 @@ layout(push_constant) uniform GridPush {
     uint mode;
     uint n;        // visible points
     uint buckets;  // the number of points, at least 1
-    uint unused;
+    uint unused;   // PHOTON_GRID_PROBE: the query photons
 } pc;
 
 layout(std430, set = 0, binding = BINDING_PHOTON_HEADER) buffer GridHeader { uint header[]; };
 layout(std430, set = 0, binding = BINDING_PHOTON_POINTS) readonly buffer GridPoints { vec4 points[]; }; // position, radius
 layout(std430, set = 0, binding = BINDING_PHOTON_STARTS) buffer GridStarts { uint starts[]; };
 layout(std430, set = 0, binding = BINDING_PHOTON_CURSOR) buffer GridCursor { uint cursor[]; };
-layout(std430, set = 0, binding = BINDING_PHOTON_ENTRIES) writeonly buffer GridEntries { uint entries[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_ENTRIES) buffer GridEntries { uint entries[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_QUERIES) readonly buffer GridQueries { vec4 queries[]; };
+layout(std430, set = 0, binding = BINDING_PHOTON_FOUND) writeonly buffer GridFound { uvec2 found[]; };
 
-// Order-preserving map of floats to uints (for atomicMin / atomicMax) and back.
-uint float_order(float f) {
-    uint b = floatBitsToUint(f);
-    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
-}
-float order_float(uint u) {
-    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7fffffffu) : ~u);
-}
-
-vec3 grid_min() {
-    return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
-                order_float(header[PHOTON_HDR_MIN + 2u]));
-}
-
-// hashgrid::hash: Teschner et al. 2003, wrapping 32-bit.
-uint grid_hash(uvec3 c, uint buckets) {
-    return ((c.x * 73856093u) ^ (c.y * 19349663u) ^ (c.z * 83492791u)) % buckets;
-}
-
-// HashGrid::cell_of: the cell holding p, clamped into the grid.
-uvec3 grid_cell(vec3 p, vec3 lo, float edge, uvec3 res) {
-    uvec3 c;
-    for (int a = 0; a < 3; a++) {
-        precise float k = floor((p[a] - lo[a]) / edge);
-        c[a] = k > 0.0 ? uint(min(k, float(res[a] - 1u))) : 0u;
-    }
-    return c;
-}
+#include "common/photon_grid.glsl"
 
 // HashGrid::buckets_of: the distinct buckets of the cells that point i's sphere box
 // overlaps, in the order first met (at most 27).
@@ -154,5 +132,14 @@ void main() {
         uint seen[27];
         uint m = point_buckets(i, seen);
         for (uint k = 0u; k < m; k++) entries[atomicAdd(cursor[seen[k]], 1u)] = i;
+    } else if (pc.mode == PHOTON_GRID_PROBE) {
+        if (i >= pc.unused) return;
+        uvec2 f = uvec2(0u);
+        GridLookup g = grid_lookup_begin(queries[i].xyz, pc.n, pc.buckets);
+        for (uint k = g.first; k < g.end; k++) {
+            uint v = entries[k];
+            if (grid_holds(v, queries[i].xyz)) f += uvec2(1u, v + 1u);
+        }
+        found[i] = f;
     }
 }

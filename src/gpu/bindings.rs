@@ -359,11 +359,16 @@ pub const BINDING_PHOTON_POINTS: u32 = 1;
 pub const BINDING_PHOTON_STARTS: u32 = 2;
 pub const BINDING_PHOTON_CURSOR: u32 = 3;
 pub const BINDING_PHOTON_ENTRIES: u32 = 4;
+/// The query photons (vec4 position) and what each found (uvec2: points, sum of their
+/// indices + 1) of the grid's test pass, `PHOTON_GRID_PROBE`.
+pub const BINDING_PHOTON_QUERIES: u32 = 5;
+pub const BINDING_PHOTON_FOUND: u32 = 6;
 pub const PHOTON_GRID_BOUNDS: u32 = 0;
 pub const PHOTON_GRID_FRAME: u32 = 1;
 pub const PHOTON_GRID_COUNT: u32 = 2;
 pub const PHOTON_GRID_SCAN: u32 = 3;
 pub const PHOTON_GRID_SCATTER: u32 = 4;
+pub const PHOTON_GRID_PROBE: u32 = 5;
 /// Header words: the spheres' box (min, max: order-preserving uints), the largest
 /// radius (float bits), cells per axis, the cell edge (float bits), the entries.
 pub const PHOTON_HDR_MIN: u32 = 0;
@@ -532,11 +537,14 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_PHOTON_STARTS", BINDING_PHOTON_STARTS),
     ("BINDING_PHOTON_CURSOR", BINDING_PHOTON_CURSOR),
     ("BINDING_PHOTON_ENTRIES", BINDING_PHOTON_ENTRIES),
+    ("BINDING_PHOTON_QUERIES", BINDING_PHOTON_QUERIES),
+    ("BINDING_PHOTON_FOUND", BINDING_PHOTON_FOUND),
     ("PHOTON_GRID_BOUNDS", PHOTON_GRID_BOUNDS),
     ("PHOTON_GRID_FRAME", PHOTON_GRID_FRAME),
     ("PHOTON_GRID_COUNT", PHOTON_GRID_COUNT),
     ("PHOTON_GRID_SCAN", PHOTON_GRID_SCAN),
     ("PHOTON_GRID_SCATTER", PHOTON_GRID_SCATTER),
+    ("PHOTON_GRID_PROBE", PHOTON_GRID_PROBE),
     ("PHOTON_HDR_MIN", PHOTON_HDR_MIN),
     ("PHOTON_HDR_MAX", PHOTON_HDR_MAX),
     ("PHOTON_HDR_RADIUS", PHOTON_HDR_RADIUS),

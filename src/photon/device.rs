@@ -54,15 +54,8 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
         return Err(Error::Failed(format!("{n} visible points; one photon grid build takes at most {MAX_POINTS}")));
     }
     let buckets = n.max(1);
-    let bindings = [
-        BindingDesc { binding: BINDING_PHOTON_HEADER, kind: BindingKind::Storage, name: "photon grid header" },
-        BindingDesc { binding: BINDING_PHOTON_POINTS, kind: BindingKind::Storage, name: "visible points" },
-        BindingDesc { binding: BINDING_PHOTON_STARTS, kind: BindingKind::Storage, name: "photon grid starts" },
-        BindingDesc { binding: BINDING_PHOTON_CURSOR, kind: BindingKind::Storage, name: "photon grid cursor" },
-        BindingDesc { binding: BINDING_PHOTON_ENTRIES, kind: BindingKind::Storage, name: "photon grid entries" },
-    ];
-    let spv = spirv::get("photon_grid").ok_or_else(|| Error::Failed("kernel photon_grid is not compiled in".into()))?;
-    let mut kernel = ctx.create_kernel("photon_grid", spv, &bindings, &[], 16)?;
+    let bindings = grid_bindings();
+    let mut kernel = grid_kernel(ctx, &bindings)?;
     let mut head = [0u32; PHOTON_HDR_WORDS as usize];
     head[PHOTON_HDR_MIN as usize..PHOTON_HDR_MIN as usize + 3].fill(u32::MAX);
     let header = ctx.upload_storage("photon grid header", bytemuck::cast_slice(&head))?;
@@ -71,6 +64,9 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
     let cursor = ctx.create_buffer("photon grid cursor", word_bytes(u64::from(buckets)), BufferKind::Storage)?;
     // Sized once the scan has counted the entries: until then a stand-in is bound.
     let stand_in = ctx.create_buffer("photon grid entries", 4, BufferKind::Storage)?;
+    // The test pass's buffers, unused here.
+    let queries = ctx.create_buffer("photon grid queries", 16, BufferKind::Storage)?;
+    let found = ctx.create_buffer("photon grid found", 16, BufferKind::Storage)?;
     ctx.fill_zero(&starts)?;
     for (binding, buffer) in [
         (BINDING_PHOTON_HEADER, &header),
@@ -78,6 +74,8 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
         (BINDING_PHOTON_STARTS, &starts),
         (BINDING_PHOTON_CURSOR, &cursor),
         (BINDING_PHOTON_ENTRIES, &stand_in),
+        (BINDING_PHOTON_QUERIES, &queries),
+        (BINDING_PHOTON_FOUND, &found),
     ] {
         ctx.bind(&mut kernel, binding, buffer)?;
     }
@@ -108,7 +106,61 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
     Ok(DeviceGrid { header, starts, entries, buckets, points: n })
 }
 
+/// The grid kernel's bindings: the build's five and the test pass's two.
+fn grid_bindings() -> [BindingDesc; 7] {
+    let storage = |binding, name| BindingDesc { binding, kind: BindingKind::Storage, name };
+    [
+        storage(BINDING_PHOTON_HEADER, "photon grid header"),
+        storage(BINDING_PHOTON_POINTS, "visible points"),
+        storage(BINDING_PHOTON_STARTS, "photon grid starts"),
+        storage(BINDING_PHOTON_CURSOR, "photon grid cursor"),
+        storage(BINDING_PHOTON_ENTRIES, "photon grid entries"),
+        storage(BINDING_PHOTON_QUERIES, "photon grid queries"),
+        storage(BINDING_PHOTON_FOUND, "photon grid found"),
+    ]
+}
+
+fn grid_kernel(ctx: &Context, bindings: &[BindingDesc]) -> Result<crate::gpu::Kernel> {
+    let spv = spirv::get("photon_grid").ok_or_else(|| Error::Failed("kernel photon_grid is not compiled in".into()))?;
+    ctx.create_kernel("photon_grid", spv, bindings, &[], 16)
+}
+
 impl DeviceGrid {
+    /// Looks up photons at `queries` on the device, as the photon pass will
+    /// (`grid_lookup_begin` and `grid_holds` in shaders/common/photon_grid.glsl): per
+    /// photon, the visible points of `points` (the buffer the grid was built over) that
+    /// hold it, and the sum of their indices + 1. For tests and the benchmark.
+    pub fn lookup_counts(&self, ctx: &Context, points: &Buffer, queries: &[Vec3]) -> Result<Vec<[u32; 2]>> {
+        if queries.is_empty() {
+            return Ok(Vec::new());
+        }
+        let q = u32::try_from(queries.len())
+            .ok()
+            .filter(|&q| q <= MAX_POINTS)
+            .ok_or_else(|| Error::Failed(format!("{} query photons; at most {MAX_POINTS} a call", queries.len())))?;
+        let bindings = grid_bindings();
+        let mut kernel = grid_kernel(ctx, &bindings)?;
+        let words: Vec<[f32; 4]> = queries.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+        let qbuf = ctx.upload_storage("photon grid queries", bytemuck::cast_slice(&words))?;
+        let fbuf = ctx.create_buffer("photon grid found", u64::from(q) * 8, BufferKind::Storage)?;
+        let cursor = ctx.create_buffer("photon grid cursor", 4, BufferKind::Storage)?;
+        for (binding, buffer) in [
+            (BINDING_PHOTON_HEADER, &self.header),
+            (BINDING_PHOTON_POINTS, points),
+            (BINDING_PHOTON_STARTS, &self.starts),
+            (BINDING_PHOTON_CURSOR, &cursor),
+            (BINDING_PHOTON_ENTRIES, &self.entries),
+            (BINDING_PHOTON_QUERIES, &qbuf),
+            (BINDING_PHOTON_FOUND, &fbuf),
+        ] {
+            ctx.bind(&mut kernel, binding, buffer)?;
+        }
+        let push = [PHOTON_GRID_PROBE, self.points, self.buckets, q];
+        ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [q.div_ceil(PHOTON_GROUP), 1, 1], "photon grid: lookups")?;
+        ctx.check_validation()?;
+        ctx.read_storage_pod(&fbuf, 0, queries.len())
+    }
+
     /// The grid as the host's [`HashGrid`] (each bucket's entries in index order, as
     /// the host build lists them).
     pub fn read_back(&self, ctx: &Context) -> Result<HashGrid> {

@@ -50,6 +50,26 @@ fn the_device_builds_the_hosts_hash_grid() {
         if positions.len() >= n {
             assert!(host.entries.len() > positions.len(), "{name}: points span several cells");
         }
+        // Photons near the points and anywhere around them find on the device what
+        // testing every point finds.
+        let mut queries: Vec<Vec3> = positions
+            .iter()
+            .zip(&radii)
+            .take(2000)
+            .map(|(&p, &r)| p + Vec3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5) * (3.0 * r))
+            .collect();
+        queries.extend((0..1000).map(|_| Vec3::new(rng.next(), rng.next(), rng.next()) * 12.0 - Vec3::ONE));
+        let found = grid.lookup_counts(&ctx, &points, &queries).expect("device lookups");
+        let mut held = 0;
+        for (q, f) in queries.iter().zip(&found) {
+            let want = arbor::photon::brute_force(&positions, &radii, *q);
+            let sum = want.iter().fold(0u32, |s, &i| s.wrapping_add(i + 1));
+            assert_eq!(*f, [want.len() as u32, sum], "{name}: photon at {q}");
+            held += want.len();
+        }
+        if positions.len() >= n {
+            assert!(held > queries.len() / 2, "{name}: the photons near points find some");
+        }
     }
     ctx.check_validation().expect("no validation errors");
 }

@@ -1,0 +1,69 @@
+// SPPM's hash grid as its kernels read it (src/photon/hashgrid.rs, the layout): the
+// header's box, cells and edge, a cell's bucket, and a photon's lookup. Needs the
+// buffers `header`, `points` (vec4 position + radius), `starts` and `entries` declared
+// before it (shaders/photon_grid.comp).
+#ifndef ARBOR_PHOTON_GRID_GLSL
+#define ARBOR_PHOTON_GRID_GLSL
+
+// Order-preserving map of floats to uints (for atomicMin / atomicMax) and back.
+uint float_order(float f) {
+    uint b = floatBitsToUint(f);
+    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
+}
+float order_float(uint u) {
+    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7fffffffu) : ~u);
+}
+
+vec3 grid_min() {
+    return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
+                order_float(header[PHOTON_HDR_MIN + 2u]));
+}
+
+// hashgrid::hash: Teschner et al. 2003, wrapping 32-bit.
+uint grid_hash(uvec3 c, uint buckets) {
+    return ((c.x * 73856093u) ^ (c.y * 19349663u) ^ (c.z * 83492791u)) % buckets;
+}
+
+// HashGrid::cell_of: the cell holding p, clamped into the grid.
+uvec3 grid_cell(vec3 p, vec3 lo, float edge, uvec3 res) {
+    uvec3 c;
+    for (int a = 0; a < 3; a++) {
+        precise float k = floor((p[a] - lo[a]) / edge);
+        c[a] = k > 0.0 ? uint(min(k, float(res[a] - 1u))) : 0u;
+    }
+    return c;
+}
+
+// photon::holds: whether visible point v holds p within its radius.
+bool grid_holds(uint v, vec3 p) {
+    vec4 pr = points[v];
+    precise vec3 d = p - pr.xyz;
+    // |d|^2 summed in the host's order, without fused multiply-adds.
+    precise float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    precise float r2 = pr.w * pr.w;
+    return d2 < r2;
+}
+
+// HashGrid::lookup: the range of entries a photon at p tests (empty outside the box
+// or over no points); each entry is a visible point to test with grid_holds.
+struct GridLookup {
+    uint first;
+    uint end;
+};
+GridLookup grid_lookup_begin(vec3 p, uint n, uint buckets) {
+    GridLookup g;
+    g.first = 0u;
+    g.end = 0u;
+    vec3 lo = grid_min();
+    vec3 hi = vec3(order_float(header[PHOTON_HDR_MAX]), order_float(header[PHOTON_HDR_MAX + 1u]),
+                   order_float(header[PHOTON_HDR_MAX + 2u]));
+    if (n == 0u || any(lessThan(p, lo)) || any(greaterThan(p, hi))) return g;
+    float edge = uintBitsToFloat(header[PHOTON_HDR_EDGE]);
+    uvec3 res = uvec3(header[PHOTON_HDR_RES], header[PHOTON_HDR_RES + 1u], header[PHOTON_HDR_RES + 2u]);
+    uint b = grid_hash(grid_cell(p, lo, edge, res), buckets);
+    g.first = starts[b];
+    g.end = starts[b + 1u];
+    return g;
+}
+
+#endif
