@@ -363,6 +363,11 @@ pub const BINDING_PHOTON_ENTRIES: u32 = 4;
 /// indices + 1) of the grid's test pass, `PHOTON_GRID_PROBE`.
 pub const BINDING_PHOTON_QUERIES: u32 = 5;
 pub const BINDING_PHOTON_FOUND: u32 = 6;
+/// The kd-tree over visible points (`photon::PointTree`'s nodes, two vec4 each), read
+/// by common/photon_tree.glsl; and the deepest tree it searches (a balanced tree of
+/// `photon::device::MAX_POINTS` points: floor(log2 n) + 1 = 23 levels).
+pub const BINDING_PHOTON_TREE: u32 = 7;
+pub const PHOTON_TREE_MAX_DEPTH: u32 = 23;
 pub const PHOTON_GRID_BOUNDS: u32 = 0;
 pub const PHOTON_GRID_FRAME: u32 = 1;
 pub const PHOTON_GRID_COUNT: u32 = 2;
@@ -539,6 +544,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_PHOTON_ENTRIES", BINDING_PHOTON_ENTRIES),
     ("BINDING_PHOTON_QUERIES", BINDING_PHOTON_QUERIES),
     ("BINDING_PHOTON_FOUND", BINDING_PHOTON_FOUND),
+    ("BINDING_PHOTON_TREE", BINDING_PHOTON_TREE),
+    ("PHOTON_TREE_MAX_DEPTH", PHOTON_TREE_MAX_DEPTH),
     ("PHOTON_GRID_BOUNDS", PHOTON_GRID_BOUNDS),
     ("PHOTON_GRID_FRAME", PHOTON_GRID_FRAME),
     ("PHOTON_GRID_COUNT", PHOTON_GRID_COUNT),

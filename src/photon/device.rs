@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::HashGrid;
+use super::{HashGrid, PointTree};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, BufferKind, Context};
@@ -187,4 +187,49 @@ impl DeviceGrid {
             entries,
         })
     }
+}
+
+// The deepest balanced tree of MAX_POINTS points is the kernel's stack.
+const _: () = assert!(usize::BITS - (MAX_POINTS as usize).leading_zeros() == PHOTON_TREE_MAX_DEPTH);
+
+/// Looks up photons at `queries` in `tree` on the device, as the photon pass will
+/// (`tree_lookup` in shaders/common/photon_tree.glsl): per photon, the visible points
+/// of `points` (the buffer of the points the tree was built over, [`upload_points`])
+/// that hold it, and the sum of their indices + 1. For tests and the benchmark.
+pub fn tree_lookup_counts(ctx: &Context, tree: &PointTree, points: &Buffer, queries: &[Vec3]) -> Result<Vec<[u32; 2]>> {
+    if queries.is_empty() {
+        return Ok(Vec::new());
+    }
+    let nodes = u32::try_from(tree.nodes.len()).ok().filter(|&n| n <= MAX_POINTS);
+    let nodes = nodes.ok_or_else(|| Error::Failed(format!("{} tree nodes; at most {MAX_POINTS}", tree.nodes.len())))?;
+    let q = u32::try_from(queries.len())
+        .ok()
+        .filter(|&q| q <= MAX_POINTS)
+        .ok_or_else(|| Error::Failed(format!("{} query photons; at most {MAX_POINTS} a call", queries.len())))?;
+    let storage = |binding, name| BindingDesc { binding, kind: BindingKind::Storage, name };
+    let bindings = [
+        storage(BINDING_PHOTON_TREE, "photon tree"),
+        storage(BINDING_PHOTON_POINTS, "visible points"),
+        storage(BINDING_PHOTON_QUERIES, "photon tree queries"),
+        storage(BINDING_PHOTON_FOUND, "photon tree found"),
+    ];
+    let spv = spirv::get("photon_tree").ok_or_else(|| Error::Failed("kernel photon_tree is not compiled in".into()))?;
+    let mut kernel = ctx.create_kernel("photon_tree", spv, &bindings, &[], 16)?;
+    let node_bytes: &[u8] = if tree.nodes.is_empty() { &[0; 32] } else { bytemuck::cast_slice(&tree.nodes) };
+    let tbuf = ctx.upload_storage("photon tree", node_bytes)?;
+    let words: Vec<[f32; 4]> = queries.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
+    let qbuf = ctx.upload_storage("photon tree queries", bytemuck::cast_slice(&words))?;
+    let fbuf = ctx.create_buffer("photon tree found", u64::from(q) * 8, BufferKind::Storage)?;
+    for (binding, buffer) in [
+        (BINDING_PHOTON_TREE, &tbuf),
+        (BINDING_PHOTON_POINTS, points),
+        (BINDING_PHOTON_QUERIES, &qbuf),
+        (BINDING_PHOTON_FOUND, &fbuf),
+    ] {
+        ctx.bind(&mut kernel, binding, buffer)?;
+    }
+    let push = [nodes, q, 0, 0];
+    ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [q.div_ceil(PHOTON_GROUP), 1, 1], "photon tree: lookups")?;
+    ctx.check_validation()?;
+    ctx.read_storage_pod(&fbuf, 0, queries.len())
 }

@@ -20,7 +20,7 @@ pub mod device;
 mod hashgrid;
 mod kdtree;
 
-pub use device::{build_grid, upload_points, DeviceGrid};
+pub use device::{build_grid, tree_lookup_counts, upload_points, DeviceGrid};
 pub use hashgrid::HashGrid;
 pub use kdtree::PointTree;
 

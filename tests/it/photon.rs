@@ -1,10 +1,11 @@
 //! SPPM's hash grid built on the device (src/photon/device.rs) equals the host's build
 //! (`HashGrid::build`, itself checked against testing every point): the same box,
-//! edge, cells, bucket starts, and the same points in every bucket.
+//! edge, cells, bucket starts, and the same points in every bucket; photons looked up
+//! on the device, in the grid and in the kd-tree, find what testing every point finds.
 
 use crate::common;
 
-use arbor::photon::{build_grid, upload_points, HashGrid};
+use arbor::photon::{build_grid, tree_lookup_counts, upload_points, HashGrid, PointTree};
 use glam::Vec3;
 
 /// A small counter-based generator (splitmix64), seeded.
@@ -60,6 +61,10 @@ fn the_device_builds_the_hosts_hash_grid() {
             .collect();
         queries.extend((0..1000).map(|_| Vec3::new(rng.next(), rng.next(), rng.next()) * 12.0 - Vec3::ONE));
         let found = grid.lookup_counts(&ctx, &points, &queries).expect("device lookups");
+        // The kd-tree's lookup on the device finds the same.
+        let tree = PointTree::build(&positions, &radii).expect("tree build");
+        let in_tree = tree_lookup_counts(&ctx, &tree, &points, &queries).expect("device tree lookups");
+        assert_eq!(in_tree, found, "{name}: the kd-tree and the grid on the device");
         let mut held = 0;
         for (q, f) in queries.iter().zip(&found) {
             let want = arbor::photon::brute_force(&positions, &radii, *q);

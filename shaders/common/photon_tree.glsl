@@ -1,0 +1,41 @@
+// The lecture's kd-tree over visible points as the photon pass reads it
+// (src/photon/kdtree.rs, the layout: 32-byte nodes in preorder, each bounding its
+// subtree's spheres). Needs the buffers `tree_nodes` (two vec4 a node: min + point
+// bits, max + end bits) and `points` (vec4 position + radius) declared before it,
+// and PHOTON_TREE_STACK, the deepest tree it searches (floor(log2 n) + 1).
+#ifndef ARBOR_PHOTON_TREE_GLSL
+#define ARBOR_PHOTON_TREE_GLSL
+
+// photon::holds (as grid_holds in common/photon_grid.glsl).
+bool tree_holds(uint v, vec3 p) {
+    vec4 pr = points[v];
+    precise vec3 d = p - pr.xyz;
+    precise float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    precise float r2 = pr.w * pr.w;
+    return d2 < r2;
+}
+
+// PointTree::lookup: the points of the tree's n nodes that hold p, their count and
+// the sum of their indices + 1 (the photon pass will deposit where this counts).
+uvec2 tree_lookup(vec3 p, uint n) {
+    uvec2 found = uvec2(0u);
+    if (n == 0u) return found;
+    uint stack[PHOTON_TREE_STACK + 1];
+    uint sp = 0u;
+    stack[sp++] = 0u;
+    // Every node is visited at most once.
+    for (uint step = 0u; step < n && sp > 0u; step++) {
+        uint k = stack[--sp];
+        vec4 lo = tree_nodes[2u * k];
+        vec4 hi = tree_nodes[2u * k + 1u];
+        if (any(lessThan(p, lo.xyz)) || any(greaterThan(p, hi.xyz))) continue;
+        uint v = floatBitsToUint(lo.w);
+        if (tree_holds(v, p)) found += uvec2(1u, v + 1u);
+        uint m = floatBitsToUint(hi.w) - k;
+        if (m / 2u + 1u < m) stack[sp++] = k + 1u + m / 2u;
+        if (m > 1u) stack[sp++] = k + 1u;
+    }
+    return found;
+}
+
+#endif
