@@ -36,14 +36,7 @@ uint group_index() {
     return gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
 }
 
-// Order-preserving map of floats to uints (for atomicMin / atomicMax) and back.
-uint float_order(float f) {
-    uint b = floatBitsToUint(f);
-    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
-}
-float order_float(uint u) {
-    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7fffffffu) : ~u);
-}
+#include "common/float_order.glsl"
 
 // sah::area: 2 (ex ey + ey ez + ez ex), same operation order.
 float box_area(vec3 lo, vec3 hi) {

@@ -5,14 +5,7 @@
 #ifndef ARBOR_PHOTON_GRID_GLSL
 #define ARBOR_PHOTON_GRID_GLSL
 
-// Order-preserving map of floats to uints (for atomicMin / atomicMax) and back.
-uint float_order(float f) {
-    uint b = floatBitsToUint(f);
-    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
-}
-float order_float(uint u) {
-    return uintBitsToFloat((u & 0x80000000u) != 0u ? (u & 0x7fffffffu) : ~u);
-}
+#include "common/float_order.glsl"
 
 vec3 grid_min() {
     return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
