@@ -138,7 +138,7 @@ void main() {
         GridLookup g = grid_lookup_begin(queries[i].xyz, pc.n, pc.buckets);
         for (uint k = g.first; k < g.end; k++) {
             uint v = entries[k];
-            if (grid_holds(v, queries[i].xyz)) f += uvec2(1u, v + 1u);
+            if (photon_holds(v, queries[i].xyz)) f += uvec2(1u, v + 1u);
         }
         found[i] = f;
     }

@@ -32,15 +32,7 @@ bool bvh_traverse(Ray r, inout Hit h, bool any_hit) {
             BVH_NODE_STEP(node_texel, 4u * cur)
         }
         if ((cur & BVH_LEAF) == 0u) break;
-        uint tested = steps;
-        if (bvh_leaf(cur, r, h, any_hit, true, steps)) {
-            found = true;
-            if (any_hit) return true;
-        }
-        BVH_LEAF_CUT(tested);
-        if (sp == 0u) return found;
-        sp -= 1u;
-        cur = stack[sp];
+        BVH_LEAF_VISIT
     }
     BVH_SUSPEND;
     return found;

@@ -74,8 +74,12 @@ uint bvh_leaf_rest(uint ref, uint tested) {
     }
 
 // Resuming the BVH kernels' traversals (common/resume.glsl), on their locals cur, sp,
-// found and stack: the words BVH_RS_* below, the stack from RESUME_LEVEL_WORDS. BVH_LEAF_CUT(tested): after testing leaf cur from step count
-// `tested`, a leaf the step budget cut short leaves the loop with the rest of it in cur.
+// found and stack: the words BVH_RS_* below, the stack from RESUME_LEVEL_WORDS.
+// BVH_LEAF_CUT(tested): after testing leaf cur from step count `tested`, a leaf the
+// step budget cut short leaves the loop with the rest of it in cur. BVH_LEAF_VISIT:
+// the single-ray loops' (bvh.glsl, wide.glsl) leaf: test leaf cur (an any-hit trace
+// returns at its first hit), cut it short where the budget ran out, then take the next
+// node from the stack, or return when none is left.
 #define BVH_RS_CUR 0u    // the next reference
 #define BVH_RS_SP 1u
 #define BVH_RS_FOUND 2u
@@ -96,6 +100,18 @@ uint bvh_leaf_rest(uint ref, uint tested) {
     if (tested <= (cur & BVH_LEAF_COUNT_MASK)) { \
         cur = bvh_leaf_rest(cur, tested); \
         break; \
+    }
+#define BVH_LEAF_VISIT \
+    { \
+        uint tested = steps; \
+        if (bvh_leaf(cur, r, h, any_hit, true, steps)) { \
+            found = true; \
+            if (any_hit) return true; \
+        } \
+        BVH_LEAF_CUT(tested); \
+        if (sp == 0u) return found; \
+        sp -= 1u; \
+        cur = stack[sp]; \
     }
 #define BVH_SUSPEND \
     if (trace_suspend()) { \

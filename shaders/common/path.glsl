@@ -273,16 +273,10 @@ vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool fr
 }
 
 void path_main() {
-    uint local;
-    if (!job_begin(local)) return;
-    uint slot = local - DISPATCH_BASE;
-    uvec3 at = window_pixel(local);
-    uint pixel = at.x;
-    uint i = at.y;
-    uint j = at.z;
-
-    Pixel out_px = pixel_start(slot);
-    if (pixel_behind(out_px)) return;
+    PixelJob job;
+    Pixel out_px;
+    if (!pixel_job(job, out_px)) return;
+    uint slot = job.slot, pixel = job.pixel, i = job.i, j = job.j;
 
     g_rays = 0u;
     for (uint s = sample_begin(out_px); s < DISPATCH_SAMPLE_END; s++) {

@@ -6,6 +6,7 @@
 #define ARBOR_PHOTON_GRID_GLSL
 
 #include "common/float_order.glsl"
+#include "common/photon_holds.glsl"
 
 vec3 grid_min() {
     return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
@@ -27,18 +28,8 @@ uvec3 grid_cell(vec3 p, vec3 lo, float edge, uvec3 res) {
     return c;
 }
 
-// photon::holds: whether visible point v holds p within its radius.
-bool grid_holds(uint v, vec3 p) {
-    vec4 pr = points[v];
-    precise vec3 d = p - pr.xyz;
-    // |d|^2 summed in the host's order, without fused multiply-adds.
-    precise float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    precise float r2 = pr.w * pr.w;
-    return d2 < r2;
-}
-
 // HashGrid::lookup: the range of entries a photon at p tests (empty outside the box
-// or over no points); each entry is a visible point to test with grid_holds.
+// or over no points); each entry is a visible point to test with photon_holds.
 struct GridLookup {
     uint first;
     uint end;

@@ -6,14 +6,7 @@
 #ifndef ARBOR_PHOTON_TREE_GLSL
 #define ARBOR_PHOTON_TREE_GLSL
 
-// photon::holds (as grid_holds in common/photon_grid.glsl).
-bool tree_holds(uint v, vec3 p) {
-    vec4 pr = points[v];
-    precise vec3 d = p - pr.xyz;
-    precise float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    precise float r2 = pr.w * pr.w;
-    return d2 < r2;
-}
+#include "common/photon_holds.glsl"
 
 // PointTree::lookup: the points of the tree's n nodes that hold p, their count and
 // the sum of their indices + 1 (the photon pass will deposit where this counts).
@@ -30,7 +23,7 @@ uvec2 tree_lookup(vec3 p, uint n) {
         vec4 hi = tree_nodes[2u * k + 1u];
         if (any(lessThan(p, lo.xyz)) || any(greaterThan(p, hi.xyz))) continue;
         uint v = floatBitsToUint(lo.w);
-        if (tree_holds(v, p)) found += uvec2(1u, v + 1u);
+        if (photon_holds(v, p)) found += uvec2(1u, v + 1u);
         uint m = floatBitsToUint(hi.w) - k;
         if (m / 2u + 1u < m) stack[sp++] = k + 1u + m / 2u;
         if (m > 1u) stack[sp++] = k + 1u;

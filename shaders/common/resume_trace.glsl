@@ -242,6 +242,28 @@ bool pixel_behind(Pixel p) {
     return false;
 }
 
+// The job of a sampling integrator (path, Whitted): the invocation's pixel
+// (job_begin), its slot in the pixel buffer, the pixel of the full image with its
+// column i and row j (window_pixel), and its state before this dispatch (pixel_start,
+// into px); false where there is no job or the pixel is behind.
+struct PixelJob {
+    uint slot;
+    uint pixel;
+    uint i;
+    uint j;
+};
+bool pixel_job(out PixelJob job, out Pixel px) {
+    uint local;
+    if (!job_begin(local)) return false;
+    job.slot = local - DISPATCH_BASE;
+    uvec3 at = window_pixel(local);
+    job.pixel = at.x;
+    job.i = at.y;
+    job.j = at.z;
+    px = pixel_start(job.slot);
+    return !pixel_behind(px);
+}
+
 // The invocation ends: the trace kernel counts a stopped sample in the header (the
 // resume kernel counted its jobs as it gave them out).
 void job_end() {

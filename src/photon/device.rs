@@ -127,7 +127,7 @@ fn grid_kernel(ctx: &Context, bindings: &[BindingDesc]) -> Result<crate::gpu::Ke
 
 impl DeviceGrid {
     /// Looks up photons at `queries` on the device, as the photon pass will
-    /// (`grid_lookup_begin` and `grid_holds` in shaders/common/photon_grid.glsl): per
+    /// (`grid_lookup_begin` in shaders/common/photon_grid.glsl and `photon_holds`): per
     /// photon, the visible points of `points` (the buffer the grid was built over) that
     /// hold it, and the sum of their indices + 1. For tests and the benchmark.
     pub fn lookup_counts(&self, ctx: &Context, points: &Buffer, queries: &[Vec3]) -> Result<Vec<[u32; 2]>> {

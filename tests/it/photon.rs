@@ -4,22 +4,10 @@
 //! on the device, in the grid and in the kd-tree, find what testing every point finds.
 
 use crate::common;
+use crate::sampling::Rng;
 
 use arbor::photon::{build_grid, tree_lookup_counts, upload_points, HashGrid, PointTree};
 use glam::Vec3;
-
-/// A small counter-based generator (splitmix64), seeded.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 #[test]
 fn the_device_builds_the_hosts_hash_grid() {
