@@ -21,10 +21,10 @@ void main() {
     uint o = 0u;
     // GpuParams, every field in declaration order
     f3(o, params.cam_eye); f1(o, params.tan_half_fov); f3(o, params.cam_right); f1(o, params.aspect);
-    f3(o, params.cam_up); f1(o, params.pad0); f3(o, params.cam_forward); f1(o, params.pad1);
-    f3(o, params.scene_min); f1(o, params.pad2); f3(o, params.scene_max); f1(o, params.pad3);
+    f3(o, params.cam_up); f1(o, params.photon_unit); f3(o, params.cam_forward); f1(o, params.photon_radius);
+    f3(o, params.scene_min); w1(o, params.photon_light_table); f3(o, params.scene_max); w1(o, params.photon_lights);
     w1(o, params.width); w1(o, params.height); w1(o, params.triangle_count); w1(o, params.sphere_count);
-    w1(o, params.light_count); w1(o, params.material_count); w1(o, params.seed); w1(o, params.pad4);
+    w1(o, params.light_count); w1(o, params.material_count); w1(o, params.seed); w1(o, params.photon_count);
     f3(o, params.background); f1(o, params.ambient);
     w1(o, params.emitter_table); w1(o, params.texture_table); w1(o, params.env_texel_table); w1(o, params.env_distribution_table);
     f1(o, params.env_intensity); f1(o, params.env_rotation); f1(o, params.emitter_power); f1(o, params.pad5);

@@ -37,19 +37,19 @@ layout(std430, set = 0, binding = BINDING_PHOTON_FOUND) writeonly buffer GridFou
 // HashGrid::buckets_of: the distinct buckets of the cells that point i's sphere box
 // overlaps, in the order first met (at most 27).
 uint point_buckets(uint i, out uint seen[27]) {
-    vec3 lo = grid_min();
+    vec3 lo = photon_grid_min();
     float edge = uintBitsToFloat(header[PHOTON_HDR_EDGE]);
     uvec3 res = uvec3(header[PHOTON_HDR_RES], header[PHOTON_HDR_RES + 1u], header[PHOTON_HDR_RES + 2u]);
     vec4 pr = points[i];
     precise vec3 a = pr.xyz - vec3(pr.w);
     precise vec3 b = pr.xyz + vec3(pr.w);
-    uvec3 c0 = grid_cell(a, lo, edge, res);
-    uvec3 c1 = grid_cell(b, lo, edge, res);
+    uvec3 c0 = photon_grid_cell(a, lo, edge, res);
+    uvec3 c1 = photon_grid_cell(b, lo, edge, res);
     uint m = 0u;
     for (uint z = c0.z; z <= c1.z && z < c0.z + 3u; z++) {
         for (uint y = c0.y; y <= c1.y && y < c0.y + 3u; y++) {
             for (uint x = c0.x; x <= c1.x && x < c0.x + 3u; x++) {
-                uint h = grid_hash(uvec3(x, y, z), pc.buckets);
+                uint h = photon_grid_hash(uvec3(x, y, z), pc.buckets);
                 bool fresh = true;
                 for (uint k = 0u; k < m; k++) fresh = fresh && seen[k] != h;
                 if (fresh) {
@@ -64,11 +64,16 @@ uint point_buckets(uint i, out uint seen[27]) {
 
 shared uint s_sum[PHOTON_GROUP];
 
+uvec2 g_found = uvec2(0u);
+void photon_visit(uint v, vec3 p) { g_found += uvec2(1u, v + 1u); }
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (pc.mode == PHOTON_GRID_BOUNDS) {
         if (i >= pc.n) return;
         vec4 pr = points[i];
+        // Radius 0: the pixel has no visible point this iteration (SPPM's camera pass).
+        if (!(pr.w > 0.0)) return;
         precise vec3 a = pr.xyz - vec3(pr.w);
         precise vec3 b = pr.xyz + vec3(pr.w);
         for (uint k = 0u; k < 3u; k++) {
@@ -79,10 +84,16 @@ void main() {
         atomicMax(header[PHOTON_HDR_RADIUS], floatBitsToUint(pr.w));
     } else if (pc.mode == PHOTON_GRID_FRAME) {
         if (i != 0u) return;
-        vec3 lo = grid_min();
+        vec3 lo = photon_grid_min();
         vec3 hi = vec3(order_float(header[PHOTON_HDR_MAX]), order_float(header[PHOTON_HDR_MAX + 1u]),
                        order_float(header[PHOTON_HDR_MAX + 2u]));
         float radius = uintBitsToFloat(header[PHOTON_HDR_RADIUS]);
+        if (!(radius > 0.0)) {
+            // No point has a radius: one cell, which no lookup reaches.
+            for (uint a = 0u; a < 3u; a++) header[PHOTON_HDR_RES + a] = 1u;
+            header[PHOTON_HDR_EDGE] = floatBitsToUint(1.0);
+            return;
+        }
         precise vec3 extent = hi - lo;
         float edge = radius;
         for (uint a = 0u; a < 3u; a++) {
@@ -94,7 +105,7 @@ void main() {
         }
         header[PHOTON_HDR_EDGE] = floatBitsToUint(edge);
     } else if (pc.mode == PHOTON_GRID_COUNT) {
-        if (i >= pc.n) return;
+        if (i >= pc.n || !(points[i].w > 0.0)) return;
         uint seen[27];
         uint m = point_buckets(i, seen);
         for (uint k = 0u; k < m; k++) atomicAdd(starts[seen[k]], 1u);
@@ -128,18 +139,13 @@ void main() {
             run += c;
         }
     } else if (pc.mode == PHOTON_GRID_SCATTER) {
-        if (i >= pc.n) return;
+        if (i >= pc.n || !(points[i].w > 0.0)) return;
         uint seen[27];
         uint m = point_buckets(i, seen);
         for (uint k = 0u; k < m; k++) entries[atomicAdd(cursor[seen[k]], 1u)] = i;
     } else if (pc.mode == PHOTON_GRID_PROBE) {
         if (i >= pc.unused) return;
-        uvec2 f = uvec2(0u);
-        GridLookup g = grid_lookup_begin(queries[i].xyz, pc.n, pc.buckets);
-        for (uint k = g.first; k < g.end; k++) {
-            uint v = entries[k];
-            if (photon_holds(v, queries[i].xyz)) f += uvec2(1u, v + 1u);
-        }
-        found[i] = f;
+        grid_walk(queries[i].xyz, pc.n, pc.buckets, 0xffffffffu);
+        found[i] = g_found;
     }
 }

@@ -22,8 +22,12 @@ layout(std430, set = 0, binding = BINDING_PHOTON_FOUND) writeonly buffer TreeFou
 #define PHOTON_TREE_STACK PHOTON_TREE_MAX_DEPTH
 #include "common/photon_tree.glsl"
 
+uvec2 g_found = uvec2(0u);
+void photon_visit(uint v, vec3 p) { g_found += uvec2(1u, v + 1u); }
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= pc.photons) return;
-    found[i] = tree_lookup(queries[i].xyz, pc.nodes);
+    tree_walk(queries[i].xyz, pc.nodes);
+    found[i] = g_found;
 }

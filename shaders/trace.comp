@@ -1,7 +1,8 @@
 #version 460
-// The trace kernel, one thread per pixel, for either integrator (SPEC_INTEGRATOR):
-// Whitted (the preview: direct light, mirrors, glass split; common/whitted.glsl) or
-// path tracing (common/path.glsl). Each thread runs samples [z, w) of pixels
+// The trace kernel, one thread per pixel, for each integrator (SPEC_INTEGRATOR):
+// Whitted (the preview: direct light, mirrors, glass split; common/whitted.glsl), path
+// tracing (common/path.glsl), or SPPM's passes (common/sppm.glsl: one thread a pixel or
+// a photon). Each thread runs samples [z, w) of pixels
 // [x, x + y) of `dispatch_range` (the pixel buffer's header).
 // Compiled once per (structure, geometry, integrator) variant by build.rs: exactly one
 // ACCEL_* macro is set, HAS_TRIANGLES / HAS_SPHERES decide which buffers exist,
@@ -238,6 +239,9 @@ void surface(Hit h, Ray r, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn, o
 #include "common/bsdf.glsl"
 #include "common/path.glsl"
 #include "common/whitted.glsl"
+#if !defined(RAY_BATCH) && TRACE_ENTRY == INTEGRATOR_SPPM
+#include "common/sppm.glsl"
+#endif
 
 // The benchmark's probe kernel (INTEGRATOR 2): the camera ray of sample 0 and, with
 // DIFFUSE_PROBE, one cosine-distributed ray from its hit, on the side the camera ray
@@ -333,6 +337,8 @@ void main() {
     path_main();
 #elif TRACE_ENTRY == INTEGRATOR_PROBE
     probe_main();
+#elif TRACE_ENTRY == INTEGRATOR_SPPM
+    sppm_main();
 #else
     whitted_main();
 #endif

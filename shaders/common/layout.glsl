@@ -30,13 +30,13 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     vec3 cam_right;              // 16  unit
     float aspect;                // 28  width / height
     vec3 cam_up;                 // 32  unit
-    float pad0;                  // 44
+    float photon_unit;           // 44  SPPM: the flux of one unit of a deposit
     vec3 cam_forward;            // 48  unit
-    float pad1;                  // 60
+    float photon_radius;         // 60  SPPM: the initial radius (0: footprint)
     vec3 scene_min;              // 64  the scene box
-    float pad2;                  // 76
+    uint photon_light_table;     // 76  SPPM: the photon light table's first row
     vec3 scene_max;              // 80
-    float pad3;                  // 92
+    uint photon_lights;          // 92  SPPM: its rows
     uint width;                  // 96  the whole image
     uint height;                 // 100
     uint triangle_count;         // 104 primitives 0.. are triangles, spheres follow
@@ -44,7 +44,7 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     uint light_count;            // 112 (the light loops use SPEC_LIGHTS)
     uint material_count;         // 116 the light records follow the materials
     uint seed;                   // 120
-    uint pad4;                   // 124
+    uint photon_count;           // 124 SPPM: photons per iteration
     vec3 background;             // 128 radiance of a ray that leaves the scene
     float ambient;               // 140 Whitted's ambient factor
     uint emitter_table;          // 144 first shading rows of the path integrator's tables:
@@ -138,7 +138,7 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_range;  // 0  first, count, sample_begin, sample_end
     uvec4 dispatch_chunk;  // 16 base, resumed, pass, counter (DispatchChunk; copied back)
     uvec4 dispatch_window; // 32 window_left, window_top, window_width, zero_sample
-    uvec4 dispatch_limits; // 48 trace_steps (TREE_STEPS in trace.comp), then 0, 0, 0
+    uvec4 dispatch_limits; // 48 trace_steps (TREE_STEPS in trace.comp), sppm_pass, map_size, map_buckets
     Pixel pixels[];        // 64
 };
 
@@ -157,6 +157,9 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
 #define DISPATCH_WINDOW_WIDTH dispatch_window.z
 #define DISPATCH_ZERO_SAMPLE dispatch_window.w  // the sample at which pixels start from zero
 #define DISPATCH_TRACE_STEPS dispatch_limits.x  // steps one trace may take
+#define DISPATCH_SPPM_PASS dispatch_limits.y    // SPPM: SPPM_PASS_*
+#define DISPATCH_MAP_SIZE dispatch_limits.z     // SPPM: points in the grid, or tree nodes
+#define DISPATCH_MAP_BUCKETS dispatch_limits.w  // SPPM: the grid's buckets
 
 // The pixel of the full image that window-relative pixel `local` is (the random
 // numbers are keyed by it, so a crop renders exactly what the whole image would), and

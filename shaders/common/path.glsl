@@ -97,6 +97,20 @@ float light_pdf(uint prim, uint mat, vec3 p, vec3 d, float t, vec3 gn) {
 #endif
 }
 
+// The emitter table's primitive that u chooses (by power), and its probability.
+uint emitter_pick(float u, out float pmf) {
+    uint base = params.emitter_table;
+    uint lo = 0u;
+    uint hi = EMITTER_COUNT;
+    for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
+        uint mid = (lo + hi) >> 1u;
+        if (shading_row(base + mid).y <= u) lo = mid; else hi = mid;
+    }
+    vec4 row = shading_row(base + lo);
+    pmf = row.z;
+    return floatBitsToUint(row.x);
+}
+
 // Samples a point on an emitter seen from p: direction wi, distance, radiance and
 // solid-angle pdf (the emitter's probability included). False when it sends nothing.
 bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, out float pdf) {
@@ -104,16 +118,8 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     pdf = 0.0;
     wi = vec3(0.0, 1.0, 0.0);
     dist = 0.0;
-    uint base = params.emitter_table;
-    uint lo = 0u;
-    uint hi = EMITTER_COUNT;
-    for (uint k = 0u; k < 32u && hi - lo > 1u; k++) {
-        uint mid = (lo + hi) >> 1u;
-        if (shading_row(base + mid).y <= u.x) lo = mid; else hi = mid;
-    }
-    vec4 row = shading_row(base + lo);
-    uint prim = floatBitsToUint(row.x);
-    float pmf = row.z;
+    float pmf;
+    uint prim = emitter_pick(u.x, pmf);
     if (pmf <= 0.0) return false;
     vec3 gn;
     uint mat;
@@ -272,6 +278,38 @@ vec3 area_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool fr
     return f * le * (abs(dot(n, wi)) * w / lpdf);
 }
 
+// Next-event estimation at a non-delta vertex toward wo: every point and directional
+// light, one area light and the environment map, weighed against BSDF sampling as
+// `mis` says (MIS_*: path's MIS_MODE; SPPM's visible points take light sampling alone,
+// MIS_LIGHT), each term times beta added to L. Draws the same random numbers whatever
+// `mis` is.
+void direct_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front, inout uint rng, uint mis,
+                  vec3 beta, inout vec3 L) {
+    L += beta * delta_lights(m, p, err, n, gnf, wo, front);
+    if (EMITTER_COUNT > 0u && mis != MIS_BSDF) {
+        vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
+        L += beta * area_light(m, p, err, n, gnf, wo, front, u3, mis == MIS_BOTH);
+    } else if (EMITTER_COUNT > 0u) {
+        rng_next(rng); rng_next(rng); rng_next(rng);
+    }
+    if (ENV_WIDTH > 0u && mis != MIS_BSDF) {
+        vec3 wi;
+        float epdf;
+        uvec2 ecell;
+        vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf, ecell);
+        if (epdf > 0.0 && (dot(gnf, wi) > 0.0 || bsdf_transmits(m))) {
+            float bpdf;
+            vec3 f = bsdf_eval(m, n, wo, wi, front, bpdf);
+            if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, 3.0e38)) {
+                float w = mis == MIS_BOTH ? power_heuristic(epdf, bpdf) : 1.0;
+                L += beta * f * ele * (abs(dot(n, wi)) * w / epdf);
+            }
+        }
+    } else if (ENV_WIDTH > 0u) {
+        rng_next(rng); rng_next(rng);
+    }
+}
+
 void path_main() {
     PixelJob job;
     Pixel out_px;
@@ -337,29 +375,7 @@ void path_main() {
             vec3 wo = -r.dir;
             bool delta = bsdf_is_delta(m);
             if (!delta) {
-                L += beta * delta_lights(m, p, err, n, gnf, wo, front);
-                if (EMITTER_COUNT > 0u && MIS_MODE != MIS_BSDF) {
-                    vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-                    L += beta * area_light(m, p, err, n, gnf, wo, front, u3, MIS_MODE == MIS_BOTH);
-                } else if (EMITTER_COUNT > 0u) {
-                    rng_next(rng); rng_next(rng); rng_next(rng);
-                }
-                if (ENV_WIDTH > 0u && MIS_MODE != MIS_BSDF) {
-                    vec3 wi;
-                    float epdf;
-                    uvec2 ecell;
-                    vec3 ele = env_sample(rng_next(rng), rng_next(rng), wi, epdf, ecell);
-                    if (epdf > 0.0 && (dot(gnf, wi) > 0.0 || bsdf_transmits(m))) {
-                        float bpdf;
-                        vec3 f = bsdf_eval(m, n, wo, wi, front, bpdf);
-                        if (f != vec3(0.0) && unoccluded(p, err, gnf, wi, 3.0e38)) {
-                            float w = MIS_MODE == MIS_BOTH ? power_heuristic(epdf, bpdf) : 1.0;
-                            L += beta * f * ele * (abs(dot(n, wi)) * w / epdf);
-                        }
-                    }
-                } else if (ENV_WIDTH > 0u) {
-                    rng_next(rng); rng_next(rng);
-                }
+                direct_light(m, p, err, n, gnf, wo, front, rng, MIS_MODE, beta, L);
             }
             vec3 wi, weight;
             float bpdf;

@@ -8,11 +8,13 @@
 
 #include "common/photon_holds.glsl"
 
-// PointTree::lookup: the points of the tree's n nodes that hold p, their count and
-// the sum of their indices + 1 (the photon pass will deposit where this counts).
-uvec2 tree_lookup(vec3 p, uint n) {
-    uvec2 found = uvec2(0u);
-    if (n == 0u) return found;
+// What a lookup does with visible point v, which holds p (the includer defines it:
+// photon_tree.comp counts, the photon pass deposits).
+void photon_visit(uint v, vec3 p);
+
+// PointTree::lookup: photon_visit for each point of the tree's n nodes that holds p.
+void tree_walk(vec3 p, uint n) {
+    if (n == 0u) return;
     uint stack[PHOTON_TREE_STACK + 1];
     uint sp = 0u;
     stack[sp++] = 0u;
@@ -23,12 +25,11 @@ uvec2 tree_lookup(vec3 p, uint n) {
         vec4 hi = tree_nodes[2u * k + 1u];
         if (any(lessThan(p, lo.xyz)) || any(greaterThan(p, hi.xyz))) continue;
         uint v = floatBitsToUint(lo.w);
-        if (photon_holds(v, p)) found += uvec2(1u, v + 1u);
+        if (photon_holds(v, p)) photon_visit(v, p);
         uint m = floatBitsToUint(hi.w) - k;
         if (m / 2u + 1u < m) stack[sp++] = k + 1u + m / 2u;
         if (m > 1u) stack[sp++] = k + 1u;
     }
-    return found;
 }
 
 #endif

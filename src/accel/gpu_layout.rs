@@ -199,8 +199,8 @@ pub struct GpuRay {
 }
 
 /// The uniform block (std140: a `[f32; 3]` is a vec3, which the scalar after it
-/// completes to 16 bytes). `ParamsBlock` in shaders/common/layout.glsl; the `pad*`
-/// words are 0.
+/// completes to 16 bytes). `ParamsBlock` in shaders/common/layout.glsl; `pad5`
+/// is 0.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuParams {
@@ -214,16 +214,21 @@ pub struct GpuParams {
     pub aspect: f32,
     /// bytes 32..44: camera up (unit)
     pub cam_up: [f32; 3],
-    pub pad0: f32,
+    /// bytes 44..48: SPPM: the flux one unit of a photon deposit's fixed point stands
+    /// for (0 for the other integrators)
+    pub photon_unit: f32,
     /// bytes 48..60: camera forward (unit)
     pub cam_forward: [f32; 3],
-    pub pad1: f32,
+    /// bytes 60..64: SPPM: the initial radius (0: from the pixel footprint)
+    pub photon_radius: f32,
     /// bytes 64..76: the scene box's minimum
     pub scene_min: [f32; 3],
-    pub pad2: f32,
+    /// bytes 76..80: SPPM: first shading row of the photon pass's light table
+    pub photon_light_table: u32,
     /// bytes 80..92: the scene box's maximum
     pub scene_max: [f32; 3],
-    pub pad3: f32,
+    /// bytes 92..96: SPPM: the rows of that table
+    pub photon_lights: u32,
     /// bytes 96..100: the whole image's width in pixels
     pub width: u32,
     /// bytes 100..104: its height
@@ -239,7 +244,8 @@ pub struct GpuParams {
     pub material_count: u32,
     /// bytes 120..124: the render's seed
     pub seed: u32,
-    pub pad4: u32,
+    /// bytes 124..128: SPPM: photons traced per iteration
+    pub photon_count: u32,
     /// bytes 128..140: background radiance (a ray that leaves the scene)
     pub background: [f32; 3],
     /// bytes 140..144: Whitted's ambient factor (0 for the path integrator)
@@ -295,8 +301,13 @@ pub struct GpuDispatch {
     /// budget). Not a specialization constant: every budget would be a pipeline of
     /// its own (a render with `--trace-steps` next to one without compiled twice).
     pub trace_steps: u32,
-    /// bytes 52..64: 0
-    pub unused: [u32; 3],
+    /// bytes 52..56: SPPM: the pass (`SPPM_PASS_*`; 0 for the other integrators)
+    pub sppm_pass: u32,
+    /// bytes 56..60: SPPM's photon pass: the photon map's size (visible points in the
+    /// grid, or the kd-tree's nodes)
+    pub map_size: u32,
+    /// bytes 60..64: SPPM's photon pass: the grid's buckets
+    pub map_buckets: u32,
 }
 
 /// Bytes 16..32 of the dispatch header (`dispatch_chunk` in layout.glsl): what the

@@ -277,29 +277,46 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_name = "WxH")]
     pub(crate) size: Option<String>,
     /// Light transport: path (path tracing with area lights, environment light,
-    /// soft shadows and indirect light; converges with more samples) or whitted (the
-    /// fast preview: direct light from point, directional and area lights, textures,
-    /// mirrors, glass followed both ways to 3 splits; no indirect diffuse light and no
-    /// environment map: the background instead; area lights converge with --spp).
-    #[arg(long, default_value = "path", value_parser = ["path", "whitted"])]
+    /// soft shadows and indirect light; converges with more samples), sppm
+    /// (stochastic progressive photon mapping: also the caustics path cannot find,
+    /// light from small lamps focused by glass or mirrors onto diffuse surfaces;
+    /// docs/caustics.md) or whitted (the fast preview: direct light from point,
+    /// directional and area lights, textures, mirrors, glass followed both ways to 3
+    /// splits; no indirect diffuse light and no environment map: the background
+    /// instead; area lights converge with --spp).
+    #[arg(long, default_value = "path", value_parser = ["path", "sppm", "whitted"])]
     pub(crate) integrator: String,
-    /// Samples per pixel, 1..=1048576 (default: 64 for path, 1 for whitted). Path:
-    /// every sample jittered in the pixel; whitted: sample 0 through the pixel centre.
+    /// Samples per pixel, 1..=1048576 (default: 64 for path and sppm, 1 for whitted).
+    /// Path: every sample jittered in the pixel; sppm: the iterations, each a camera
+    /// path a pixel and --photons photons; whitted: sample 0 through the pixel centre.
     /// Time grows with pixels x samples: long renders show progress on stderr.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) spp: Option<u32>,
-    /// Path: stop after the first sample wave past this many seconds (the image holds
-    /// the samples done so far, at most --spp; the stats say how many).
+    /// Path and sppm: stop after the first sample wave (sppm: iteration) past this many
+    /// seconds (the image holds the samples done so far, at most --spp; the stats say
+    /// how many).
     #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub(crate) time: Option<f64>,
-    /// Path: write the image (and AOVs and stats) so far every SECONDS, atomically, to
-    /// the output paths; the final image replaces it.
+    /// Path and sppm: write the image (and AOVs and stats) so far every SECONDS,
+    /// atomically, to the output paths; the final image replaces it.
     #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub(crate) checkpoint: Option<f64>,
     /// Longest path in segments (1: only what emits; 2: direct light; default: the
     /// scene's [render] max_depth, else 8), at most 16.
     #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub(crate) max_depth: Option<u32>,
+    /// Sppm: photons per iteration, 1..=67108864 (default: one a pixel of the image).
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
+    pub(crate) photons: Option<i64>,
+    /// Sppm: every pixel's initial photon radius, in scene units (default: six pixel
+    /// footprints at each pixel's visible point); it shrinks as photons arrive.
+    #[arg(long, allow_negative_numbers = true, value_name = "R")]
+    pub(crate) photon_radius: Option<f64>,
+    /// Sppm: how photons find the pixels they light: hashgrid (a hash grid built on
+    /// the device each iteration; the default) or kdtree (the lecture's kd-tree,
+    /// balanced on the pixels' points and built on the host). Both give the same image.
+    #[arg(long, value_parser = ["hashgrid", "kdtree"], value_name = "MAP")]
+    pub(crate) photon_map: Option<String>,
     /// Path: direct-light estimators: both (multiple importance sampling), light
     /// (light sampling only) or bsdf (BSDF sampling only). The three converge to the
     /// same image; both has the least noise.

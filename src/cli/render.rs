@@ -29,13 +29,14 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     output::check_outputs(paths.chain(&a.trace.trace_events).map(|p| p.as_path()))?;
     let _recording = start_trace(&a.trace, "render")?;
     let integrator = render::Integrator::parse(&a.integrator).unwrap_or_default();
-    let spp = a.spp.unwrap_or(if integrator == render::Integrator::Path { DEFAULT_PATH_SPP } else { 1 });
+    let spp = a.spp.unwrap_or(if integrator == render::Integrator::Whitted { 1 } else { DEFAULT_PATH_SPP });
     if spp == 0 || spp > 1 << 20 {
         return Err(usage(format!("--spp must be 1..=1048576, got {spp}")));
     }
     if integrator == render::Integrator::Whitted && (a.time.is_some() || a.checkpoint.is_some()) {
-        return Err(usage("--time and --checkpoint need --integrator path"));
+        return Err(usage("--time and --checkpoint need --integrator path or sppm"));
     }
+    let sppm = sppm_settings(a, integrator)?;
     if let Some(c) = a.checkpoint {
         if !(c.is_finite() && c > 0.0) {
             return Err(usage(format!("--checkpoint must be a positive number of seconds, got {c}")));
@@ -66,6 +67,7 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
     settings.integrator = integrator;
     settings.time_budget = a.time;
     settings.max_depth = a.max_depth;
+    settings.sppm = sppm;
     settings.mis = match a.mis.as_str() {
         "light" => render::Mis::Light,
         "bsdf" => render::Mis::Bsdf,
@@ -186,11 +188,39 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
             },
             ms(start)
         );
+        if let Some(sp) = &st.sppm {
+            eprintln!("{}", sppm_line(sp));
+        }
         if let Some(p) = &a.trace.trace_events {
             eprintln!("wrote {} (the timeline of this render)", p.display());
         }
     }
     Ok(())
+}
+
+/// SPPM's summary line: photons, the map and its cost, and what was lost.
+fn sppm_line(sp: &render::integrators::sppm::SppmStats) -> String {
+    let mut lost = Vec::new();
+    if sp.cut_paths > 0 {
+        lost.push(format!("{} paths cut short by the traversal's step budget (their light is lost)", sp.cut_paths));
+    }
+    if sp.truncated_lookups > 0 {
+        lost.push(format!(
+            "{} photon lookups met more than {} candidates in one grid cell and tested only those (try --photon-map kdtree or a smaller --photon-radius)",
+            sp.truncated_lookups,
+            arbor::gpu::bindings::SPPM_BUCKET_MOST
+        ));
+    }
+    format!(
+        "sppm: {} iterations x {} photons ({} photon rays, {} deposits), photon map {} built in {:.0} ms in all; {}",
+        sp.iterations,
+        sp.photons_per_iteration,
+        sp.photon_rays,
+        sp.deposits,
+        sp.photon_map,
+        sp.map_ms,
+        if lost.is_empty() { "no path cut short, no lookup truncated".to_string() } else { lost.join("; ") }
+    )
 }
 
 /// The AOVs of a render and what their heatmaps say.
@@ -254,6 +284,49 @@ fn shard_settings(a: &RenderArgs, settings: &mut RenderSettings) -> Result<(u32,
     settings.first_sample = first;
     settings.spp = count;
     Ok((total, shard.map(|s| s.describe(by)).unwrap_or_default()))
+}
+
+/// SPPM's flags, refused with another integrator and checked as `arbor render --help`
+/// states them.
+fn sppm_settings(a: &RenderArgs, integrator: render::Integrator) -> Result<render::integrators::sppm::SppmSettings> {
+    use render::integrators::sppm::{PhotonMap, SppmSettings, MAX_PHOTONS};
+    let given = [
+        (a.photons.is_some(), "--photons"),
+        (a.photon_radius.is_some(), "--photon-radius"),
+        (a.photon_map.is_some(), "--photon-map"),
+    ];
+    if integrator != render::Integrator::Sppm {
+        if let Some((_, flag)) = given.iter().find(|g| g.0) {
+            return Err(usage(format!("{flag} is a setting of --integrator sppm, not {}", integrator.name())));
+        }
+        return Ok(SppmSettings::default());
+    }
+    let photons = match a.photons {
+        Some(n) if n < 1 || n > i64::from(MAX_PHOTONS) => {
+            return Err(usage(format!("--photons must be 1..={MAX_PHOTONS}, got {n}")));
+        }
+        n => n.map(|n| n as u32),
+    };
+    let radius = match a.photon_radius {
+        Some(r) if !(r.is_finite() && r > 0.0 && r < f64::from(f32::MAX)) => {
+            return Err(usage(format!("--photon-radius must be a positive distance, got {r}")));
+        }
+        r => r.map(|r| r as f32),
+    };
+    if a.resume.is_some() {
+        return Err(usage("--resume cannot continue an sppm render: each iteration shrinks every pixel's radius from the last, so a render is one run; render it again with more --spp"));
+    }
+    if a.shard.is_some() && a.shard_by != "tiles" {
+        return Err(usage(
+            "sppm renders shard by tiles only (--shard-by tiles): averaging independent sppm runs is not one long run",
+        ));
+    }
+    if a.sample_offset.is_some_and(|o| o > 0) {
+        return Err(usage("--sample-offset: sppm renders cannot be split by samples (averaging independent sppm runs is not one long run)"));
+    }
+    let map = a.photon_map.as_deref().map_or(Some(PhotonMap::default()), PhotonMap::parse);
+    let map = map.ok_or_else(|| usage("--photon-map must be hashgrid or kdtree"))?;
+    Ok(SppmSettings { photons, radius, map })
 }
 
 /// Reads the part `--resume` names and checks that this command renders the same

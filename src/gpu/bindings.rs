@@ -201,9 +201,16 @@ pub const SPEC_INTEGRATOR: u32 = 11;
 pub const INTEGRATOR_WHITTED: u32 = 0;
 pub const INTEGRATOR_PATH: u32 = 1;
 pub const INTEGRATOR_PROBE: u32 = 2;
+/// Stochastic progressive photon mapping (common/sppm.glsl): its camera, photon and
+/// update passes (`SPPM_PASS_*`, the dispatch header's `sppm_pass`) in one module.
+pub const INTEGRATOR_SPPM: u32 = 3;
 /// The entry points' module suffixes, by SPEC_INTEGRATOR value.
-pub const TRACE_ENTRIES: [(&str, u32); 3] =
-    [("whitted", INTEGRATOR_WHITTED), ("path", INTEGRATOR_PATH), ("probe", INTEGRATOR_PROBE)];
+pub const TRACE_ENTRIES: [(&str, u32); 4] = [
+    ("whitted", INTEGRATOR_WHITTED),
+    ("path", INTEGRATOR_PATH),
+    ("probe", INTEGRATOR_PROBE),
+    ("sppm", INTEGRATOR_SPPM),
+];
 /// Path integrator: emissive primitives in the emitter table (0: no area-light code).
 pub const SPEC_EMITTERS: u32 = 12;
 /// Path integrator: environment map width and height in texels (width 0: no map).
@@ -388,6 +395,71 @@ pub const PHOTON_GRID_MAX_RES: u32 = 1 << 20;
 /// Threads per workgroup of the grid's passes (the scan is one workgroup).
 pub const PHOTON_GROUP: u32 = 256;
 
+/// SPPM (src/render/integrators/sppm.rs, shaders/common/sppm.glsl): the trace kernel's
+/// extra bindings in its `sppm` module, each over the window's pixels (slots):
+/// the visible points as the photon lookups read them (vec4 position + radius; radius 0
+/// where a pixel has none this iteration).
+pub const BINDING_SPPM_POINTS: u32 = 11;
+/// Per slot `SPPM_RECORD_ROWS` vec4 rows (`SPPM_REC_*`): the visible point and the
+/// pixel's running estimate.
+pub const BINDING_SPPM_RECORDS: u32 = 12;
+/// `SPPM_COUNTERS` counters of the whole render (`SPPM_COUNT_*`), then per slot
+/// `SPPM_FLUX_WORDS` uints of the iteration's photons (fixed point, summed by integer
+/// atomics so that the sum does not depend on order).
+pub const BINDING_SPPM_FLUX: u32 = 13;
+/// The hash grid's header (`PHOTON_HDR_*` words) and bucket starts (src/photon/device.rs).
+pub const BINDING_SPPM_GRID_HEADER: u32 = 14;
+pub const BINDING_SPPM_GRID_STARTS: u32 = 15;
+/// The photon map itself: the grid's entries (uint), or the kd-tree's nodes (two vec4
+/// each) with `--photon-map kdtree`.
+pub const BINDING_SPPM_MAP: u32 = 16;
+/// Which lookup the photon pass makes (`SPPM_MAP_HASHGRID`, `SPPM_MAP_KDTREE`).
+pub const SPEC_PHOTON_MAP: u32 = 22;
+pub const SPPM_MAP_HASHGRID: u32 = 0;
+pub const SPPM_MAP_KDTREE: u32 = 1;
+/// The passes of one iteration, in order: camera paths to their visible points, photons
+/// from the lights into them, and each pixel's radius and flux update.
+pub const SPPM_PASS_CAMERA: u32 = 0;
+pub const SPPM_PASS_PHOTON: u32 = 1;
+pub const SPPM_PASS_UPDATE: u32 = 2;
+/// A slot's record rows: the visible point (position, material | front flag, or
+/// `SPPM_NO_POINT`), its shading normal + u, direction to the camera + v, path
+/// throughput + the camera path's segments, the sum of its direct light + the radius,
+/// tau (the flux kept, pbrt's) + N (the photons it counts).
+pub const SPPM_REC_POINT: u32 = 0;
+pub const SPPM_REC_NORMAL: u32 = 1;
+pub const SPPM_REC_WO: u32 = 2;
+pub const SPPM_REC_BETA: u32 = 3;
+pub const SPPM_REC_DIRECT: u32 = 4;
+pub const SPPM_REC_TAU: u32 = 5;
+pub const SPPM_RECORD_ROWS: u32 = 6;
+/// The record's material word when the pixel has no visible point this iteration, and
+/// the bit of it that says the camera came from the front of the surface.
+pub const SPPM_NO_POINT: u32 = 0xffff_ffff;
+pub const SPPM_FRONT_BIT: u32 = 0x8000_0000;
+/// A slot's flux words: red, green, blue as 64-bit fixed point (low word, high word),
+/// then the photons found (M), then one unused.
+pub const SPPM_FLUX_WORDS: u32 = 8;
+pub const SPPM_FLUX_COUNT: u32 = 6;
+/// The counters before the slots' flux words: rays the photons traced, paths cut short by the
+/// traversal's step budget (camera and photon), lookups that met more than
+/// `SPPM_BUCKET_MOST` candidates (the rest were not tested), photons deposited.
+pub const SPPM_COUNT_PHOTON_RAYS: u32 = 0;
+pub const SPPM_COUNT_CUT: u32 = 1;
+pub const SPPM_COUNT_TRUNCATED: u32 = 2;
+pub const SPPM_COUNT_DEPOSITS: u32 = 3;
+pub const SPPM_COUNTERS: u32 = 4;
+/// Most candidates one photon tests in a hash-grid bucket (a bound on the loop).
+pub const SPPM_BUCKET_MOST: u32 = 4096;
+/// The light table of the photon pass (shading rows from `GpuParams::photon_light_table`,
+/// one a light: CDF start, probability, kind bits, index bits): the kinds.
+pub const SPPM_LIGHT_DELTA: u32 = 0;
+pub const SPPM_LIGHT_AREA: u32 = 1;
+pub const SPPM_LIGHT_ENV: u32 = 2;
+/// The default initial radius: this many pixel footprints at the visible point's
+/// distance along the camera path.
+pub const SPPM_FOOTPRINT_PIXELS: u32 = 6;
+
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_PARAMS", BINDING_PARAMS),
@@ -417,6 +489,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("INTEGRATOR_WHITTED", INTEGRATOR_WHITTED),
     ("INTEGRATOR_PATH", INTEGRATOR_PATH),
     ("INTEGRATOR_PROBE", INTEGRATOR_PROBE),
+    ("INTEGRATOR_SPPM", INTEGRATOR_SPPM),
     ("SPEC_EMITTERS", SPEC_EMITTERS),
     ("SPEC_ENV_WIDTH", SPEC_ENV_WIDTH),
     ("SPEC_ENV_HEIGHT", SPEC_ENV_HEIGHT),
@@ -561,4 +634,37 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("PHOTON_HDR_WORDS", PHOTON_HDR_WORDS),
     ("PHOTON_GRID_MAX_RES", PHOTON_GRID_MAX_RES),
     ("PHOTON_GROUP", PHOTON_GROUP),
+    ("BINDING_SPPM_POINTS", BINDING_SPPM_POINTS),
+    ("BINDING_SPPM_RECORDS", BINDING_SPPM_RECORDS),
+    ("BINDING_SPPM_FLUX", BINDING_SPPM_FLUX),
+    ("BINDING_SPPM_GRID_HEADER", BINDING_SPPM_GRID_HEADER),
+    ("BINDING_SPPM_GRID_STARTS", BINDING_SPPM_GRID_STARTS),
+    ("BINDING_SPPM_MAP", BINDING_SPPM_MAP),
+    ("SPEC_PHOTON_MAP", SPEC_PHOTON_MAP),
+    ("SPPM_MAP_HASHGRID", SPPM_MAP_HASHGRID),
+    ("SPPM_MAP_KDTREE", SPPM_MAP_KDTREE),
+    ("SPPM_PASS_CAMERA", SPPM_PASS_CAMERA),
+    ("SPPM_PASS_PHOTON", SPPM_PASS_PHOTON),
+    ("SPPM_PASS_UPDATE", SPPM_PASS_UPDATE),
+    ("SPPM_REC_POINT", SPPM_REC_POINT),
+    ("SPPM_REC_NORMAL", SPPM_REC_NORMAL),
+    ("SPPM_REC_WO", SPPM_REC_WO),
+    ("SPPM_REC_BETA", SPPM_REC_BETA),
+    ("SPPM_REC_DIRECT", SPPM_REC_DIRECT),
+    ("SPPM_REC_TAU", SPPM_REC_TAU),
+    ("SPPM_RECORD_ROWS", SPPM_RECORD_ROWS),
+    ("SPPM_NO_POINT", SPPM_NO_POINT),
+    ("SPPM_FRONT_BIT", SPPM_FRONT_BIT),
+    ("SPPM_FLUX_WORDS", SPPM_FLUX_WORDS),
+    ("SPPM_FLUX_COUNT", SPPM_FLUX_COUNT),
+    ("SPPM_COUNT_PHOTON_RAYS", SPPM_COUNT_PHOTON_RAYS),
+    ("SPPM_COUNT_CUT", SPPM_COUNT_CUT),
+    ("SPPM_COUNT_TRUNCATED", SPPM_COUNT_TRUNCATED),
+    ("SPPM_COUNT_DEPOSITS", SPPM_COUNT_DEPOSITS),
+    ("SPPM_COUNTERS", SPPM_COUNTERS),
+    ("SPPM_BUCKET_MOST", SPPM_BUCKET_MOST),
+    ("SPPM_LIGHT_DELTA", SPPM_LIGHT_DELTA),
+    ("SPPM_LIGHT_AREA", SPPM_LIGHT_AREA),
+    ("SPPM_LIGHT_ENV", SPPM_LIGHT_ENV),
+    ("SPPM_FOOTPRINT_PIXELS", SPPM_FOOTPRINT_PIXELS),
 ];

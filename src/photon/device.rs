@@ -50,60 +50,111 @@ pub fn upload_points(ctx: &Context, positions: &[Vec3], radii: &[f32]) -> Result
 /// Builds the grid over the `n` visible points of `points` ([`upload_points`]'s layout)
 /// with the passes of shaders/photon_grid.comp, one submission each.
 pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> {
-    if n > MAX_POINTS {
-        return Err(Error::Failed(format!("{n} visible points; one photon grid build takes at most {MAX_POINTS}")));
-    }
     let buckets = n.max(1);
-    let bindings = grid_bindings();
-    let mut kernel = grid_kernel(ctx, &bindings)?;
-    let mut head = [0u32; PHOTON_HDR_WORDS as usize];
-    head[PHOTON_HDR_MIN as usize..PHOTON_HDR_MIN as usize + 3].fill(u32::MAX);
-    let header = ctx.upload_storage("photon grid header", bytemuck::cast_slice(&head))?;
-    let word_bytes = |words: u64| words.max(1) * 4;
-    let starts = ctx.create_buffer("photon grid starts", word_bytes(u64::from(buckets) + 1), BufferKind::Storage)?;
-    let cursor = ctx.create_buffer("photon grid cursor", word_bytes(u64::from(buckets)), BufferKind::Storage)?;
-    // Sized once the scan has counted the entries: until then a stand-in is bound.
-    let stand_in = ctx.create_buffer("photon grid entries", 4, BufferKind::Storage)?;
-    // The test pass's buffers, unused here.
-    let queries = ctx.create_buffer("photon grid queries", 16, BufferKind::Storage)?;
-    let found = ctx.create_buffer("photon grid found", 16, BufferKind::Storage)?;
-    ctx.fill_zero(&starts)?;
-    for (binding, buffer) in [
-        (BINDING_PHOTON_HEADER, &header),
-        (BINDING_PHOTON_POINTS, points),
-        (BINDING_PHOTON_STARTS, &starts),
-        (BINDING_PHOTON_CURSOR, &cursor),
-        (BINDING_PHOTON_ENTRIES, &stand_in),
-        (BINDING_PHOTON_QUERIES, &queries),
-        (BINDING_PHOTON_FOUND, &found),
-    ] {
-        ctx.bind(&mut kernel, binding, buffer)?;
+    let header = ctx.create_buffer("photon grid header", u64::from(PHOTON_HDR_WORDS) * 4, BufferKind::Storage)?;
+    let starts = ctx.create_buffer("photon grid starts", (u64::from(buckets) + 1) * 4, BufferKind::Storage)?;
+    let mut build = GridBuild::new(ctx, &header, points, &starts, n)?;
+    build.run(ctx, &header, &starts, n)?;
+    Ok(DeviceGrid { header, starts, entries: build.entries, buckets, points: n })
+}
+
+/// The grid's build passes over visible points already on the device, into a header
+/// and bucket starts the caller owns (SPPM's photon pass binds the same buffers) and
+/// entries this build owns and grows as a build needs.
+pub struct GridBuild {
+    kernel: crate::gpu::Kernel,
+    /// One word a bucket: where the scatter puts a bucket's next entry.
+    _cursor: Buffer,
+    /// The test pass's buffers, unused by a build.
+    _queries: Buffer,
+    _found: Buffer,
+    /// The entries; at least as many words as the last build counted.
+    pub entries: Buffer,
+    /// Most points a build over these buffers takes (the starts' buckets).
+    most: u32,
+}
+
+impl std::fmt::Debug for GridBuild {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GridBuild").field("most", &self.most).field("entries", &self.entries.size()).finish()
     }
-    let groups = n.div_ceil(PHOTON_GROUP).max(1);
-    let mut entries = stand_in;
-    for (mode, groups, label) in [
-        (PHOTON_GRID_BOUNDS, groups, "photon grid: bounds"),
-        (PHOTON_GRID_FRAME, 1, "photon grid: frame"),
-        (PHOTON_GRID_COUNT, groups, "photon grid: count"),
-        (PHOTON_GRID_SCAN, 1, "photon grid: scan"),
-        (PHOTON_GRID_SCATTER, groups, "photon grid: scatter"),
-    ] {
-        if n == 0 && mode != PHOTON_GRID_SCAN {
-            continue;
+}
+
+impl GridBuild {
+    /// The build's kernel over `points`, `header` (`PHOTON_HDR_WORDS` words) and `starts`
+    /// (most + 1 words), for builds over at most `most` points.
+    pub fn new(ctx: &Context, header: &Buffer, points: &Buffer, starts: &Buffer, most: u32) -> Result<GridBuild> {
+        if most > MAX_POINTS {
+            return Err(Error::Failed(format!(
+                "{most} visible points; one photon grid build takes at most {MAX_POINTS}"
+            )));
         }
-        if mode == PHOTON_GRID_SCATTER {
-            // The entries the scan counted (at most MAX_BUCKETS_A_POINT a point).
-            let total: Vec<u32> = ctx.read_storage_pod(&header, u64::from(PHOTON_HDR_TOTAL) * 4, 1)?;
-            let bytes = word_bytes(u64::from(total[0]));
-            ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
-            entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
-            ctx.bind(&mut kernel, BINDING_PHOTON_ENTRIES, &entries)?;
+        let bindings = grid_bindings();
+        let mut kernel = grid_kernel(ctx, &bindings)?;
+        let cursor = ctx.create_buffer("photon grid cursor", u64::from(most.max(1)) * 4, BufferKind::Storage)?;
+        // Sized once a scan has counted the entries: until then a stand-in.
+        let entries = ctx.create_buffer("photon grid entries", 4, BufferKind::Storage)?;
+        let queries = ctx.create_buffer("photon grid queries", 16, BufferKind::Storage)?;
+        let found = ctx.create_buffer("photon grid found", 16, BufferKind::Storage)?;
+        for (binding, buffer) in [
+            (BINDING_PHOTON_HEADER, header),
+            (BINDING_PHOTON_POINTS, points),
+            (BINDING_PHOTON_STARTS, starts),
+            (BINDING_PHOTON_CURSOR, &cursor),
+            (BINDING_PHOTON_ENTRIES, &entries),
+            (BINDING_PHOTON_QUERIES, &queries),
+            (BINDING_PHOTON_FOUND, &found),
+        ] {
+            ctx.bind(&mut kernel, binding, buffer)?;
         }
-        let push = [mode, n, buckets, 0];
-        ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [groups, 1, 1], label)?;
+        Ok(GridBuild { kernel, _cursor: cursor, _queries: queries, _found: found, entries, most })
     }
-    ctx.check_validation()?;
-    Ok(DeviceGrid { header, starts, entries, buckets, points: n })
+
+    /// Builds the grid over the first `n` points (radius 0: none this time, skipped),
+    /// with `n` buckets (at least 1). True when `entries` was replaced by a larger
+    /// buffer, which the caller binds again where it bound the old one.
+    pub fn run(&mut self, ctx: &Context, header: &Buffer, starts: &Buffer, n: u32) -> Result<bool> {
+        if n > self.most {
+            return Err(Error::Failed(format!("{n} visible points; this grid build takes at most {}", self.most)));
+        }
+        let buckets = n.max(1);
+        let mut head = [0u32; PHOTON_HDR_WORDS as usize];
+        head[PHOTON_HDR_MIN as usize..PHOTON_HDR_MIN as usize + 3].fill(u32::MAX);
+        ctx.write_storage(header, 0, bytemuck::cast_slice(&head))?;
+        ctx.fill_zero(starts)?;
+        let groups = n.div_ceil(PHOTON_GROUP).max(1);
+        let mut grown = false;
+        for (mode, groups, label) in [
+            (PHOTON_GRID_BOUNDS, groups, "photon grid: bounds"),
+            (PHOTON_GRID_FRAME, 1, "photon grid: frame"),
+            (PHOTON_GRID_COUNT, groups, "photon grid: count"),
+            (PHOTON_GRID_SCAN, 1, "photon grid: scan"),
+            (PHOTON_GRID_SCATTER, groups, "photon grid: scatter"),
+        ] {
+            if n == 0 && mode != PHOTON_GRID_SCAN {
+                continue;
+            }
+            if mode == PHOTON_GRID_SCATTER {
+                // The entries the scan counted (at most MAX_BUCKETS_A_POINT a point).
+                let total: Vec<u32> = ctx.read_storage_pod(header, u64::from(PHOTON_HDR_TOTAL) * 4, 1)?;
+                let bytes = u64::from(total[0]).max(1) * 4;
+                if bytes > self.entries.size() {
+                    // A quarter more than needed, so that a slowly growing count does
+                    // not replace the buffer every iteration.
+                    let bytes =
+                        (bytes + bytes / 4).min(u64::from(self.most.max(1)) * MAX_BUCKETS_A_POINT * 4).max(bytes);
+                    ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
+                    self.entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
+                    ctx.bind(&mut self.kernel, BINDING_PHOTON_ENTRIES, &self.entries)?;
+                    grown = true;
+                }
+            }
+            let push = [mode, n, buckets, 0];
+            ctx.dispatch(&self.kernel, bytemuck::cast_slice(&push), [groups, 1, 1], label)?;
+        }
+        ctx.check_validation()?;
+        Ok(grown)
+    }
 }
 
 /// The grid kernel's bindings: the build's five and the test pass's two.

@@ -63,5 +63,6 @@ fn run(
     match settings.integrator {
         Integrator::Whitted => super::integrators::whitted::render_with(ctx, scene, settings, accel, control.progress),
         Integrator::Path => super::integrators::path::render_with(ctx, scene, settings, accel, control),
+        Integrator::Sppm => super::integrators::sppm::render_with(ctx, scene, settings, accel, control),
     }
 }

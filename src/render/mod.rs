@@ -50,6 +50,9 @@ pub enum Integrator {
     /// Unidirectional path tracing with next-event estimation and multiple importance
     /// sampling ([`integrators::path`]); the default of `arbor render`.
     Path,
+    /// Stochastic progressive photon mapping ([`integrators::sppm`]): caustics from
+    /// small lights through glass and off mirrors, which `path` cannot find.
+    Sppm,
 }
 
 impl Integrator {
@@ -57,14 +60,16 @@ impl Integrator {
         match self {
             Integrator::Whitted => "whitted",
             Integrator::Path => "path",
+            Integrator::Sppm => "sppm",
         }
     }
 
-    /// By name (`whitted`, `path`).
+    /// By name (`whitted`, `path`, `sppm`).
     pub fn parse(s: &str) -> Option<Integrator> {
         match s {
             "whitted" => Some(Integrator::Whitted),
             "path" => Some(Integrator::Path),
+            "sppm" => Some(Integrator::Sppm),
             _ => None,
         }
     }
@@ -147,6 +152,8 @@ pub struct RenderSettings {
     /// For tests: hold at most this many trace records per pass (at least 1), so that
     /// stopped samples without one run again from their start.
     pub resume_records: Option<u32>,
+    /// SPPM's photons, initial radius and photon map (`spp` is its iterations).
+    pub sppm: integrators::sppm::SppmSettings,
 }
 
 /// Called with the image so far at each checkpoint.
@@ -285,6 +292,7 @@ impl RenderSettings {
             resume: None,
             trace_steps: None,
             resume_records: None,
+            sppm: Default::default(),
         }
     }
 
@@ -458,6 +466,8 @@ pub struct RenderStats {
     pub mean_prims_tested: Option<f64>,
     /// Mean nodes (or boxes) visited by each pixel's first camera ray; null as above.
     pub mean_nodes_visited: Option<f64>,
+    /// SPPM's figures (null for the other integrators).
+    pub sppm: Option<integrators::sppm::SppmStats>,
 }
 
 impl RenderStats {
@@ -518,6 +528,7 @@ impl RenderStats {
             mrays_per_s: mrays,
             mean_prims_tested: counted.then(|| frame.tests.iter().map(|&t| t as f64).sum::<f64>() / total_pixels),
             mean_nodes_visited: counted.then(|| frame.nodes.iter().map(|&t| t as f64).sum::<f64>() / total_pixels),
+            sppm: None,
         }
     }
 }

@@ -7,6 +7,11 @@
 //!   short and a tall block, lit only by a one-sided emissive quad under the ceiling
 //!   facing down; the camera looks through the open front. Mirrored for Mitsuba 3 in
 //!   scripts/peers/mitsuba_cornell.py.
+//! - `caustic`: a glass ball (ior 1.5, radius 0.5) half a unit above a Lambert floor,
+//!   under a point light 2.5 above it: the bright disk the ball focuses on the floor
+//!   is light `path` cannot find and `sppm` can (docs/caustics.md).
+//! - `caustic-lamp`: the same, lit by a small emissive sphere (radius 0.08) in the
+//!   point light's place, which `path` finds but slowly.
 //! - `blob:N`: one blob of about N triangles, auto-framed (benchmarks).
 //! - `spheres`: spheres only, no triangles (tests the sphere-only kernel).
 //! - `inside:N`: the camera at the centre of a closed blob of about N triangles,
@@ -26,7 +31,8 @@ use crate::error::{Error, Result};
 use crate::math::Aabb;
 
 /// Names accepted after `builtin:`.
-pub const NAMES: &str = "default, cornell, spheres, blob:N, inside:N, stadium:N (N = triangle count)";
+pub const NAMES: &str =
+    "default, cornell, spheres, caustic, caustic-lamp, blob:N, inside:N, stadium:N (N = triangle count)";
 
 fn mat(name: &str, kind: MaterialKind, color: Vec3) -> Material {
     Material { kind, ..Material::lambert(name, color) }
@@ -38,6 +44,8 @@ pub fn load(name: &str) -> Result<Scene> {
         "default" => default_scene(),
         "cornell" => cornell(),
         "spheres" => spheres(),
+        "caustic" => caustic(false),
+        "caustic-lamp" => caustic(true),
         _ => {
             if let Some(n) = name.strip_prefix("blob:") {
                 let n: usize = n.parse().ok().filter(|&n| (8..=50_000_000).contains(&n)).ok_or_else(|| {
@@ -193,6 +201,42 @@ fn cornell() -> Result<Scene> {
     b.scene.ambient = 0.0;
     b.scene.width = 256;
     b.scene.height = 256;
+    b.finish()
+}
+
+/// A glass ball under a lamp: a point light, or with `lamp` a small emissive sphere of
+/// the same power (4 pi I = pi L 4 pi r^2: L = I / (pi r^2)).
+fn caustic(lamp: bool) -> Result<Scene> {
+    let mut b = SceneBuilder::new(if lamp { "builtin:caustic-lamp" } else { "builtin:caustic" });
+    let floor = b.material(Material::lambert("floor", Vec3::splat(0.8)));
+    let glass = b.material(Material { ior: 1.5, ..mat("glass", MaterialKind::Glass, Vec3::ONE) });
+    let g = 3.0;
+    b.mesh(
+        &quad([Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g), Vec3::new(-g, 0.0, -g)]),
+        1.0,
+        Vec3::ZERO,
+        Some(floor),
+    );
+    let ball = Vec3::new(0.0, 1.0, 0.0);
+    b.scene.spheres.push(Sphere { center: ball, radius: 0.5, material: glass });
+    let at = ball + Vec3::new(0.0, 2.5, 0.0);
+    let intensity = 6.0;
+    if lamp {
+        let r: f32 = 0.08;
+        let light = b.material(Material {
+            emission: Vec3::splat(intensity / (std::f32::consts::PI * r * r)),
+            ..mat("lamp", MaterialKind::Emissive, Vec3::ZERO)
+        });
+        b.scene.spheres.push(Sphere { center: at, radius: r, material: light });
+    } else {
+        b.scene.lights.push(Light::Point { position: at, intensity: Vec3::splat(intensity) });
+    }
+    b.scene.camera =
+        Camera { eye: Vec3::new(0.0, 2.6, 3.4), look_at: Vec3::new(0.0, 0.35, 0.0), up: Vec3::Y, vfov: 40.0 };
+    b.scene.background = Vec3::ZERO;
+    b.scene.ambient = 0.0;
+    b.scene.width = 320;
+    b.scene.height = 240;
     b.finish()
 }
 

@@ -410,7 +410,7 @@ impl Scene {
             }
             _ => Err(Error::invalid(
                 path,
-                "unknown scene type: expected a .toml scene file, a .obj/.ply/.off mesh, a .gltf/.glb scene, or builtin:default|cornell|blob:N",
+                "unknown scene type: expected a .toml scene file, a .obj/.ply/.off mesh, a .gltf/.glb scene, or builtin:default|cornell|caustic|blob:N",
             )),
         }
     }

@@ -124,7 +124,7 @@ fn material_and_light_records_decode_as_encoded() {
         specular_weight: 0.6,
         ..Material::lambert("base", Vec3::new(0.3, 0.2, 0.1))
     };
-    let mut maps = base.maps.clone();
+    let mut maps = base.maps;
     maps.emission = Some(3);
     maps.metal_rough = Some(1);
     maps.normal = Some(2);
@@ -139,8 +139,7 @@ fn material_and_light_records_decode_as_encoded() {
         MaterialKind::Dielectric,
         MaterialKind::Pbr,
     ];
-    let mut materials: Vec<Material> =
-        kinds.iter().map(|&kind| Material { kind, maps: maps.clone(), ..base.clone() }).collect();
+    let mut materials: Vec<Material> = kinds.iter().map(|&kind| Material { kind, maps, ..base.clone() }).collect();
     // A conductor with its complex index (the one above has none: Schlick's Fresnel).
     let ior = ComplexIor { eta: Vec3::new(0.2, 0.9, 1.1), k: Vec3::new(3.9, 2.4, 2.2) };
     materials.push(Material { kind: MaterialKind::Conductor, complex_ior: Some(ior), maps, ..base.clone() });

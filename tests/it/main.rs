@@ -41,6 +41,7 @@ mod sampling;
 mod scene_inputs;
 mod shards;
 mod slurm;
+mod sppm;
 mod surface;
 mod timeline;
 mod trace_rays_example;

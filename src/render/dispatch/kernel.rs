@@ -192,6 +192,9 @@ pub enum Entry {
     Probe,
     /// Ray batches (`rays_*`): one trace a job, resumed as the probe's.
     Rays,
+    /// SPPM's camera, photon and update passes (`trace_*.sppm`), never resumed: a
+    /// path whose trace runs out of steps is counted and dropped.
+    Sppm,
 }
 
 impl Entry {
@@ -200,6 +203,7 @@ impl Entry {
         match self {
             Entry::Whitted => INTEGRATOR_WHITTED,
             Entry::Path => INTEGRATOR_PATH,
+            Entry::Sppm => INTEGRATOR_SPPM,
             // The resume sweep finds a stopped ray by its zero count, as a probe's
             // (shaders/common/resume_trace.glsl).
             Entry::Probe | Entry::Rays => INTEGRATOR_PROBE,
@@ -248,7 +252,7 @@ impl Variant {
     /// `image`'s structure family and the scene's geometry (or every buffer with
     /// [`KernelChoice::General`]), with `_x8` or `_x32` for brute force's unrolled
     /// loops (`bounds.unroll`). A trace kernel's module is that name and the entry
-    /// point's suffix (`.whitted`, `.path` or `.probe`, [`TRACE_ENTRIES`]).
+    /// point's suffix (`.whitted`, `.path`, `.probe` or `.sppm`, [`TRACE_ENTRIES`]).
     pub fn new(
         entry: Entry,
         scene: &Scene,

@@ -91,7 +91,9 @@ impl Waves {
             window_width: w,
             zero_sample: self.first_sample,
             trace_steps: tree_steps,
-            unused: [0; 3],
+            sppm_pass: 0,
+            map_size: 0,
+            map_buckets: 0,
         }
     }
 }

@@ -154,6 +154,8 @@ pub struct Bound {
     pixels: usize,
     /// Index in `storage` of the ray buffer (ray-batch kernels only).
     rays: Option<usize>,
+    /// The binding of each of `storage`, in order.
+    slots: Vec<u32>,
 }
 
 impl std::fmt::Debug for Bound {
@@ -171,6 +173,11 @@ impl Bound {
     /// The ray buffer (one `GpuRay` per pixel of a chunk), where the kernel reads rays.
     pub fn rays(&self) -> Option<&Buffer> {
         self.rays.map(|k| &*self.storage[k])
+    }
+
+    /// The storage buffer bound at `binding`, if any.
+    pub fn at(&self, binding: u32) -> Option<&Buffer> {
+        self.slots.iter().position(|&b| b == binding).map(|k| &*self.storage[k])
     }
 }
 
@@ -192,6 +199,7 @@ pub fn bind_all(
     let mut names = Vec::new();
     let mut pixels = None;
     let mut rays = None;
+    let mut slots = Vec::new();
     for b in bindings {
         if b.kind == BindingKind::Uniform && b.binding == BINDING_PARAMS {
             ctx.bind(kernel, b.binding, &uniform)?;
@@ -210,6 +218,7 @@ pub fn bind_all(
             ctx.bind(kernel, b.binding, &kept)?;
             names.push(format!("{} (the build's)", b.name));
             storage.push(kept);
+            slots.push(b.binding);
             continue;
         }
         let buf = match (b.binding, &image.buffers) {
@@ -225,9 +234,10 @@ pub fn bind_all(
         ctx.bind(kernel, b.binding, &buf)?;
         names.push(b.name.to_string());
         storage.push(buf);
+        slots.push(b.binding);
     }
     let pixels = pixels.ok_or_else(|| Error::Failed("no pixel buffer".into()))?;
-    Ok(Bound { uniform, storage, names, pixels, rays })
+    Ok(Bound { uniform, storage, names, pixels, rays, slots })
 }
 
 /// The geometry buffer at `binding` that a structure built on the device uploaded, if
@@ -278,6 +288,27 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
             let size = chunk_pixels * std::mem::size_of::<GpuRay>() as u64;
             ctx.check_binding(kind, "rays", size)?;
             ctx.create_buffer("rays", size, crate::gpu::BufferKind::Storage)?
+        }
+        // SPPM (src/render/integrators/sppm.rs): each over the chunk's pixels, zeroed;
+        // the map binding starts as a stand-in, replaced once a map is built.
+        BINDING_SPPM_POINTS
+        | BINDING_SPPM_RECORDS
+        | BINDING_SPPM_FLUX
+        | BINDING_SPPM_GRID_HEADER
+        | BINDING_SPPM_GRID_STARTS
+        | BINDING_SPPM_MAP => {
+            let size = match b.binding {
+                BINDING_SPPM_POINTS => chunk_pixels * 16,
+                BINDING_SPPM_RECORDS => chunk_pixels * u64::from(SPPM_RECORD_ROWS) * 16,
+                BINDING_SPPM_FLUX => (u64::from(SPPM_COUNTERS) + chunk_pixels * u64::from(SPPM_FLUX_WORDS)) * 4,
+                BINDING_SPPM_GRID_HEADER => u64::from(PHOTON_HDR_WORDS) * 4,
+                BINDING_SPPM_GRID_STARTS => (chunk_pixels + 1) * 4,
+                _ => 32,
+            };
+            ctx.check_binding(kind, b.name, size)?;
+            let buf = ctx.create_buffer(b.name, size, crate::gpu::BufferKind::Storage)?;
+            ctx.fill_zero(&buf)?;
+            buf
         }
         other => return Err(Error::Failed(format!("trace kernel has unexpected binding {other}"))),
     })

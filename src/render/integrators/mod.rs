@@ -5,4 +5,5 @@ pub mod envdist;
 pub mod path;
 #[warn(missing_docs)]
 pub mod rays;
+pub mod sppm;
 pub mod whitted;

@@ -51,7 +51,7 @@ fn rays_per_sample(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> u64
 }
 
 /// The integrator's specialization constants (the loop adds the shared ones).
-fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<(u32, u32)> {
+pub(crate) fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<(u32, u32)> {
     vec![
         (SPEC_LIGHTS, scene.lights.len() as u32),
         (SPEC_MAX_DEPTH, max_depth(scene, settings)),
@@ -67,7 +67,7 @@ fn specialization(scene: &Scene, settings: &RenderSettings, ex: &Extras) -> Vec<
 
 /// The uniform parameters: the shared ones, every light, the extras' tables and the
 /// environment's intensity and rotation (no ambient term).
-fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
+pub(crate) fn params(scene: &Scene, settings: &RenderSettings, accel: &Accel, ex: &Extras) -> GpuParams {
     let (intensity, rotation) =
         scene.environment.as_ref().map_or((0.0, 0.0), |e| (e.intensity, e.rotation.to_radians()));
     let mut p = base_params(scene, Film::of(settings), accel);

@@ -245,6 +245,12 @@ pub fn settings_hash(scene: &Scene, s: &RenderSettings) -> u64 {
     h.u32(s.mis.spec());
     h.u32(s.intersect.spec());
     h.str(s.accel.name());
+    if s.integrator == crate::render::Integrator::Sppm {
+        // Tiles of one sppm image share photons and radii only with the same settings
+        h.u32(s.sppm.photons_for(s.width, s.height));
+        h.f32(s.sppm.radius.unwrap_or(0.0));
+        h.str(s.sppm.map.name());
+    }
     h.0
 }
 
