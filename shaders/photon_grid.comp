@@ -1,7 +1,8 @@
 #version 460
 // SPPM's hash grid over visible points, built on the device by a counting sort: the
 // layout and arithmetic of src/photon/hashgrid.rs, its oracle, word for word. Passes
-// (push `mode`, src/photon/device.rs runs them in order):
+// (specialization constant SPEC_GRID_MODE; src/photon/device.rs runs them in order):
+//   PHOTON_GRID_CLEAR    the header to an empty box, the buckets' counts to zero
 //   PHOTON_GRID_BOUNDS   the spheres' box and the largest radius, by atomics on
 //                        order-preserving uints (the header starts at min = ~0, max 0)
 //   PHOTON_GRID_FRAME    one thread: cells per axis and the cell edge
@@ -9,19 +10,27 @@
 //   PHOTON_GRID_SCAN     one workgroup: the counts into exclusive starts (and cursors),
 //                        starts[buckets] and the header's total
 //   PHOTON_GRID_SCATTER  each point into its buckets' entries (order within a bucket
-//                        is the atomics'; a lookup does not depend on it)
+//                        is the atomics'; a lookup does not depend on it), those past
+//                        the entries' capacity left out (the header's total says how
+//                        many there are: the host grows the entries and builds again)
 //   PHOTON_GRID_PROBE    for tests: each query photon's lookup (`grid_lookup`, as the
 //                        photon pass will make it): the points found and the sum of
 //                        their indices + 1
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_basic : require
 
 layout(local_size_x = PHOTON_GROUP) in;
 
+// The pass this pipeline runs: one pipeline a pass, each with only its own code.
+layout(constant_id = SPEC_GRID_MODE) const uint MODE = PHOTON_GRID_CLEAR;
+
 layout(push_constant) uniform GridPush {
-    uint mode;
+    uint unused;
     uint n;        // visible points
     uint buckets;  // the number of points, at least 1
-    uint unused;   // PHOTON_GRID_PROBE: the query photons
+    uint extra;    // PHOTON_GRID_SCATTER: the entries' capacity; PHOTON_GRID_PROBE: the query photons
 } pc;
 
 layout(std430, set = 0, binding = BINDING_PHOTON_HEADER) buffer GridHeader { uint header[]; };
@@ -69,20 +78,33 @@ void photon_visit(uint v, vec3 p) { g_found += uvec2(1u, v + 1u); }
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
-    if (pc.mode == PHOTON_GRID_BOUNDS) {
-        if (i >= pc.n) return;
-        vec4 pr = points[i];
-        // Radius 0: the pixel has no visible point this iteration (SPPM's camera pass).
-        if (!(pr.w > 0.0)) return;
+    if (MODE == PHOTON_GRID_CLEAR) {
+        if (i < PHOTON_HDR_WORDS) header[i] = i >= PHOTON_HDR_MIN && i < PHOTON_HDR_MIN + 3u ? 0xffffffffu : 0u;
+        if (i <= pc.buckets) starts[i] = 0u;
+    } else if (MODE == PHOTON_GRID_BOUNDS) {
+        // Each subgroup reduces its points first, so that one lane a subgroup (not
+        // every point) takes the header's atomics. Radius 0: the pixel has no visible
+        // point this iteration (SPPM's camera pass), and neither has a lane past n.
+        vec4 pr = i < pc.n ? points[i] : vec4(0.0);
+        bool valid = pr.w > 0.0;
         precise vec3 a = pr.xyz - vec3(pr.w);
         precise vec3 b = pr.xyz + vec3(pr.w);
+        uint lo[3], hi[3];
         for (uint k = 0u; k < 3u; k++) {
-            atomicMin(header[PHOTON_HDR_MIN + k], float_order(a[k]));
-            atomicMax(header[PHOTON_HDR_MAX + k], float_order(b[k]));
+            lo[k] = subgroupMin(valid ? float_order(a[k]) : 0xffffffffu);
+            hi[k] = subgroupMax(valid ? float_order(b[k]) : 0u);
         }
         // A positive float's bits order as the float does.
-        atomicMax(header[PHOTON_HDR_RADIUS], floatBitsToUint(pr.w));
-    } else if (pc.mode == PHOTON_GRID_FRAME) {
+        uint radius = subgroupMax(valid ? floatBitsToUint(pr.w) : 0u);
+        bool any = subgroupAny(valid);
+        if (subgroupElect() && any) {
+            for (uint k = 0u; k < 3u; k++) {
+                atomicMin(header[PHOTON_HDR_MIN + k], lo[k]);
+                atomicMax(header[PHOTON_HDR_MAX + k], hi[k]);
+            }
+            atomicMax(header[PHOTON_HDR_RADIUS], radius);
+        }
+    } else if (MODE == PHOTON_GRID_FRAME) {
         if (i != 0u) return;
         vec3 lo = photon_grid_min();
         vec3 hi = vec3(order_float(header[PHOTON_HDR_MAX]), order_float(header[PHOTON_HDR_MAX + 1u]),
@@ -104,12 +126,12 @@ void main() {
             edge = max(edge, e);
         }
         header[PHOTON_HDR_EDGE] = floatBitsToUint(edge);
-    } else if (pc.mode == PHOTON_GRID_COUNT) {
+    } else if (MODE == PHOTON_GRID_COUNT) {
         if (i >= pc.n || !(points[i].w > 0.0)) return;
         uint seen[27];
         uint m = point_buckets(i, seen);
         for (uint k = 0u; k < m; k++) atomicAdd(starts[seen[k]], 1u);
-    } else if (pc.mode == PHOTON_GRID_SCAN) {
+    } else if (MODE == PHOTON_GRID_SCAN) {
         // One workgroup: each thread sums a run of counts, thread 0 scans the sums,
         // each thread writes its run's starts.
         uint lid = gl_LocalInvocationID.x;
@@ -138,13 +160,16 @@ void main() {
             cursor[k] = run;
             run += c;
         }
-    } else if (pc.mode == PHOTON_GRID_SCATTER) {
+    } else if (MODE == PHOTON_GRID_SCATTER) {
         if (i >= pc.n || !(points[i].w > 0.0)) return;
         uint seen[27];
         uint m = point_buckets(i, seen);
-        for (uint k = 0u; k < m; k++) entries[atomicAdd(cursor[seen[k]], 1u)] = i;
-    } else if (pc.mode == PHOTON_GRID_PROBE) {
-        if (i >= pc.unused) return;
+        for (uint k = 0u; k < m; k++) {
+            uint at = atomicAdd(cursor[seen[k]], 1u);
+            if (at < pc.extra) entries[at] = i;
+        }
+    } else if (MODE == PHOTON_GRID_PROBE) {
+        if (i >= pc.extra) return;
         grid_walk(queries[i].xyz, pc.n, pc.buckets, 0xffffffffu);
         found[i] = g_found;
     }

@@ -138,7 +138,7 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
     uvec4 dispatch_range;  // 0  first, count, sample_begin, sample_end
     uvec4 dispatch_chunk;  // 16 base, resumed, pass, counter (DispatchChunk; copied back)
     uvec4 dispatch_window; // 32 window_left, window_top, window_width, zero_sample
-    uvec4 dispatch_limits; // 48 trace_steps (TREE_STEPS in trace.comp), sppm_pass, map_size, map_buckets
+    uvec4 dispatch_limits; // 48 trace_steps (TREE_STEPS in trace.comp), 0, map_size, map_buckets
     Pixel pixels[];        // 64
 };
 
@@ -157,7 +157,6 @@ layout(std430, set = 0, binding = BINDING_PIXELS) buffer PixelBuffer {
 #define DISPATCH_WINDOW_WIDTH dispatch_window.z
 #define DISPATCH_ZERO_SAMPLE dispatch_window.w  // the sample at which pixels start from zero
 #define DISPATCH_TRACE_STEPS dispatch_limits.x  // steps one trace may take
-#define DISPATCH_SPPM_PASS dispatch_limits.y    // SPPM: SPPM_PASS_*
 #define DISPATCH_MAP_SIZE dispatch_limits.z     // SPPM: points in the grid, or tree nodes
 #define DISPATCH_MAP_BUCKETS dispatch_limits.w  // SPPM: the grid's buckets
 

@@ -1,6 +1,6 @@
 // Stochastic progressive photon mapping (Hachisuka & Jensen 2009, as pbrt-v4 defines
 // it; Integrator::Sppm, src/render/integrators/sppm.rs; docs/caustics.md). One module,
-// three passes chosen by the dispatch header (DISPATCH_SPPM_PASS), one iteration each
+// three passes, a pipeline each (SPEC_SPPM_PASS), one iteration a dispatch
 // (DISPATCH_SAMPLE_BEGIN is the iteration):
 //   SPPM_PASS_CAMERA  one job a pixel of the window: a camera path through delta
 //                     bounces to its first non-delta vertex, the visible point; light
@@ -21,6 +21,7 @@
 #define ARBOR_SPPM_GLSL
 
 layout(constant_id = SPEC_PHOTON_MAP) const uint PHOTON_MAP = SPPM_MAP_HASHGRID;
+layout(constant_id = SPEC_SPPM_PASS) const uint SPPM_PASS = SPPM_PASS_CAMERA;
 
 layout(std430, set = 0, binding = BINDING_SPPM_POINTS) buffer SppmPoints { vec4 points[]; };
 layout(std430, set = 0, binding = BINDING_SPPM_RECORDS) buffer SppmRecords { vec4 records[]; };
@@ -207,15 +208,45 @@ vec4 scene_sphere() {
     return vec4(c, max(0.5 * length(params.scene_max - params.scene_min), 1e-6));
 }
 
-// A ray entering the scene along d, through a uniform point of the disk facing it.
-Ray disk_ray(vec3 d, float u1, float u2) {
+// --- guiding: a share of the photons toward the delta surfaces ---------------------
+
+// The photon guide (the row after the light table): the sphere bounding the scene's
+// delta surfaces, radius 0 where there are none.
+vec4 photon_guide() { return shading_row(params.photon_light_table + params.photon_lights); }
+const float GUIDE_SHARE = float(SPPM_GUIDE_PERCENT) / 100.0;
+
+// The cosine of the cone from `from` around the guide (0 where `from` is inside it, or
+// there is no guide: no cone).
+float guide_cone(vec3 from, vec4 g) {
+    vec3 to = g.xyz - from;
+    float d2 = dot(to, to);
+    if (!(g.w > 0.0) || d2 <= g.w * g.w * 1.0001) return 0.0;
+    return sqrt(max(0.0, 1.0 - g.w * g.w / d2));
+}
+
+// The solid-angle pdf of the guide's cone (cosine cos_max, a uniform cone) at w.
+float cone_pdf(vec3 from, vec3 w, vec4 g, float cos_max) {
+    if (!(cos_max > 0.0) || dot(w, normalize(g.xyz - from)) < cos_max) return 0.0;
+    return 1.0 / (2.0 * PI * (1.0 - cos_max));
+}
+
+// A ray entering the scene along d through the plane facing it, outside the scene's
+// bounding sphere: a uniform point of the sphere's disk, or with the guide's share of
+// the photons of its disk; `area_pdf` the mixture's pdf at the point (per unit area).
+Ray disk_ray(vec3 d, float u1, float u2, float pick, out float area_pdf) {
     vec4 s = scene_sphere();
+    vec4 g = photon_guide();
     vec3 t, b;
     onb(d, t, b);
-    float rr = s.w * sqrt(u1);
+    vec2 gc = vec2(dot(g.xyz - s.xyz, t), dot(g.xyz - s.xyz, b));
+    bool guided = g.w > 0.0;
+    float share = guided ? GUIDE_SHARE : 0.0;
     float phi = 2.0 * PI * u2;
+    vec2 at = pick < share ? gc + g.w * sqrt(u1) * vec2(cos(phi), sin(phi)) : s.w * sqrt(u1) * vec2(cos(phi), sin(phi));
+    area_pdf = (1.0 - share) / (PI * s.w * s.w) * (dot(at, at) <= s.w * s.w ? 1.0 : 0.0);
+    if (guided && dot(at - gc, at - gc) <= g.w * g.w) area_pdf += share / (PI * g.w * g.w);
     Ray r;
-    r.origin = s.xyz - d * (1.001 * s.w) + (t * cos(phi) + b * sin(phi)) * rr;
+    r.origin = s.xyz - d * (1.001 * s.w) + t * at.x + b * at.y;
     r.dir = d;
     r.tmin = 0.0;
     r.tmax = uintBitsToFloat(0x7f800000u);
@@ -245,14 +276,20 @@ bool photon_emit(inout uint rng, out Ray r, out vec3 beta) {
         vec3 at, li;
         bool point;
         light_at(min(index, LIGHT_COUNT - 1u), at, point, li);
+        float pick = rng_next(rng);
         if (point) {
+            // Uniform over the sphere, or with the guide's share in its cone.
+            vec4 g = photon_guide();
+            float cos_max = guide_cone(at, g);
+            float share = cos_max > 0.0 ? GUIDE_SHARE : 0.0;
             r.origin = at;
-            r.dir = uniform_sphere(u1, u2);
-            beta = li * (4.0 * PI) / pmf;
+            r.dir = pick < share ? around(normalize(g.xyz - at), 1.0 - u1 * (1.0 - cos_max), u2) : uniform_sphere(u1, u2);
+            float pdf = (1.0 - share) / (4.0 * PI) + share * cone_pdf(at, r.dir, g, cos_max);
+            beta = li / (pdf * pmf);
         } else {
-            vec4 s = scene_sphere();
-            r = disk_ray(normalize(at), u1, u2);
-            beta = li * (PI * s.w * s.w) / pmf;
+            float area_pdf;
+            r = disk_ray(normalize(at), u1, u2, pick, area_pdf);
+            beta = li / (area_pdf * pmf);
         }
         return true;
     }
@@ -263,9 +300,9 @@ bool photon_emit(inout uint rng, out Ray r, out vec3 beta) {
         uvec2 cell;
         vec3 le = env_sample(u1, u2, wi, epdf, cell);
         if (!(epdf > 0.0)) return false;
-        vec4 s = scene_sphere();
-        r = disk_ray(-wi, u3, u4);
-        beta = le * (PI * s.w * s.w) / (epdf * pmf);
+        float area_pdf;
+        r = disk_ray(-wi, u3, u4, rng_next(rng), area_pdf);
+        beta = le / (epdf * area_pdf * pmf);
         return true;
     }
     if (EMITTER_COUNT == 0u) return false;
@@ -316,11 +353,21 @@ bool photon_emit(inout uint rng, out Ray r, out vec3 beta) {
         sides = 2.0;
         if (u4 < 0.5) side = -gn;
     }
-    vec3 d = cosine_direction(side, rng_next(rng), rng_next(rng));
+    // Cosine-distributed about the side's normal, or with the guide's share in its cone
+    // (directions behind the side then carry nothing).
+    vec4 g = photon_guide();
+    float cos_max = guide_cone(p, g);
+    float share = cos_max > 0.0 ? GUIDE_SHARE : 0.0;
+    float v1 = rng_next(rng), v2 = rng_next(rng);
+    vec3 d = rng_next(rng) < share ? around(normalize(g.xyz - p), 1.0 - v1 * (1.0 - cos_max), v2)
+                                   : cosine_direction(side, v1, v2);
+    float cos_d = dot(side, d);
+    if (!(cos_d > 0.0)) return false;
+    float pdf = (1.0 - share) * cos_d * INV_PI + share * cone_pdf(p, d, g, cos_max);
     vec3 le = emitted(m, side, -d);
     r.origin = offset_ray_origin(p, err, side, d);
     r.dir = d;
-    beta = le * (PI * area * sides) / (pmf * ppmf);
+    beta = le * (cos_d * area * sides) / (pdf * pmf * ppmf);
     return le != vec3(0.0);
 }
 
@@ -422,11 +469,11 @@ void sppm_main() {
     uint local;
     if (!job_begin(local)) return;
     uint slot = local - DISPATCH_BASE;
-    if (DISPATCH_SPPM_PASS == SPPM_PASS_PHOTON) {
+    if (SPPM_PASS == SPPM_PASS_PHOTON) {
         sppm_photon(local);
         return;
     }
-    if (DISPATCH_SPPM_PASS == SPPM_PASS_UPDATE) {
+    if (SPPM_PASS == SPPM_PASS_UPDATE) {
         sppm_update(slot);
         return;
     }

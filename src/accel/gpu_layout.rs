@@ -301,8 +301,8 @@ pub struct GpuDispatch {
     /// budget). Not a specialization constant: every budget would be a pipeline of
     /// its own (a render with `--trace-steps` next to one without compiled twice).
     pub trace_steps: u32,
-    /// bytes 52..56: SPPM: the pass (`SPPM_PASS_*`; 0 for the other integrators)
-    pub sppm_pass: u32,
+    /// bytes 52..56: 0
+    pub unused: u32,
     /// bytes 56..60: SPPM's photon pass: the photon map's size (visible points in the
     /// grid, or the kd-tree's nodes)
     pub map_size: u32,

@@ -20,6 +20,7 @@ pub mod calibrate;
 pub mod convergence;
 mod files;
 pub mod options;
+mod photon;
 pub mod plots;
 mod rows;
 mod run;

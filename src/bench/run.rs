@@ -157,6 +157,10 @@ fn run_scene(
         print(progress, &files::time_to_image_text(&sc.short, rays, &t))?;
         out.tti.push(serde_json::json!({ "scene": name, "rays": rays.name(), "structures": t }));
     }
+    // SPPM's photon maps over this scene's visible points, beside its ray structures.
+    progress.message(format!("{}, photon maps", sc.short));
+    let line = super::photon::photon_line(ctx, base, &sc.short, opts.size, opts.repeat)?;
+    print(progress, &line)?;
     Ok(())
 }
 

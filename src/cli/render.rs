@@ -383,8 +383,17 @@ fn trace(
     part: &render::output::part::PartInfo,
 ) -> Result<(render::Frame, render::RenderStats)> {
     interrupt::install();
-    let progress = Reporter::new("render", a.quiet, false);
-    progress.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
+    let progress = if settings.integrator == render::Integrator::Sppm {
+        // SPPM counts iterations, each a camera path a pixel and the photons.
+        let photons = settings.sppm.photons_for(settings.width, settings.height);
+        let p = Reporter::new("sppm", a.quiet, false);
+        p.bar().set_message(format!("tracing {} (iterations of {photons} photons)", scene.name));
+        p
+    } else {
+        let p = Reporter::new("render", a.quiet, false);
+        p.bar().set_message(format!("tracing {} (pixel samples)", scene.name));
+        p
+    };
     let checkpoint = a.checkpoint.map(|every| {
         let write = move |frame: &render::Frame| -> arbor::error::Result<()> {
             write_outputs(a, aovs, frame, None, part)

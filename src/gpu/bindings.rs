@@ -202,7 +202,7 @@ pub const INTEGRATOR_WHITTED: u32 = 0;
 pub const INTEGRATOR_PATH: u32 = 1;
 pub const INTEGRATOR_PROBE: u32 = 2;
 /// Stochastic progressive photon mapping (common/sppm.glsl): its camera, photon and
-/// update passes (`SPPM_PASS_*`, the dispatch header's `sppm_pass`) in one module.
+/// update passes (`SPPM_PASS_*`, the constant `SPEC_SPPM_PASS`) in one module.
 pub const INTEGRATOR_SPPM: u32 = 3;
 /// The entry points' module suffixes, by SPEC_INTEGRATOR value.
 pub const TRACE_ENTRIES: [(&str, u32); 4] = [
@@ -381,6 +381,13 @@ pub const PHOTON_GRID_COUNT: u32 = 2;
 pub const PHOTON_GRID_SCAN: u32 = 3;
 pub const PHOTON_GRID_SCATTER: u32 = 4;
 pub const PHOTON_GRID_PROBE: u32 = 5;
+/// The pass a photon-grid pipeline runs (`PHOTON_GRID_*`): one pipeline a pass, so
+/// that each holds only its own code (llvmpipe runs both sides of a branch, so a
+/// kernel of every pass costs every pass's time).
+pub const SPEC_GRID_MODE: u32 = 23;
+/// The pass before the others: the header back to its start (an empty box) and the
+/// buckets' counts to zero, so that a build is one submission.
+pub const PHOTON_GRID_CLEAR: u32 = 6;
 /// Header words: the spheres' box (min, max: order-preserving uints), the largest
 /// radius (float bits), cells per axis, the cell edge (float bits), the entries.
 pub const PHOTON_HDR_MIN: u32 = 0;
@@ -417,6 +424,9 @@ pub const BINDING_SPPM_MAP: u32 = 16;
 pub const SPEC_PHOTON_MAP: u32 = 22;
 pub const SPPM_MAP_HASHGRID: u32 = 0;
 pub const SPPM_MAP_KDTREE: u32 = 1;
+/// The pass an `sppm` pipeline runs (`SPPM_PASS_*`): one pipeline a pass, so that each
+/// holds only its own code (llvmpipe runs both sides of a branch).
+pub const SPEC_SPPM_PASS: u32 = 24;
 /// The passes of one iteration, in order: camera paths to their visible points, photons
 /// from the lights into them, and each pixel's radius and flux update.
 pub const SPPM_PASS_CAMERA: u32 = 0;
@@ -452,10 +462,15 @@ pub const SPPM_COUNTERS: u32 = 4;
 /// Most candidates one photon tests in a hash-grid bucket (a bound on the loop).
 pub const SPPM_BUCKET_MOST: u32 = 4096;
 /// The light table of the photon pass (shading rows from `GpuParams::photon_light_table`,
-/// one a light: CDF start, probability, kind bits, index bits): the kinds.
+/// one a light: CDF start, probability, kind bits, index bits, then one row: the photon
+/// guide, center and radius): the kinds.
 pub const SPPM_LIGHT_DELTA: u32 = 0;
 pub const SPPM_LIGHT_AREA: u32 = 1;
 pub const SPPM_LIGHT_ENV: u32 = 2;
+/// The share of a light's photons sent toward the photon guide (the sphere bounding the
+/// scene's delta surfaces, the shading row after the light table), in percent; the rest
+/// as the light sends them. Each photon's power is divided by the pdf of the mixture.
+pub const SPPM_GUIDE_PERCENT: u32 = 50;
 /// The default initial radius: this many pixel footprints at the visible point's
 /// distance along the camera path.
 pub const SPPM_FOOTPRINT_PIXELS: u32 = 6;
@@ -625,6 +640,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("PHOTON_GRID_SCAN", PHOTON_GRID_SCAN),
     ("PHOTON_GRID_SCATTER", PHOTON_GRID_SCATTER),
     ("PHOTON_GRID_PROBE", PHOTON_GRID_PROBE),
+    ("PHOTON_GRID_CLEAR", PHOTON_GRID_CLEAR),
+    ("SPEC_GRID_MODE", SPEC_GRID_MODE),
     ("PHOTON_HDR_MIN", PHOTON_HDR_MIN),
     ("PHOTON_HDR_MAX", PHOTON_HDR_MAX),
     ("PHOTON_HDR_RADIUS", PHOTON_HDR_RADIUS),
@@ -643,6 +660,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_PHOTON_MAP", SPEC_PHOTON_MAP),
     ("SPPM_MAP_HASHGRID", SPPM_MAP_HASHGRID),
     ("SPPM_MAP_KDTREE", SPPM_MAP_KDTREE),
+    ("SPEC_SPPM_PASS", SPEC_SPPM_PASS),
     ("SPPM_PASS_CAMERA", SPPM_PASS_CAMERA),
     ("SPPM_PASS_PHOTON", SPPM_PASS_PHOTON),
     ("SPPM_PASS_UPDATE", SPPM_PASS_UPDATE),
@@ -667,4 +685,5 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPPM_LIGHT_AREA", SPPM_LIGHT_AREA),
     ("SPPM_LIGHT_ENV", SPPM_LIGHT_ENV),
     ("SPPM_FOOTPRINT_PIXELS", SPPM_FOOTPRINT_PIXELS),
+    ("SPPM_GUIDE_PERCENT", SPPM_GUIDE_PERCENT),
 ];

@@ -8,7 +8,7 @@ use glam::Vec3;
 use super::{HashGrid, PointTree};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
-use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, BufferKind, Context};
+use crate::gpu::{spirv, BindingDesc, BindingKind, Buffer, BufferKind, Context, Step};
 
 /// Most distinct buckets one visible point enters (3 cells an axis).
 pub const MAX_BUCKETS_A_POINT: u64 = 27;
@@ -54,7 +54,7 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
     let header = ctx.create_buffer("photon grid header", u64::from(PHOTON_HDR_WORDS) * 4, BufferKind::Storage)?;
     let starts = ctx.create_buffer("photon grid starts", (u64::from(buckets) + 1) * 4, BufferKind::Storage)?;
     let mut build = GridBuild::new(ctx, &header, points, &starts, n)?;
-    build.run(ctx, &header, &starts, n)?;
+    build.run(ctx, &header, n)?;
     Ok(DeviceGrid { header, starts, entries: build.entries, buckets, points: n })
 }
 
@@ -62,7 +62,8 @@ pub fn build_grid(ctx: &Context, points: &Buffer, n: u32) -> Result<DeviceGrid> 
 /// and bucket starts the caller owns (SPPM's photon pass binds the same buffers) and
 /// entries this build owns and grows as a build needs.
 pub struct GridBuild {
-    kernel: crate::gpu::Kernel,
+    /// One kernel a pass, by `PHOTON_GRID_*` (the test pass's stands in its place).
+    kernels: Vec<crate::gpu::Kernel>,
     /// One word a bucket: where the scatter puts a bucket's next entry.
     _cursor: Buffer,
     /// The test pass's buffers, unused by a build.
@@ -90,10 +91,16 @@ impl GridBuild {
             )));
         }
         let bindings = grid_bindings();
-        let mut kernel = grid_kernel(ctx, &bindings)?;
+        let mut kernels = Vec::new();
+        for mode in 0..=PHOTON_GRID_CLEAR {
+            // The test pass is not a build's: the clear pass stands in its place.
+            let pass = if mode == PHOTON_GRID_PROBE { PHOTON_GRID_CLEAR } else { mode };
+            kernels.push(grid_kernel(ctx, &bindings, pass)?);
+        }
         let cursor = ctx.create_buffer("photon grid cursor", u64::from(most.max(1)) * 4, BufferKind::Storage)?;
-        // Sized once a scan has counted the entries: until then a stand-in.
-        let entries = ctx.create_buffer("photon grid entries", 4, BufferKind::Storage)?;
+        // Eight a point at first (a sphere's box overlaps 8 cells or fewer unless its
+        // radius is near the largest); grown when a build counts more.
+        let entries = ctx.create_buffer("photon grid entries", u64::from(most.max(1)) * 8 * 4, BufferKind::Storage)?;
         let queries = ctx.create_buffer("photon grid queries", 16, BufferKind::Storage)?;
         let found = ctx.create_buffer("photon grid found", 16, BufferKind::Storage)?;
         for (binding, buffer) in [
@@ -105,52 +112,56 @@ impl GridBuild {
             (BINDING_PHOTON_QUERIES, &queries),
             (BINDING_PHOTON_FOUND, &found),
         ] {
-            ctx.bind(&mut kernel, binding, buffer)?;
+            for k in &mut kernels {
+                ctx.bind(k, binding, buffer)?;
+            }
         }
-        Ok(GridBuild { kernel, _cursor: cursor, _queries: queries, _found: found, entries, most })
+        Ok(GridBuild { kernels, _cursor: cursor, _queries: queries, _found: found, entries, most })
     }
 
     /// Builds the grid over the first `n` points (radius 0: none this time, skipped),
-    /// with `n` buckets (at least 1). True when `entries` was replaced by a larger
-    /// buffer, which the caller binds again where it bound the old one.
-    pub fn run(&mut self, ctx: &Context, header: &Buffer, starts: &Buffer, n: u32) -> Result<bool> {
+    /// with `n` buckets (at least 1): the six passes in one submission, then the scan's
+    /// total read back; where the entries were too few for it, they grow (by a quarter
+    /// more than needed) and the grid is built again. True when `entries` was replaced,
+    /// which the caller binds again where it bound the old one.
+    pub fn run(&mut self, ctx: &Context, header: &Buffer, n: u32) -> Result<bool> {
         if n > self.most {
             return Err(Error::Failed(format!("{n} visible points; this grid build takes at most {}", self.most)));
         }
         let buckets = n.max(1);
-        let mut head = [0u32; PHOTON_HDR_WORDS as usize];
-        head[PHOTON_HDR_MIN as usize..PHOTON_HDR_MIN as usize + 3].fill(u32::MAX);
-        ctx.write_storage(header, 0, bytemuck::cast_slice(&head))?;
-        ctx.fill_zero(starts)?;
         let groups = n.div_ceil(PHOTON_GROUP).max(1);
+        let clear = (buckets + 1).max(PHOTON_HDR_WORDS).div_ceil(PHOTON_GROUP);
         let mut grown = false;
-        for (mode, groups, label) in [
-            (PHOTON_GRID_BOUNDS, groups, "photon grid: bounds"),
-            (PHOTON_GRID_FRAME, 1, "photon grid: frame"),
-            (PHOTON_GRID_COUNT, groups, "photon grid: count"),
-            (PHOTON_GRID_SCAN, 1, "photon grid: scan"),
-            (PHOTON_GRID_SCATTER, groups, "photon grid: scatter"),
-        ] {
-            if n == 0 && mode != PHOTON_GRID_SCAN {
-                continue;
-            }
-            if mode == PHOTON_GRID_SCATTER {
-                // The entries the scan counted (at most MAX_BUCKETS_A_POINT a point).
-                let total: Vec<u32> = ctx.read_storage_pod(header, u64::from(PHOTON_HDR_TOTAL) * 4, 1)?;
-                let bytes = u64::from(total[0]).max(1) * 4;
-                if bytes > self.entries.size() {
-                    // A quarter more than needed, so that a slowly growing count does
-                    // not replace the buffer every iteration.
-                    let bytes =
-                        (bytes + bytes / 4).min(u64::from(self.most.max(1)) * MAX_BUCKETS_A_POINT * 4).max(bytes);
-                    ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
-                    self.entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
-                    ctx.bind(&mut self.kernel, BINDING_PHOTON_ENTRIES, &self.entries)?;
-                    grown = true;
+        loop {
+            let capacity = (self.entries.size() / 4) as u32;
+            let push = || bytemuck::cast_slice(&[0, n, buckets, capacity]).to_vec();
+            let clear_pass = &self.kernels[PHOTON_GRID_CLEAR as usize];
+            let mut steps = vec![Step::Dispatch { kernel: clear_pass, push: push(), groups: [clear, 1, 1] }];
+            if n > 0 {
+                for (mode, groups) in [
+                    (PHOTON_GRID_BOUNDS, groups),
+                    (PHOTON_GRID_FRAME, 1),
+                    (PHOTON_GRID_COUNT, groups),
+                    (PHOTON_GRID_SCAN, 1),
+                    (PHOTON_GRID_SCATTER, groups),
+                ] {
+                    let kernel = &self.kernels[mode as usize];
+                    steps.push(Step::Dispatch { kernel, push: push(), groups: [groups, 1, 1] });
                 }
             }
-            let push = [mode, n, buckets, 0];
-            ctx.dispatch(&self.kernel, bytemuck::cast_slice(&push), [groups, 1, 1], label)?;
+            ctx.run_steps("photon grid: build", &steps)?;
+            let total: Vec<u32> = ctx.read_storage_pod(header, u64::from(PHOTON_HDR_TOTAL) * 4, 1)?;
+            let needed = u64::from(total[0]);
+            if needed <= u64::from(capacity) {
+                break;
+            }
+            let bytes = (needed + needed / 4).min(u64::from(self.most.max(1)) * MAX_BUCKETS_A_POINT).max(needed) * 4;
+            ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
+            self.entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
+            for k in &mut self.kernels {
+                ctx.bind(k, BINDING_PHOTON_ENTRIES, &self.entries)?;
+            }
+            grown = true;
         }
         ctx.check_validation()?;
         Ok(grown)
@@ -171,9 +182,10 @@ fn grid_bindings() -> [BindingDesc; 7] {
     ]
 }
 
-fn grid_kernel(ctx: &Context, bindings: &[BindingDesc]) -> Result<crate::gpu::Kernel> {
+/// The grid's kernel of pass `mode` (`PHOTON_GRID_*`).
+fn grid_kernel(ctx: &Context, bindings: &[BindingDesc], mode: u32) -> Result<crate::gpu::Kernel> {
     let spv = spirv::get("photon_grid").ok_or_else(|| Error::Failed("kernel photon_grid is not compiled in".into()))?;
-    ctx.create_kernel("photon_grid", spv, bindings, &[], 16)
+    ctx.create_kernel(&format!("photon_grid.{mode}"), spv, bindings, &[(SPEC_GRID_MODE, mode)], 16)
 }
 
 impl DeviceGrid {
@@ -190,7 +202,7 @@ impl DeviceGrid {
             .filter(|&q| q <= MAX_POINTS)
             .ok_or_else(|| Error::Failed(format!("{} query photons; at most {MAX_POINTS} a call", queries.len())))?;
         let bindings = grid_bindings();
-        let mut kernel = grid_kernel(ctx, &bindings)?;
+        let mut kernel = grid_kernel(ctx, &bindings, PHOTON_GRID_PROBE)?;
         let words: Vec<[f32; 4]> = queries.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect();
         let qbuf = ctx.upload_storage("photon grid queries", bytemuck::cast_slice(&words))?;
         let fbuf = ctx.create_buffer("photon grid found", u64::from(q) * 8, BufferKind::Storage)?;
@@ -206,7 +218,7 @@ impl DeviceGrid {
         ] {
             ctx.bind(&mut kernel, binding, buffer)?;
         }
-        let push = [PHOTON_GRID_PROBE, self.points, self.buckets, q];
+        let push = [0, self.points, self.buckets, q];
         ctx.dispatch(&kernel, bytemuck::cast_slice(&push), [q.div_ceil(PHOTON_GROUP), 1, 1], "photon grid: lookups")?;
         ctx.check_validation()?;
         ctx.read_storage_pod(&fbuf, 0, queries.len())

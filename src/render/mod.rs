@@ -162,7 +162,8 @@ pub type CheckpointWriter<'a> = Box<dyn FnMut(&Frame) -> Result<()> + 'a>;
 /// What a render is told from outside: progress, and for the path integrator
 /// interruption and checkpoints (the Whitted integrator reports progress only).
 pub struct Control<'a> {
-    /// `(done, total)` pixel-samples after every dispatch.
+    /// `(done, total)` pixel-samples after every dispatch (SPPM: iterations, after
+    /// each).
     pub progress: Box<dyn FnMut(u64, u64) + 'a>,
     /// Polled after every sample wave: true stops the render; the image so far is
     /// returned.

@@ -91,7 +91,7 @@ impl Waves {
             window_width: w,
             zero_sample: self.first_sample,
             trace_steps: tree_steps,
-            sppm_pass: 0,
+            unused: 0,
             map_size: 0,
             map_buckets: 0,
         }

@@ -27,13 +27,13 @@ use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch, GpuPixel, PIXEL_HEADE
 use crate::accel::Accel;
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
-use crate::gpu::{BindingDesc, BindingKind, Buffer, Context};
+use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
 use crate::photon::device::GridBuild;
 use crate::photon::PointTree;
 use crate::render::dispatch::kernel::Entry;
 use crate::render::dispatch::prepare::{Prepared, Request};
 use crate::render::dispatch::tables::{extras, Extras};
-use crate::render::dispatch::upload::GpuScene;
+use crate::render::dispatch::upload::{bind_again, GpuScene};
 use crate::render::dispatch::DispatchTotals;
 use crate::render::integrators::path;
 use crate::render::{Control, Frame, RenderSettings, RenderStats};
@@ -192,9 +192,61 @@ fn light_table(scene: &Scene, ex: &Extras, sphere_radius: f32) -> (Vec<[f32; 4]>
     (rows, total)
 }
 
+/// Whether light leaving a surface of `m` goes on in a delta direction (mirror, smooth
+/// glass, smooth conductor and dielectric): the surfaces photons are guided toward.
+fn is_delta(m: &crate::scene::Material) -> bool {
+    use crate::scene::MaterialKind;
+    match m.kind {
+        MaterialKind::Mirror | MaterialKind::Glass => true,
+        MaterialKind::Conductor | MaterialKind::Dielectric => m.is_smooth(),
+        _ => false,
+    }
+}
+
+/// The photon guide: a sphere bounding the scene's delta surfaces (center, radius; 0
+/// when there are none), toward which the photon pass sends `SPPM_GUIDE_SHARE` of the
+/// photons of the lights outside it. Photons that reach a caustic all go through it.
+fn guide_sphere(scene: &Scene) -> [f32; 4] {
+    let mut bounds = crate::math::Aabb::EMPTY;
+    for s in scene.spheres.iter().filter(|s| is_delta(&scene.materials[s.material as usize])) {
+        bounds.grow(s.center - Vec3::splat(s.radius));
+        bounds.grow(s.center + Vec3::splat(s.radius));
+    }
+    for (t, &m) in scene.triangles.iter().zip(&scene.tri_material) {
+        if is_delta(&scene.materials[m as usize]) {
+            t.iter().for_each(|&v| bounds.grow(scene.positions[v as usize]));
+        }
+    }
+    if !(bounds.min.x <= bounds.max.x) {
+        return [0.0; 4];
+    }
+    // About the box's center, out to the farthest delta surface (one sphere: itself),
+    // a little larger so that rounding never cuts a surface off.
+    let c = 0.5 * (bounds.min + bounds.max);
+    let mut r = 0.0f32;
+    for s in scene.spheres.iter().filter(|s| is_delta(&scene.materials[s.material as usize])) {
+        r = r.max((s.center - c).length() + s.radius);
+    }
+    for (t, &m) in scene.triangles.iter().zip(&scene.tri_material) {
+        if is_delta(&scene.materials[m as usize]) {
+            t.iter().for_each(|&v| r = r.max((scene.positions[v as usize] - c).length()));
+        }
+    }
+    let r = r * 1.001 + 1e-6;
+    if r.is_finite() {
+        [c.x, c.y, c.z, r]
+    } else {
+        [0.0; 4]
+    }
+}
+
 /// The buffers and state of one SPPM render on the device.
 struct Passes<'p, 'a> {
+    /// The camera pass's kernel is the prepared one; the photon and update passes are
+    /// pipelines of their own from the same module and buffers.
     prep: &'p mut Prepared<'a>,
+    photon_kernel: Kernel,
+    update_kernel: Kernel,
     /// Pixels of the window, one slot each.
     slots: u32,
     steps: u32,
@@ -204,6 +256,13 @@ struct Passes<'p, 'a> {
     gpu_ms: Option<f64>,
     /// The kd-tree the kernel's map binding points at, kept until the next one.
     tree_buffer: Option<Buffer>,
+    /// Jobs a millisecond each pass ran at in its last dispatch (`SPPM_PASS_*`):
+    /// dispatches are sized from it toward the pacing's target length.
+    rates: [Option<f64>; 3],
+    /// Polled between dispatches: true stops the render within the iteration (whose
+    /// update then does not run: the image is the last iteration's).
+    interrupted: &'p dyn Fn() -> bool,
+    stopped: bool,
 }
 
 impl Passes<'_, '_> {
@@ -211,15 +270,28 @@ impl Passes<'_, '_> {
         self.prep.bound.at(binding).ok_or_else(|| Error::Failed(format!("sppm: binding {binding} has no buffer")))
     }
 
-    /// Runs pass `pass` of iteration `it` over jobs `0..jobs`, in dispatches within
-    /// the device's workgroup limit; its GPU milliseconds (None without timestamps).
+    /// Runs pass `pass` of iteration `it` over jobs `0..jobs`, in dispatches sized by
+    /// the time the pass's last one took (toward the pacing's target, as the render
+    /// loop sizes its waves) and within the device's workgroup limit; its GPU
+    /// milliseconds (None without timestamps). Sets `stopped` and returns early when
+    /// interrupted.
     fn pass(&mut self, pass: u32, it: u32, jobs: u32, map: (u32, u32), label: &str) -> Result<Option<f64>> {
         let mut total = Some(0.0);
         // Every device dispatches at least 65,535 workgroups along x.
         let most = WORKGROUP_SIZE * 65_535;
+        let target_ms = self.prep.pacing.target_ms;
         let mut first = 0u32;
         while first < jobs {
-            let count = (jobs - first).min(most);
+            // The update runs whole: every pixel then holds the same iterations.
+            if pass != SPPM_PASS_UPDATE && (self.interrupted)() {
+                self.stopped = true;
+                return Ok(total);
+            }
+            let sized = match self.rates[pass as usize] {
+                Some(rate) => (rate * target_ms).clamp(f64::from(WORKGROUP_SIZE), f64::from(most)) as u32,
+                None => FIRST_DISPATCH_JOBS,
+            };
+            let count = (jobs - first).min(most).min(sized.max(WORKGROUP_SIZE));
             let [x0, y0, w] = self.window;
             let header = GpuDispatch {
                 first,
@@ -232,13 +304,22 @@ impl Passes<'_, '_> {
                 window_width: w,
                 zero_sample: 0,
                 trace_steps: self.steps,
-                sppm_pass: pass,
+                unused: 0,
                 map_size: map.0,
                 map_buckets: map.1,
             };
             let ctx = self.prep.ctx;
             ctx.write_storage(self.prep.bound.pixels(), 0, bytemuck::bytes_of(&header))?;
-            let ms = ctx.dispatch(&self.prep.kernel, &[], [count.div_ceil(WORKGROUP_SIZE), 1, 1], label)?;
+            let began = Instant::now();
+            let kernel = match pass {
+                SPPM_PASS_PHOTON => &self.photon_kernel,
+                SPPM_PASS_UPDATE => &self.update_kernel,
+                _ => &self.prep.kernel,
+            };
+            let ms = ctx.dispatch(kernel, &[], [count.div_ceil(WORKGROUP_SIZE), 1, 1], label)?;
+            // The GPU's time where there are timestamps, else the host's wait.
+            let took = ms.unwrap_or_else(|| began.elapsed().as_secs_f64() * 1e3).max(1e-3);
+            self.rates[pass as usize] = Some(f64::from(count) / took);
             self.dispatches += 1;
             self.gpu_ms = match (self.gpu_ms, ms) {
                 (Some(a), Some(b)) => Some(a + b),
@@ -251,6 +332,9 @@ impl Passes<'_, '_> {
         Ok(total)
     }
 }
+
+/// Jobs of a pass's first dispatch, before its rate is known.
+const FIRST_DISPATCH_JOBS: u32 = 16_384;
 
 /// The photon map of one iteration: builds it over the visible points the camera pass
 /// left and binds it; its size and buckets for the photon pass.
@@ -265,10 +349,8 @@ impl MapBuilder {
         let n = passes.slots;
         match self {
             MapBuilder::Grid(build) => {
-                let (header, starts) =
-                    (passes.buffer(BINDING_SPPM_GRID_HEADER)?, passes.buffer(BINDING_SPPM_GRID_STARTS)?);
-                if build.run(ctx, header, starts, n)? {
-                    ctx.bind(&mut passes.prep.kernel, BINDING_SPPM_MAP, &build.entries)?;
+                if build.run(ctx, passes.buffer(BINDING_SPPM_GRID_HEADER)?, n)? {
+                    ctx.bind(&mut passes.photon_kernel, BINDING_SPPM_MAP, &build.entries)?;
                 }
                 Ok((n, n.max(1)))
             }
@@ -292,7 +374,7 @@ impl MapBuilder {
                 let bytes: &[u8] = if tree.nodes.is_empty() { &[0; 32] } else { bytemuck::cast_slice(&tree.nodes) };
                 ctx.check_binding(BindingKind::Storage, "photon map", bytes.len() as u64)?;
                 let buf = ctx.upload_storage("photon map", bytes)?;
-                ctx.bind(&mut passes.prep.kernel, BINDING_SPPM_MAP, &buf)?;
+                ctx.bind(&mut passes.photon_kernel, BINDING_SPPM_MAP, &buf)?;
                 // The kernel's descriptor points at it until the next iteration's.
                 passes.tree_buffer = Some(buf);
                 Ok((tree.nodes.len() as u32, 0))
@@ -326,6 +408,8 @@ pub fn render_with(
     let (lights, power) = light_table(scene, &ex, sphere_radius);
     let light_table_row = gs.shading.len() as u32;
     gs.shading.extend_from_slice(&lights);
+    // The row after the light table: the photon guide.
+    gs.shading.push(guide_sphere(scene));
     let photons = sppm.photons_for(settings.width, settings.height);
     let mut params = path::params(scene, settings, accel, &ex);
     params.photon_light_table = light_table_row;
@@ -336,6 +420,7 @@ pub fn render_with(
     params.photon_unit = if power > 0.0 { power / 16_777_216.0 } else { 1.0 };
     let mut spec = path::specialization(scene, settings, &ex);
     spec.push((SPEC_PHOTON_MAP, sppm.map.spec()));
+    spec.push((SPEC_SPPM_PASS, SPPM_PASS_CAMERA));
     let window = settings.window();
     let slots = window.pixels();
     let request = Request {
@@ -373,23 +458,45 @@ pub fn render_with(
         }
         PhotonMap::Kdtree => MapBuilder::Tree,
     };
+    let kernel_of = |pass: u32| -> Result<Kernel> {
+        let spec: Vec<(u32, u32)> =
+            prep.spec.iter().map(|&(id, v)| if id == SPEC_SPPM_PASS { (id, pass) } else { (id, v) }).collect();
+        let variant = &prep.variant;
+        let mut k = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
+        let stand_in =
+            prep.bound.at(BINDING_SPPM_MAP).ok_or_else(|| Error::Failed("sppm: no photon map binding".into()))?;
+        bind_again(ctx, &mut k, &variant.bindings, &prep.bound, (BINDING_SPPM_MAP, stand_in))?;
+        Ok(k)
+    };
+    let compile = Instant::now();
+    let mut photon_kernel = kernel_of(SPPM_PASS_PHOTON)?;
+    let update_kernel = kernel_of(SPPM_PASS_UPDATE)?;
+    prep.kernel_ms += compile.elapsed().as_secs_f64() * 1e3;
+    if let MapBuilder::Grid(build) = &map {
+        // The photon pass reads the entries the build writes.
+        ctx.bind(&mut photon_kernel, BINDING_SPPM_MAP, &build.entries)?;
+    }
     let steps = prep.bounds.steps as u32;
     let Control { mut progress, interrupted, mut checkpoint } = control;
     let mut passes = Passes {
         prep: &mut prep,
+        photon_kernel,
+        update_kernel,
         slots,
         steps,
         window: [window.x0, window.y0, window.width()],
         dispatches: 0,
         gpu_ms: None,
         tree_buffer: None,
+        rates: [None; 3],
+        interrupted: &*interrupted,
+        stopped: false,
     };
     let mut stats =
         SppmStats { photon_map: sppm.map.name().into(), photons_per_iteration: photons, ..Default::default() };
     let loop_start = Instant::now();
     let mut last_checkpoint = Instant::now();
     let mut stopped = false;
-    let total = u64::from(settings.spp) * u64::from(slots);
     let add = |sum: &mut Option<f64>, ms: Option<f64>| *sum = sum.zip(ms).map(|(a, b)| a + b);
     stats.camera_ms = Some(0.0);
     stats.photon_ms = Some(0.0);
@@ -400,12 +507,18 @@ pub fn render_with(
             let built = Instant::now();
             let map_size = map.build(&mut passes)?;
             stats.map_ms += built.elapsed().as_secs_f64() * 1e3;
-            let ms = passes.pass(SPPM_PASS_PHOTON, it, photons, map_size, "sppm: photons")?;
-            add(&mut stats.photon_ms, ms);
+            if !passes.stopped {
+                let ms = passes.pass(SPPM_PASS_PHOTON, it, photons, map_size, "sppm: photons")?;
+                add(&mut stats.photon_ms, ms);
+            }
+        }
+        if passes.stopped {
+            stopped = true;
+            break;
         }
         passes.pass(SPPM_PASS_UPDATE, it, slots, (0, 0), "sppm: update")?;
         stats.iterations = it + 1;
-        progress(u64::from(it + 1) * u64::from(slots), total);
+        progress(u64::from(it + 1), u64::from(settings.spp));
         if it + 1 == settings.spp {
             break;
         }
