@@ -114,11 +114,14 @@ void sppm_camera(PixelJob job, Pixel px) {
                 radius = params.photon_radius > 0.0 ? params.photon_radius : float(SPPM_FOOTPRINT_PIXELS) * footprint;
             }
             if (radius > 0.0 && !any(isnan(p)) && !any(isinf(p))) {
-                uint word = mat | (front ? SPPM_FRONT_BIT : 0u);
+                // A Lambert point keeps its BSDF in the throughput (photon_visit).
+                bool diffuse = kind_used(MAT_LAMBERT) && m.kind == MAT_LAMBERT;
+                uint word = mat | (front ? SPPM_FRONT_BIT : 0u) | (diffuse ? SPPM_DIFFUSE_BIT : 0u);
                 set_record(slot, SPPM_REC_POINT, vec4(p, uintBitsToFloat(word)));
                 set_record(slot, SPPM_REC_NORMAL, vec4(n, uv.x));
                 set_record(slot, SPPM_REC_WO, vec4(wo, uv.y));
-                set_record(slot, SPPM_REC_BETA, vec4(beta, float(depth + 1u)));
+                vec3 kept = diffuse ? beta * (m.albedo * INV_PI) : beta;
+                set_record(slot, SPPM_REC_BETA, vec4(kept, float(depth + 1u)));
                 point = vec4(p, radius);
                 found = true;
             }
@@ -178,11 +181,19 @@ void photon_visit(uint v, vec3 p) {
     vec4 beta = record(v, SPPM_REC_BETA);
     if (uint(beta.w) + g_photon_segments > MAX_DEPTH) return;
     vec4 n = record(v, SPPM_REC_NORMAL);
-    vec4 wo = record(v, SPPM_REC_WO);
-    Material m = material_hit(word & ~SPPM_FRONT_BIT, vec2(n.w, wo.w));
-    float pdf;
-    vec3 f = bsdf_eval(m, n.xyz, wo.xyz, g_photon_wi, (word & SPPM_FRONT_BIT) != 0u, pdf);
-    vec3 phi = beta.rgb * f * g_photon_beta / params.photon_unit;
+    vec3 phi;
+    if ((word & SPPM_DIFFUSE_BIT) != 0u) {
+        // Lambert: the throughput holds albedo / pi, which bsdf_eval would give in
+        // front of the surface and 0 behind it.
+        if (dot(n.xyz, g_photon_wi) <= 0.0) return;
+        phi = beta.rgb * g_photon_beta / params.photon_unit;
+    } else {
+        vec4 wo = record(v, SPPM_REC_WO);
+        Material m = material_hit(word & ~(SPPM_FRONT_BIT | SPPM_DIFFUSE_BIT), vec2(n.w, wo.w));
+        float pdf;
+        vec3 f = bsdf_eval(m, n.xyz, wo.xyz, g_photon_wi, (word & SPPM_FRONT_BIT) != 0u, pdf);
+        phi = beta.rgb * f * g_photon_beta / params.photon_unit;
+    }
     if (any(isnan(phi)) || any(isinf(phi))) return;
     uint at = flux_at(v);
     add_fixed(at, phi.r);

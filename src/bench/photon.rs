@@ -1,5 +1,5 @@
 //! SPPM's photon maps beside the ray structures (`arbor bench`; docs/caustics.md): over
-//! the visible points a scene's camera rays find at the benchmark's size (radii of six
+//! the visible points a scene's camera rays find at the benchmark's size (radii of three
 //! pixel footprints, as `--integrator sppm` starts with), each map's build milliseconds
 //! and photon lookups per second, a photon jittered near every point. The hash grid is
 //! built on the device, the kd-tree on the host, as the integrator builds them; both

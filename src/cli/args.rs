@@ -308,7 +308,7 @@ pub(crate) struct RenderArgs {
     /// Sppm: photons per iteration, 1..=67108864 (default: one a pixel of the image).
     #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub(crate) photons: Option<i64>,
-    /// Sppm: every pixel's initial photon radius, in scene units (default: six pixel
+    /// Sppm: every pixel's initial photon radius, in scene units (default: three pixel
     /// footprints at each pixel's visible point); it shrinks as photons arrive.
     #[arg(long, allow_negative_numbers = true, value_name = "R")]
     pub(crate) photon_radius: Option<f64>,

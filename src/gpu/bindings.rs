@@ -435,7 +435,8 @@ pub const SPPM_PASS_UPDATE: u32 = 2;
 /// A slot's record rows: the visible point (position, material | front flag, or
 /// `SPPM_NO_POINT`), its shading normal + u, direction to the camera + v, path
 /// throughput + the camera path's segments, the sum of its direct light + the radius,
-/// tau (the flux kept, pbrt's) + N (the photons it counts).
+/// tau (the flux kept, pbrt's) + N (the photons it counts). A Lambert point's
+/// throughput is times its BSDF (`SPPM_DIFFUSE_BIT`).
 pub const SPPM_REC_POINT: u32 = 0;
 pub const SPPM_REC_NORMAL: u32 = 1;
 pub const SPPM_REC_WO: u32 = 2;
@@ -447,6 +448,9 @@ pub const SPPM_RECORD_ROWS: u32 = 6;
 /// the bit of it that says the camera came from the front of the surface.
 pub const SPPM_NO_POINT: u32 = 0xffff_ffff;
 pub const SPPM_FRONT_BIT: u32 = 0x8000_0000;
+/// The bit that says the visible point is Lambert: its record's throughput is then
+/// already times the BSDF (albedo / pi), and a deposit needs no material.
+pub const SPPM_DIFFUSE_BIT: u32 = 0x4000_0000;
 /// A slot's flux words: red, green, blue as 64-bit fixed point (low word, high word),
 /// then the photons found (M), then one unused.
 pub const SPPM_FLUX_WORDS: u32 = 8;
@@ -473,7 +477,7 @@ pub const SPPM_LIGHT_ENV: u32 = 2;
 pub const SPPM_GUIDE_PERCENT: u32 = 50;
 /// The default initial radius: this many pixel footprints at the visible point's
 /// distance along the camera path.
-pub const SPPM_FOOTPRINT_PIXELS: u32 = 6;
+pub const SPPM_FOOTPRINT_PIXELS: u32 = 3;
 
 /// Every value above that shaders see, by macro name.
 pub const SHADER_DEFINES: &[(&str, u32)] = &[
@@ -673,6 +677,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPPM_RECORD_ROWS", SPPM_RECORD_ROWS),
     ("SPPM_NO_POINT", SPPM_NO_POINT),
     ("SPPM_FRONT_BIT", SPPM_FRONT_BIT),
+    ("SPPM_DIFFUSE_BIT", SPPM_DIFFUSE_BIT),
     ("SPPM_FLUX_WORDS", SPPM_FLUX_WORDS),
     ("SPPM_FLUX_COUNT", SPPM_FLUX_COUNT),
     ("SPPM_COUNT_PHOTON_RAYS", SPPM_COUNT_PHOTON_RAYS),

@@ -217,7 +217,7 @@ fn guide_sphere(scene: &Scene) -> [f32; 4] {
             t.iter().for_each(|&v| bounds.grow(scene.positions[v as usize]));
         }
     }
-    if !(bounds.min.x <= bounds.max.x) {
+    if bounds.min.cmpgt(bounds.max).any() || bounds.min.is_nan() {
         return [0.0; 4];
     }
     // About the box's center, out to the farthest delta surface (one sphere: itself),
