@@ -41,6 +41,10 @@ layout(std430, set = 0, binding = BINDING_PHOTON_ENTRIES) buffer GridEntries { u
 layout(std430, set = 0, binding = BINDING_PHOTON_QUERIES) readonly buffer GridQueries { vec4 queries[]; };
 layout(std430, set = 0, binding = BINDING_PHOTON_FOUND) writeonly buffer GridFound { uvec2 found[]; };
 
+#define PHOTON_HEADER(i) header[i]
+#define PHOTON_START(b) starts[b]
+#define PHOTON_ENTRY(k) entries[k]
+#define PHOTON_POINT(v) points[v]
 #include "common/photon_grid.glsl"
 
 // HashGrid::buckets_of: the distinct buckets of the cells that point i's sphere box

@@ -20,6 +20,8 @@ layout(std430, set = 0, binding = BINDING_PHOTON_QUERIES) readonly buffer TreeQu
 layout(std430, set = 0, binding = BINDING_PHOTON_FOUND) writeonly buffer TreeFound { uvec2 found[]; };
 
 #define PHOTON_TREE_STACK PHOTON_TREE_MAX_DEPTH
+#define PHOTON_TREE_NODE(i) tree_nodes[i]
+#define PHOTON_POINT(v) points[v]
 #include "common/photon_tree.glsl"
 
 uvec2 g_found = uvec2(0u);

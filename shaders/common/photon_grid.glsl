@@ -1,7 +1,8 @@
 // SPPM's hash grid as its kernels read it (src/photon/hashgrid.rs, the layout): the
 // header's box, cells and edge, a cell's bucket, and a photon's lookup. Needs the
-// buffers `header`, `points` (vec4 position + radius), `starts` and `entries` declared
-// before it (shaders/photon_grid.comp).
+// accessors PHOTON_HEADER(i), PHOTON_START(b), PHOTON_ENTRY(k) (uint words) and
+// PHOTON_POINT(v) (vec4 position + radius) defined before it: storage buffers' elements
+// in shaders/photon_grid.comp, texel fetches in the photon pass (common/sppm.glsl).
 #ifndef ARBOR_PHOTON_GRID_GLSL
 #define ARBOR_PHOTON_GRID_GLSL
 
@@ -9,8 +10,8 @@
 #include "common/photon_holds.glsl"
 
 vec3 photon_grid_min() {
-    return vec3(order_float(header[PHOTON_HDR_MIN]), order_float(header[PHOTON_HDR_MIN + 1u]),
-                order_float(header[PHOTON_HDR_MIN + 2u]));
+    return vec3(order_float(PHOTON_HEADER(PHOTON_HDR_MIN)), order_float(PHOTON_HEADER(PHOTON_HDR_MIN + 1u)),
+                order_float(PHOTON_HEADER(PHOTON_HDR_MIN + 2u)));
 }
 
 // hashgrid::hash: Teschner et al. 2003, wrapping 32-bit.
@@ -39,14 +40,14 @@ GridLookup grid_lookup_begin(vec3 p, uint n, uint buckets) {
     g.first = 0u;
     g.end = 0u;
     vec3 lo = photon_grid_min();
-    vec3 hi = vec3(order_float(header[PHOTON_HDR_MAX]), order_float(header[PHOTON_HDR_MAX + 1u]),
-                   order_float(header[PHOTON_HDR_MAX + 2u]));
+    vec3 hi = vec3(order_float(PHOTON_HEADER(PHOTON_HDR_MAX)), order_float(PHOTON_HEADER(PHOTON_HDR_MAX + 1u)),
+                   order_float(PHOTON_HEADER(PHOTON_HDR_MAX + 2u)));
     if (n == 0u || any(lessThan(p, lo)) || any(greaterThan(p, hi))) return g;
-    float edge = uintBitsToFloat(header[PHOTON_HDR_EDGE]);
-    uvec3 res = uvec3(header[PHOTON_HDR_RES], header[PHOTON_HDR_RES + 1u], header[PHOTON_HDR_RES + 2u]);
+    float edge = uintBitsToFloat(PHOTON_HEADER(PHOTON_HDR_EDGE));
+    uvec3 res = uvec3(PHOTON_HEADER(PHOTON_HDR_RES), PHOTON_HEADER(PHOTON_HDR_RES + 1u), PHOTON_HEADER(PHOTON_HDR_RES + 2u));
     uint b = photon_grid_hash(photon_grid_cell(p, lo, edge, res), buckets);
-    g.first = starts[b];
-    g.end = starts[b + 1u];
+    g.first = PHOTON_START(b);
+    g.end = PHOTON_START(b + 1u);
     return g;
 }
 
@@ -60,7 +61,7 @@ bool grid_walk(vec3 p, uint n, uint buckets, uint most) {
     GridLookup g = grid_lookup_begin(p, n, buckets);
     uint end = g.first + min(g.end - g.first, most);
     for (uint k = g.first; k < end; k++) {
-        uint v = entries[k];
+        uint v = PHOTON_ENTRY(k);
         if (photon_holds(v, p)) photon_visit(v, p);
     }
     return g.end - g.first <= most;

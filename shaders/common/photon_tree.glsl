@@ -1,7 +1,7 @@
 // The lecture's kd-tree over visible points as the photon pass reads it
 // (src/photon/kdtree.rs, the layout: 32-byte nodes in preorder, each bounding its
-// subtree's spheres). Needs the buffers `tree_nodes` (two vec4 a node: min + point
-// bits, max + end bits) and `points` (vec4 position + radius) declared before it,
+// subtree's spheres). Needs the accessors PHOTON_TREE_NODE(i) (two vec4 a node: min +
+// point bits, max + end bits) and PHOTON_POINT(v) (vec4 position + radius) before it,
 // and PHOTON_TREE_STACK, the deepest tree it searches (floor(log2 n) + 1).
 #ifndef ARBOR_PHOTON_TREE_GLSL
 #define ARBOR_PHOTON_TREE_GLSL
@@ -21,8 +21,8 @@ void tree_walk(vec3 p, uint n) {
     // Every node is visited at most once.
     for (uint step = 0u; step < n && sp > 0u; step++) {
         uint k = stack[--sp];
-        vec4 lo = tree_nodes[2u * k];
-        vec4 hi = tree_nodes[2u * k + 1u];
+        vec4 lo = PHOTON_TREE_NODE(2u * k);
+        vec4 hi = PHOTON_TREE_NODE(2u * k + 1u);
         if (any(lessThan(p, lo.xyz)) || any(greaterThan(p, hi.xyz))) continue;
         uint v = floatBitsToUint(lo.w);
         if (photon_holds(v, p)) photon_visit(v, p);

@@ -23,20 +23,35 @@
 layout(constant_id = SPEC_PHOTON_MAP) const uint PHOTON_MAP = SPPM_MAP_HASHGRID;
 layout(constant_id = SPEC_SPPM_PASS) const uint SPPM_PASS = SPPM_PASS_CAMERA;
 
-layout(std430, set = 0, binding = BINDING_SPPM_POINTS) buffer SppmPoints { vec4 points[]; };
+// What the camera and update passes write: storage.
+layout(std430, set = 0, binding = BINDING_SPPM_POINTS) writeonly buffer SppmPoints { vec4 points[]; };
 layout(std430, set = 0, binding = BINDING_SPPM_RECORDS) buffer SppmRecords { vec4 records[]; };
 layout(std430, set = 0, binding = BINDING_SPPM_FLUX) buffer SppmFlux { uint flux[]; };
-layout(std430, set = 0, binding = BINDING_SPPM_GRID_HEADER) readonly buffer SppmGridHeader { uint header[]; };
-layout(std430, set = 0, binding = BINDING_SPPM_GRID_STARTS) readonly buffer SppmGridStarts { uint starts[]; };
-// The map binding holds the grid's entries or the kd-tree's nodes (SPEC_PHOTON_MAP).
-layout(std430, set = 0, binding = BINDING_SPPM_MAP) readonly buffer SppmGridEntries { uint entries[]; };
-layout(std430, set = 0, binding = BINDING_SPPM_MAP) readonly buffer SppmTreeNodes { vec4 tree_nodes[]; };
+// What the photon pass reads, many times a photon: texel buffers (RGBA32UI views), on
+// llvmpipe one vector gather where a storage load is a loop over the lanes. The points
+// and records are the buffers above; the map holds the grid's entries or the kd-tree's
+// nodes (SPEC_PHOTON_MAP).
+layout(set = 0, binding = BINDING_SPPM_POINT_TEXELS) uniform usamplerBuffer point_texels;
+layout(set = 0, binding = BINDING_SPPM_RECORD_TEXELS) uniform usamplerBuffer record_texels;
+layout(set = 0, binding = BINDING_SPPM_GRID_HEADER) uniform usamplerBuffer header_texels;
+layout(set = 0, binding = BINDING_SPPM_GRID_STARTS) uniform usamplerBuffer start_texels;
+layout(set = 0, binding = BINDING_SPPM_MAP) uniform usamplerBuffer map_texels;
+#define PHOTON_WORD(t, i) texelFetch(t, int((i) >> 2u))[(i) & 3u]
+#define PHOTON_HEADER(i) PHOTON_WORD(header_texels, i)
+#define PHOTON_START(b) PHOTON_WORD(start_texels, b)
+#define PHOTON_ENTRY(k) PHOTON_WORD(map_texels, k)
+#define PHOTON_POINT(v) uintBitsToFloat(texelFetch(point_texels, int(v)))
+#define PHOTON_TREE_NODE(i) uintBitsToFloat(texelFetch(map_texels, int(i)))
 
 #define PHOTON_TREE_STACK PHOTON_TREE_MAX_DEPTH
 #include "common/photon_grid.glsl"
 #include "common/photon_tree.glsl"
 
 vec4 record(uint slot, uint row) { return records[slot * SPPM_RECORD_ROWS + row]; }
+// The photon pass's read of a record row.
+vec4 record_texel(uint slot, uint row) {
+    return uintBitsToFloat(texelFetch(record_texels, int(slot * SPPM_RECORD_ROWS + row)));
+}
 void set_record(uint slot, uint row, vec4 v) { records[slot * SPPM_RECORD_ROWS + row] = v; }
 
 // The render's counters (SPPM_COUNT_*), before the slots' flux words.
@@ -175,12 +190,12 @@ void add_fixed(uint at, float v) {
 // times visible point v's BSDF and throughput, into v's sums, where the whole path
 // (camera segments + photon segments) is within MAX_DEPTH, as path's would be.
 void photon_visit(uint v, vec3 p) {
-    vec4 r0 = record(v, SPPM_REC_POINT);
+    vec4 r0 = record_texel(v, SPPM_REC_POINT);
     uint word = floatBitsToUint(r0.w);
     if (word == SPPM_NO_POINT) return;
-    vec4 beta = record(v, SPPM_REC_BETA);
+    vec4 beta = record_texel(v, SPPM_REC_BETA);
     if (uint(beta.w) + g_photon_segments > MAX_DEPTH) return;
-    vec4 n = record(v, SPPM_REC_NORMAL);
+    vec4 n = record_texel(v, SPPM_REC_NORMAL);
     vec3 phi;
     if ((word & SPPM_DIFFUSE_BIT) != 0u) {
         // Lambert: the throughput holds albedo / pi, which bsdf_eval would give in
@@ -188,7 +203,7 @@ void photon_visit(uint v, vec3 p) {
         if (dot(n.xyz, g_photon_wi) <= 0.0) return;
         phi = beta.rgb * g_photon_beta / params.photon_unit;
     } else {
-        vec4 wo = record(v, SPPM_REC_WO);
+        vec4 wo = record_texel(v, SPPM_REC_WO);
         Material m = material_hit(word & ~(SPPM_FRONT_BIT | SPPM_DIFFUSE_BIT), vec2(n.w, wo.w));
         float pdf;
         vec3 f = bsdf_eval(m, n.xyz, wo.xyz, g_photon_wi, (word & SPPM_FRONT_BIT) != 0u, pdf);

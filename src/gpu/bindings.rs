@@ -414,12 +414,17 @@ pub const BINDING_SPPM_RECORDS: u32 = 12;
 /// `SPPM_FLUX_WORDS` uints of the iteration's photons (fixed point, summed by integer
 /// atomics so that the sum does not depend on order).
 pub const BINDING_SPPM_FLUX: u32 = 13;
-/// The hash grid's header (`PHOTON_HDR_*` words) and bucket starts (src/photon/device.rs).
+/// Texel: the hash grid's header (`PHOTON_HDR_*` words) and bucket starts
+/// (src/photon/device.rs builds them, as storage).
 pub const BINDING_SPPM_GRID_HEADER: u32 = 14;
 pub const BINDING_SPPM_GRID_STARTS: u32 = 15;
-/// The photon map itself: the grid's entries (uint), or the kd-tree's nodes (two vec4
-/// each) with `--photon-map kdtree`.
+/// Texel: the photon map itself: the grid's entries (uint), or the kd-tree's nodes (two
+/// vec4 each) with `--photon-map kdtree`.
 pub const BINDING_SPPM_MAP: u32 = 16;
+/// Texel views of the points and the records, which the photon pass reads (the camera
+/// and update passes write them through the storage bindings above).
+pub const BINDING_SPPM_POINT_TEXELS: u32 = 17;
+pub const BINDING_SPPM_RECORD_TEXELS: u32 = 18;
 /// Which lookup the photon pass makes (`SPPM_MAP_HASHGRID`, `SPPM_MAP_KDTREE`).
 pub const SPEC_PHOTON_MAP: u32 = 22;
 pub const SPPM_MAP_HASHGRID: u32 = 0;
@@ -661,6 +666,8 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("BINDING_SPPM_GRID_HEADER", BINDING_SPPM_GRID_HEADER),
     ("BINDING_SPPM_GRID_STARTS", BINDING_SPPM_GRID_STARTS),
     ("BINDING_SPPM_MAP", BINDING_SPPM_MAP),
+    ("BINDING_SPPM_POINT_TEXELS", BINDING_SPPM_POINT_TEXELS),
+    ("BINDING_SPPM_RECORD_TEXELS", BINDING_SPPM_RECORD_TEXELS),
     ("SPEC_PHOTON_MAP", SPEC_PHOTON_MAP),
     ("SPPM_MAP_HASHGRID", SPPM_MAP_HASHGRID),
     ("SPPM_MAP_KDTREE", SPPM_MAP_KDTREE),

@@ -155,7 +155,9 @@ impl GridBuild {
             if needed <= u64::from(capacity) {
                 break;
             }
-            let bytes = (needed + needed / 4).min(u64::from(self.most.max(1)) * MAX_BUCKETS_A_POINT).max(needed) * 4;
+            // Whole 16-byte texels: the photon pass reads the entries as a texel buffer.
+            let bytes = ((needed + needed / 4).min(u64::from(self.most.max(1)) * MAX_BUCKETS_A_POINT).max(needed) * 4)
+                .next_multiple_of(16);
             ctx.check_binding(BindingKind::Storage, "photon grid entries", bytes)?;
             self.entries = ctx.create_buffer("photon grid entries", bytes, BufferKind::Storage)?;
             for k in &mut self.kernels {

@@ -291,12 +291,16 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
         }
         // SPPM (src/render/integrators/sppm.rs): each over the chunk's pixels, zeroed;
         // the map binding starts as a stand-in, replaced once a map is built.
+        // The texel views of the points and records stand in until the integrator binds
+        // the storage buffers' own. Sizes are whole 16-byte texels.
         BINDING_SPPM_POINTS
         | BINDING_SPPM_RECORDS
         | BINDING_SPPM_FLUX
         | BINDING_SPPM_GRID_HEADER
         | BINDING_SPPM_GRID_STARTS
-        | BINDING_SPPM_MAP => {
+        | BINDING_SPPM_MAP
+        | BINDING_SPPM_POINT_TEXELS
+        | BINDING_SPPM_RECORD_TEXELS => {
             let size = match b.binding {
                 BINDING_SPPM_POINTS => chunk_pixels * 16,
                 BINDING_SPPM_RECORDS => chunk_pixels * u64::from(SPPM_RECORD_ROWS) * 16,
@@ -304,7 +308,8 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
                 BINDING_SPPM_GRID_HEADER => u64::from(PHOTON_HDR_WORDS) * 4,
                 BINDING_SPPM_GRID_STARTS => (chunk_pixels + 1) * 4,
                 _ => 32,
-            };
+            }
+            .next_multiple_of(16);
             ctx.check_binding(kind, b.name, size)?;
             let buf = ctx.create_buffer(b.name, size, crate::gpu::BufferKind::Storage)?;
             ctx.fill_zero(&buf)?;

@@ -143,13 +143,16 @@ pub struct SppmStats {
 /// The bindings of the `sppm` module beyond the trace kernel's.
 fn sppm_bindings() -> Vec<BindingDesc> {
     let storage = |binding, name| BindingDesc { binding, kind: BindingKind::Storage, name };
+    let texel = |binding, name| BindingDesc { binding, kind: BindingKind::Texel, name };
     vec![
         storage(BINDING_SPPM_POINTS, "sppm points"),
         storage(BINDING_SPPM_RECORDS, "sppm records"),
         storage(BINDING_SPPM_FLUX, "sppm flux"),
-        storage(BINDING_SPPM_GRID_HEADER, "photon grid header"),
-        storage(BINDING_SPPM_GRID_STARTS, "photon grid starts"),
-        storage(BINDING_SPPM_MAP, "photon map"),
+        texel(BINDING_SPPM_GRID_HEADER, "photon grid header"),
+        texel(BINDING_SPPM_GRID_STARTS, "photon grid starts"),
+        texel(BINDING_SPPM_MAP, "photon map"),
+        texel(BINDING_SPPM_POINT_TEXELS, "sppm points (texels)"),
+        texel(BINDING_SPPM_RECORD_TEXELS, "sppm records (texels)"),
     ]
 }
 
@@ -372,7 +375,7 @@ impl MapBuilder {
                     node.point = slots[node.point as usize];
                 }
                 let bytes: &[u8] = if tree.nodes.is_empty() { &[0; 32] } else { bytemuck::cast_slice(&tree.nodes) };
-                ctx.check_binding(BindingKind::Storage, "photon map", bytes.len() as u64)?;
+                ctx.check_binding(BindingKind::Texel, "photon map", bytes.len() as u64)?;
                 let buf = ctx.upload_storage("photon map", bytes)?;
                 ctx.bind(&mut passes.photon_kernel, BINDING_SPPM_MAP, &buf)?;
                 // The kernel's descriptor points at it until the next iteration's.
@@ -470,8 +473,18 @@ pub fn render_with(
     };
     let compile = Instant::now();
     let mut photon_kernel = kernel_of(SPPM_PASS_PHOTON)?;
-    let update_kernel = kernel_of(SPPM_PASS_UPDATE)?;
+    let mut update_kernel = kernel_of(SPPM_PASS_UPDATE)?;
     prep.kernel_ms += compile.elapsed().as_secs_f64() * 1e3;
+    // The photon pass reads the points and records the camera pass writes, through
+    // texel views of the same buffers.
+    for (view, of) in
+        [(BINDING_SPPM_POINT_TEXELS, BINDING_SPPM_POINTS), (BINDING_SPPM_RECORD_TEXELS, BINDING_SPPM_RECORDS)]
+    {
+        let buf = prep.bound.at(of).ok_or_else(|| Error::Failed(format!("sppm: binding {of} has no buffer")))?;
+        ctx.bind(&mut photon_kernel, view, buf)?;
+        ctx.bind(&mut update_kernel, view, buf)?;
+        ctx.bind(&mut prep.kernel, view, buf)?;
+    }
     if let MapBuilder::Grid(build) = &map {
         // The photon pass reads the entries the build writes.
         ctx.bind(&mut photon_kernel, BINDING_SPPM_MAP, &build.entries)?;
