@@ -202,7 +202,10 @@ pub(crate) fn run(a: &RenderArgs) -> Result<()> {
 fn sppm_line(sp: &render::integrators::sppm::SppmStats) -> String {
     let mut lost = Vec::new();
     if sp.cut_paths > 0 {
-        lost.push(format!("{} paths cut short by the traversal's step budget (their light is lost)", sp.cut_paths));
+        lost.push(format!(
+            "{} paths cut short by the traversal's step budget (their light is lost; sppm does not resume a trace as path does: another --accel may need fewer steps)",
+            sp.cut_paths
+        ));
     }
     if sp.truncated_lookups > 0 {
         lost.push(format!(

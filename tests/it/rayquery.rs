@@ -141,7 +141,7 @@ fn rayquery_aovs_equal_the_cpu_reference() {
 fn rayquery_renders_what_bvh_sah_renders() {
     let Some(ctx) = rq_gpu() else { return };
     let scene = mixed_scene(Vec3::new(3.0, 2.0, 2.0));
-    for integrator in [Integrator::Whitted, Integrator::Path] {
+    for integrator in [Integrator::Whitted, Integrator::Path, Integrator::Sppm] {
         let setup = |s: &mut RenderSettings| {
             s.integrator = integrator;
             s.spp = 8;

@@ -140,7 +140,14 @@ impl<'a> Resumer<'a> {
             ]);
             let name = format!("{}.resume", variant.name);
             let mut kernel = ctx.create_kernel(&name, variant.spirv, &variant.bindings, &spec, 0)?;
-            upload::bind_again(ctx, &mut kernel, &variant.bindings, &self.prep.bound, (BINDING_RESUME, &pool))?;
+            upload::bind_again(
+                ctx,
+                &mut kernel,
+                &variant.bindings,
+                &self.prep.bound,
+                self.prep.image.ray_structure,
+                (BINDING_RESUME, &pool),
+            )?;
             let ring = ctx.dispatch_ring(1)?;
             self.totals.kernel_ms += start.elapsed().as_secs_f64() * 1e3;
             self.kernel = Some(Passes { kernel, _pool: pool, ring });

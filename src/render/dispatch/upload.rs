@@ -320,22 +320,29 @@ fn upload_one(ctx: &Context, b: &BindingDesc, scene: &GpuScene, image: &GpuImage
 }
 
 /// Binds the buffers of `bound` (bound by [`bind_all`] for the same `bindings`) to
-/// another kernel of the variant, `replace` in place of the buffer at its binding.
+/// another kernel of the variant, `replace` in place of the buffer at its binding, and
+/// the driver's structure `tlas` where the variant traces one.
 pub fn bind_again(
     ctx: &Context,
     kernel: &mut Kernel,
     bindings: &[BindingDesc],
     bound: &Bound,
+    tlas: Option<&crate::gpu::RayStructure>,
     replace: (u32, &Buffer),
 ) -> Result<()> {
-    let mut storage = bound.storage.iter();
     for b in bindings {
         if b.kind == BindingKind::Uniform && b.binding == BINDING_PARAMS {
             ctx.bind(kernel, b.binding, &bound.uniform)?;
             continue;
         }
-        let buf = storage.next().ok_or_else(|| Error::Failed(format!("binding {} has no buffer", b.binding)))?;
-        ctx.bind(kernel, b.binding, if b.binding == replace.0 { replace.1 } else { buf })?;
+        if b.kind == BindingKind::RayStructure {
+            let tlas = tlas.ok_or_else(|| Error::Failed(format!("binding {} has no ray structure", b.binding)))?;
+            ctx.bind_ray_structure(kernel, b.binding, tlas)?;
+            continue;
+        }
+        let buf = if b.binding == replace.0 { Some(replace.1) } else { bound.at(b.binding) };
+        let buf = buf.ok_or_else(|| Error::Failed(format!("binding {} has no buffer", b.binding)))?;
+        ctx.bind(kernel, b.binding, buf)?;
     }
     Ok(())
 }

@@ -30,7 +30,7 @@ use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
 use crate::photon::device::GridBuild;
 use crate::photon::PointTree;
-use crate::render::dispatch::kernel::Entry;
+use crate::render::dispatch::kernel::{Entry, LoopBounds};
 use crate::render::dispatch::prepare::{Prepared, Request};
 use crate::render::dispatch::tables::{extras, Extras};
 use crate::render::dispatch::upload::{bind_again, GpuScene};
@@ -252,7 +252,9 @@ struct Passes<'p, 'a> {
     update_kernel: Kernel,
     /// Pixels of the window, one slot each.
     slots: u32,
-    steps: u32,
+    /// The steps one trace may take, by pass: a photon traces fewer rays than a camera
+    /// path (no shadow rays), so each of its traces gets a larger share of the loop limit.
+    steps: [u32; 3],
     window: [u32; 3],
     /// Dispatches run and their GPU milliseconds (None without timestamps).
     dispatches: u32,
@@ -306,7 +308,7 @@ impl Passes<'_, '_> {
                 window_top: y0,
                 window_width: w,
                 zero_sample: 0,
-                trace_steps: self.steps,
+                trace_steps: self.steps[pass as usize],
                 unused: 0,
                 map_size: map.0,
                 map_buckets: map.1,
@@ -468,7 +470,14 @@ pub fn render_with(
         let mut k = ctx.create_kernel(&variant.name, variant.spirv, &variant.bindings, &spec, 0)?;
         let stand_in =
             prep.bound.at(BINDING_SPPM_MAP).ok_or_else(|| Error::Failed("sppm: no photon map binding".into()))?;
-        bind_again(ctx, &mut k, &variant.bindings, &prep.bound, (BINDING_SPPM_MAP, stand_in))?;
+        bind_again(
+            ctx,
+            &mut k,
+            &variant.bindings,
+            &prep.bound,
+            prep.image.ray_structure,
+            (BINDING_SPPM_MAP, stand_in),
+        )?;
         Ok(k)
     };
     let compile = Instant::now();
@@ -489,7 +498,10 @@ pub fn render_with(
         // The photon pass reads the entries the build writes.
         ctx.bind(&mut photon_kernel, BINDING_SPPM_MAP, &build.entries)?;
     }
-    let steps = prep.bounds.steps as u32;
+    let photon_traces = u64::from(path::max_depth(scene, settings)) + 1;
+    let photon_bounds = LoopBounds::new(ctx, scene, &prep.image, photon_traces, settings.trace_steps)?;
+    let camera_steps = prep.bounds.steps as u32;
+    let steps = [camera_steps, photon_bounds.steps as u32, camera_steps];
     let Control { mut progress, interrupted, mut checkpoint } = control;
     let mut passes = Passes {
         prep: &mut prep,
