@@ -310,6 +310,29 @@ void direct_light(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool 
     }
 }
 
+// A path's next segment from a vertex at p (error err, shading normal n and geometric
+// normal gnf on wo's side, `front`: wo outside): samples the BSDF, and where the sample
+// carries light, makes r the new ray and sigma the absorption of the medium it enters;
+// `weight` the throughput factor, `bpdf` and `sdelta` the sample's pdf and lobe. False
+// when the path ends here (r and sigma untouched). Path, SPPM's camera paths and
+// photons all step this way.
+bool next_ray(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front, inout uint rng, inout Ray r,
+              inout vec3 sigma, out vec3 weight, out float bpdf, out bool sdelta) {
+    vec3 wi;
+    bool transmit;
+    vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
+    if (!bsdf_sample(m, n, wo, front, u3, wi, weight, bpdf, sdelta, transmit)) return false;
+    // A reflected ray must leave on the viewer's side of the true surface, a
+    // transmitted one on the other.
+    if ((dot(gnf, wi) > 0.0) == transmit) return false;
+    if (transmit && (is_glass(m) || is_rough_dielectric(m))) sigma = front ? m.absorption : vec3(0.0);
+    r.origin = offset_ray_origin(p, err, gnf, wi);
+    r.dir = wi;
+    r.tmin = 0.0;
+    r.tmax = uintBitsToFloat(0x7f800000u);
+    return true;
+}
+
 void path_main() {
     PixelJob job;
     Pixel out_px;
@@ -377,23 +400,14 @@ void path_main() {
             if (!delta) {
                 direct_light(m, p, err, n, gnf, wo, front, rng, MIS_MODE, beta, L);
             }
-            vec3 wi, weight;
+            vec3 weight;
             float bpdf;
-            bool sdelta, transmit;
-            vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-            if (!bsdf_sample(m, n, wo, front, u3, wi, weight, bpdf, sdelta, transmit)) break;
-            // A reflected ray must leave on the viewer's side of the true surface, a
-            // transmitted one on the other.
-            if ((dot(gnf, wi) > 0.0) == transmit) break;
+            bool sdelta;
+            if (!next_ray(m, p, err, n, gnf, wo, front, rng, r, sigma, weight, bpdf, sdelta)) break;
             beta *= weight;
-            if (transmit && (is_glass(m) || is_rough_dielectric(m))) sigma = front ? m.absorption : vec3(0.0);
             prev_delta = sdelta;
             prev_pdf = bpdf;
             prev_p = p;
-            r.origin = offset_ray_origin(p, err, gnf, wi);
-            r.dir = wi;
-            r.tmin = 0.0;
-            r.tmax = uintBitsToFloat(0x7f800000u);
             if (depth + 1u >= RR_DEPTH) {
                 float q = min(max(max(beta.r, beta.g), beta.b), 0.95);
                 if (rng_next(rng) >= q) break;

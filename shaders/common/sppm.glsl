@@ -433,22 +433,15 @@ void sppm_photon(uint k) {
                 g_photon_segments = depth + 1u;
                 if (!photon_deposit(p)) truncated = true;
             }
-            vec3 wi, weight;
+            vec3 weight;
             float bpdf;
-            bool sdelta, transmit;
-            vec3 u3 = vec3(rng_next(rng), rng_next(rng), rng_next(rng));
-            if (!bsdf_sample(m, n, wo, front, u3, wi, weight, bpdf, sdelta, transmit)) break;
-            if ((dot(gnf, wi) > 0.0) == transmit) break;
+            bool sdelta;
+            if (!next_ray(m, p, err, n, gnf, wo, front, rng, r, sigma, weight, bpdf, sdelta)) break;
             vec3 next = beta * weight;
             // Russian roulette on the throughput's drop (pbrt's).
             float q = max(0.0, 1.0 - max(max(next.r, next.g), next.b) / max(max(max(beta.r, beta.g), beta.b), 1e-30));
             if (rng_next(rng) < q) break;
             beta = next / (1.0 - q);
-            if (transmit && (is_glass(m) || is_rough_dielectric(m))) sigma = front ? m.absorption : vec3(0.0);
-            r.origin = offset_ray_origin(p, err, gnf, wi);
-            r.dir = wi;
-            r.tmin = 0.0;
-            r.tmax = uintBitsToFloat(0x7f800000u);
         }
     }
     sppm_count(SPPM_COUNT_PHOTON_RAYS, g_rays);
