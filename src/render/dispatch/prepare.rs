@@ -215,6 +215,22 @@ impl<'a> Prepared<'a> {
         })
     }
 
+    /// What the resume passes take of this kernel.
+    pub fn resume_source(&self) -> super::resume::ResumeSource<'_> {
+        super::resume::ResumeSource {
+            ctx: self.ctx,
+            scene: self.scene,
+            image: &self.image,
+            variant: &self.variant,
+            spec: &self.spec,
+            bound: &self.bound,
+            bounds: self.bounds,
+            traces: self.traces,
+            chunk_pixels: self.chunk_pixels,
+            resume_records: self.resume_records,
+        }
+    }
+
     /// A sizer for `spp` samples a pixel in chunks of this kernel's size.
     pub fn sizer(&self, spp: u32) -> Sizer {
         Sizer::new(&self.pacing, self.chunk_pixels, spp, self.cost_per_sample, self.most_samples)
@@ -231,7 +247,7 @@ impl<'a> Prepared<'a> {
         policy: &mut dyn WavePolicy,
     ) -> Result<DispatchTotals> {
         // The resume passes of this kernel (created only if a trace stops).
-        let mut resumer = Resumer::new(self)?;
+        let mut resumer = Resumer::new(self.resume_source())?;
         let input = LoopInput {
             ctx: self.ctx,
             kernel: &self.kernel,

@@ -18,7 +18,6 @@
 //! first), and bounds the passes (`MAX_PASSES`). An indirect dispatch would size one
 //! pass without the host, but not split it.
 
-use super::prepare::Prepared;
 use super::upload;
 use super::{add_ms, HEADER_COUNTERS};
 use crate::accel::gpu_layout::{DispatchChunk, GpuDispatch};
@@ -93,10 +92,36 @@ struct Passes<'a> {
     ring: DispatchRing<'a>,
 }
 
+/// What the resume passes take of a prepared trace kernel
+/// ([`super::prepare::Prepared::resume_source`]): its variant, specialization, buffers,
+/// image and bounds, and the figures that shape the pool.
+#[derive(Clone, Copy)]
+pub struct ResumeSource<'a> {
+    pub ctx: &'a crate::gpu::Context,
+    pub scene: &'a crate::scene::Scene,
+    pub image: &'a crate::accel::GpuImage<'a>,
+    pub variant: &'a super::kernel::Variant,
+    pub spec: &'a [(u32, u32)],
+    pub bound: &'a super::upload::Bound,
+    pub bounds: super::kernel::LoopBounds,
+    /// Traces one sample may run.
+    pub traces: u64,
+    /// Pixels the pixel buffer holds.
+    pub chunk_pixels: u64,
+    /// For tests: at most this many resume records a pass.
+    pub resume_records: Option<u32>,
+}
+
+impl std::fmt::Debug for ResumeSource<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ResumeSource").field("kernel", &self.variant.name).field("traces", &self.traces).finish()
+    }
+}
+
 /// Runs the resume passes of a render's trace dispatches.
 pub struct Resumer<'a> {
     /// The trace kernel: its variant, specialization, buffers, image and bounds.
-    prep: &'a Prepared<'a>,
+    prep: ResumeSource<'a>,
     shape: PoolShape,
     /// Trace results a record logs.
     log: u32,
@@ -114,9 +139,9 @@ impl std::fmt::Debug for Resumer<'_> {
 impl<'a> Resumer<'a> {
     /// For the trace kernel of `prep`: its traces a sample, steps a trace, and
     /// dispatches of a chunk's pixels at most.
-    pub fn new(prep: &'a Prepared<'a>) -> Result<Resumer<'a>> {
+    pub fn new(prep: ResumeSource<'a>) -> Result<Resumer<'a>> {
         let log = u32::try_from(prep.traces).unwrap_or(u32::MAX);
-        let image = &prep.image;
+        let image = prep.image;
         let shape = if image.resume_words > 0 {
             PoolShape::new(image, log, prep.chunk_pixels, prep.ctx.max_storage_range(), prep.resume_records)?
         } else {
@@ -129,9 +154,9 @@ impl<'a> Resumer<'a> {
         if self.kernel.is_none() {
             let start = std::time::Instant::now();
             let s = self.shape;
-            let (ctx, variant) = (self.prep.ctx, &self.prep.variant);
+            let (ctx, variant) = (self.prep.ctx, self.prep.variant);
             let pool = ctx.create_buffer("resume pool", s.bytes(), BufferKind::Storage)?;
-            let mut spec = self.prep.spec.clone();
+            let mut spec = self.prep.spec.to_vec();
             spec.extend([
                 (SPEC_RESUME_PASS, 1),
                 (SPEC_RESUME_LOG, self.log),
