@@ -169,7 +169,7 @@ impl<'a> Resumer<'a> {
                 ctx,
                 &mut kernel,
                 &variant.bindings,
-                &self.prep.bound,
+                self.prep.bound,
                 self.prep.image.ray_structure,
                 (BINDING_RESUME, &pool),
             )?;
