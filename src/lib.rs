@@ -65,6 +65,7 @@ pub mod gpu;
 pub mod info;
 pub mod math;
 pub mod photon;
+pub mod raycast;
 // The renderer's parts, public for the binary, the tests and the benchmarks (their
 // settings are documented in the CLI help and docs/); `render::integrators::rays`, the ray-batch
 // API, is documented in full and re-exported at the crate root.

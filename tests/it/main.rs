@@ -34,6 +34,7 @@ mod microfacet;
 mod path;
 mod photon;
 mod ray_batch;
+mod raycast;
 mod rayquery;
 mod resume;
 mod robustness;
