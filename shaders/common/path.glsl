@@ -221,6 +221,26 @@ Material material_hit(uint mat, vec2 uv) {
 
 // --- the integrator -------------------------------------------------------------
 
+// A path's vertex: the closest hit along r (one more of g_rays; g_nodes and g_tests
+// count its traversal), its surface and textured material; with `aovs` (the pixel's
+// first camera ray) the pixel's AOVs from it. Whether r hit.
+bool path_vertex(Ray r, bool aovs, inout Pixel px, out Hit h, out vec3 p, out vec3 err, out vec3 gn, out vec3 sn,
+                 out uint mat, out vec2 uv, out Material m) {
+    h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
+    g_nodes = 0u; g_tests = 0u;
+    g_rays += 1u;
+    bool hit = trace_closest(r, h);
+    uv = vec2(0.0);
+    if (hit) surface(h, r, p, err, gn, sn, mat, uv);
+    if (hit) m = material_hit(mat, uv);
+    if (aovs) {
+        px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
+        px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
+        px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
+    }
+    return hit;
+}
+
 // Light from point and directional lights at p toward wo (no MIS: a BSDF sample never
 // hits a delta light).
 vec3 delta_lights(Material m, vec3 p, vec3 err, vec3 n, vec3 gnf, vec3 wo, bool front) {
@@ -356,21 +376,11 @@ void path_main() {
         vec3 sigma = vec3(0.0);  // absorption of the medium the ray travels in
         for (uint depth = 0u; depth < MAX_DEPTH; depth++) {
             Hit h;
-            h.t = r.tmax; h.prim = NO_PRIM; h.u = 0.0; h.v = 0.0;
-            g_nodes = 0u; g_tests = 0u;
-            g_rays += 1u;
-            bool hit = trace_closest(r, h);
             vec3 p, err, gn, sn;
             uint mat;
-            vec2 uv = vec2(0.0);
-            if (hit) surface(h, r, p, err, gn, sn, mat, uv);
+            vec2 uv;
             Material m;
-            if (hit) m = material_hit(mat, uv);
-            if (s == 0u && depth == 0u) {
-                out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-                out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
-                out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
-            }
+            bool hit = path_vertex(r, s == 0u && depth == 0u, out_px, h, p, err, gn, sn, mat, uv, m);
             if (sigma != vec3(0.0)) beta *= exp(-sigma * h.t);
             if (!hit) {
                 vec3 le = escaped(r.dir);

@@ -90,22 +90,13 @@ void sppm_camera(PixelJob job, Pixel px) {
     g_rays = 0u;
     sample_start();
     for (uint depth = 0u; depth < MAX_DEPTH; depth++) {
-        Hit h = no_hit(r);
-        g_nodes = 0u; g_tests = 0u;
-        g_rays += 1u;
-        bool hit = trace_closest(r, h);
-        if (g_suspended || g_overflow) { cut = true; break; }
+        Hit h;
         vec3 p, err, gn, sn;
         uint mat;
-        vec2 uv = vec2(0.0);
-        if (hit) surface(h, r, p, err, gn, sn, mat, uv);
+        vec2 uv;
         Material m;
-        if (hit) m = material_hit(mat, uv);
-        if (it == 0u && depth == 0u) {
-            px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
-            px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
-            px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
-        }
+        bool hit = path_vertex(r, it == 0u && depth == 0u, px, h, p, err, gn, sn, mat, uv, m);
+        if (g_suspended || g_overflow) { cut = true; break; }
         if (sigma != vec3(0.0)) beta *= exp(-sigma * h.t);
         if (!hit) {
             L += beta * escaped(r.dir);
