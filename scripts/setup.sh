@@ -2,7 +2,8 @@
 # Installs what arbor needs on Debian 12: Vulkan loader and lavapipe (software
 # Vulkan), the Khronos validation layer, shaderc/glslang/SPIRV-Tools static libraries
 # (linked into build.rs, see docs/build-notes.md), the assimp test models used by the tests,
-# and Slurm with munge (the render-farm test starts a single-node cluster).
+# Slurm with munge (the render-farm test starts a single-node cluster), and Python's
+# venv and pip (the Python module's tests, docs/python.md).
 #
 # --mesa-backports: also install Mesa's Vulkan drivers (lavapipe among them) from
 # bookworm-backports (Mesa 25), whose lavapipe traces 15-35% faster than Debian 12's
@@ -25,7 +26,7 @@ while [ $# -gt 0 ]; do
     --mesa-aside)
       [ $# -ge 2 ] && [ -n "$2" ] || { echo "setup: --mesa-aside needs a directory" >&2; exit 2; }
       ASIDE="$2"; shift ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "setup: unknown option '$1' (known: --mesa-backports, --mesa-aside DIR, --help)" >&2; exit 2 ;;
   esac
   shift
@@ -35,6 +36,7 @@ PACKAGES=(
   libshaderc-dev glslang-dev spirv-tools
   assimp-testmodels g++ pkg-config
   slurm-wlm munge
+  python3-venv python3-pip binutils
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

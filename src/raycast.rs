@@ -14,15 +14,33 @@
 //! - Bad input is an error naming the first bad row: a non-finite vertex or ray, an
 //!   index out of range, a zero direction.
 //! - The structure is built on the first cast (or [`RaycastingScene::build`]), again
-//!   after geometry is added. Large batches go through the ray-batch loop's chunks.
+//!   after geometry is added; [`RaycastingScene::auto`] lets the cost model pick it then.
+//!   Large batches are traced in pieces of a quarter second (at most [`CAST_PIECE`]
+//!   rays, the ray-batch loop's chunk), all through one upload of the scene;
+//!   [`RaycastingScene::cast_rays_with`] is called back between pieces (the Python
+//!   module checks Ctrl-C there).
 
 use glam::Vec3;
 
-use crate::accel::{Accel, AccelKind, AccelParams, BuildStats};
+use crate::accel::{Accel, AccelKind, AccelParams, BuildOn, BuildStats};
 use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::math::{Hit, Ray};
+use crate::render::integrators::rays::{RayTracer, TraceOptions};
 use crate::scene::{MeshData, Scene, SceneBuilder, Sphere};
+
+/// Most rays a device cast traces between two calls of
+/// [`RaycastingScene::cast_rays_with`]'s callback (pieces are sized by time, up to this).
+pub const CAST_PIECE: usize = 1 << 20;
+
+/// The time a piece of a device cast aims at, in seconds.
+const PIECE_SECONDS: f64 = 0.25;
+/// The first piece of a cast, before its rate is known, and the fewest rays a piece.
+const FIRST_PIECE: usize = 1 << 16;
+const MIN_PIECE: usize = 4096;
+
+/// Rays the cost model of [`RaycastingScene::auto`] expects (a megapixel of camera rays).
+const AUTO_RAYS: u64 = 1 << 20;
 
 /// `geometry_ids` and `primitive_ids` of a ray that hits nothing (Open3D's
 /// `INVALID_ID`, 2^32 - 1).
@@ -63,9 +81,14 @@ pub struct RaycastingScene {
     /// Per scene triangle, and per sphere: the geometry that added it.
     triangle_geometry: Vec<u32>,
     sphere_geometry: Vec<u32>,
-    kind: AccelKind,
+    /// `None`: chosen by the cost model at build time.
+    kind: Option<AccelKind>,
     params: AccelParams,
     built: Option<(Scene, Accel)>,
+    /// Whether `built` was built with a device (a GPU build, the driver's structure).
+    built_on_device: bool,
+    /// The kind `built` is (the cost model's choice for [`RaycastingScene::auto`]).
+    built_kind: Option<AccelKind>,
 }
 
 impl RaycastingScene {
@@ -76,14 +99,29 @@ impl RaycastingScene {
             geometries: Vec::new(),
             triangle_geometry: Vec::new(),
             sphere_geometry: Vec::new(),
-            kind,
+            kind: Some(kind),
             params,
             built: None,
+            built_on_device: false,
+            built_kind: None,
         }
+    }
+
+    /// An empty scene whose structure the cost model picks when it is built (`--accel
+    /// auto` for a megapixel of rays, among the kinds `params.build` builds).
+    pub fn auto(params: AccelParams) -> RaycastingScene {
+        RaycastingScene { kind: None, ..RaycastingScene::new(AccelKind::BvhSah, params) }
+    }
+
+    /// The structure: the one asked for, or the cost model's choice once built (`None`
+    /// before).
+    pub fn kind(&self) -> Option<AccelKind> {
+        self.kind.or(self.built_kind)
     }
 
     fn builder(&mut self) -> &mut SceneBuilder {
         self.built = None;
+        self.built_kind = None;
         self.builder.get_or_insert_with(|| SceneBuilder::new("raycasting scene"))
     }
 
@@ -130,16 +168,44 @@ impl RaycastingScene {
         Ok(id)
     }
 
-    /// Builds the structure over the geometry added so far (done by the first cast,
-    /// and again after more geometry is added); its statistics.
+    /// Builds the structure over the geometry added so far on the CPU (done by the
+    /// first cast, and again after more geometry is added); its statistics. A GPU
+    /// build or the driver's structure needs the device: [`RaycastingScene::build_on`].
     pub fn build(&mut self) -> Result<BuildStats> {
-        self.ensure_built()?;
-        let (scene, accel) = self.built.as_ref().expect("built");
-        Ok(accel.stats(scene))
+        self.ensure_built(None)?;
+        Ok(self.stats())
     }
 
-    fn ensure_built(&mut self) -> Result<()> {
-        if self.built.is_some() || self.geometries.is_empty() {
+    /// [`RaycastingScene::build`] with `ctx`'s device, which builds where the
+    /// parameters say (`BuildOn::Gpu`) and makes `rayquery`'s structure.
+    pub fn build_on(&mut self, ctx: &Context) -> Result<BuildStats> {
+        self.ensure_built(Some(ctx))?;
+        Ok(self.stats())
+    }
+
+    fn stats(&self) -> BuildStats {
+        match &self.built {
+            Some((scene, accel)) => accel.stats(scene),
+            None => {
+                BuildStats { kind: self.kind.map(|k| k.name().to_string()).unwrap_or_default(), ..Default::default() }
+            }
+        }
+    }
+
+    fn needs_device(&self, kind: AccelKind) -> bool {
+        self.params.build == BuildOn::Gpu || kind == AccelKind::RayQuery
+    }
+
+    fn ensure_built(&mut self, ctx: Option<&Context>) -> Result<()> {
+        if let (Some(_), Some(kind)) = (&self.built, self.built_kind) {
+            // A structure built without the device is built again for a device cast
+            // that needs it.
+            if self.built_on_device || ctx.is_none() || !self.needs_device(kind) {
+                return Ok(());
+            }
+            self.built = None;
+        }
+        if self.geometries.is_empty() {
             return Ok(());
         }
         let builder = self.builder.take().unwrap_or_else(|| SceneBuilder::new("raycasting scene"));
@@ -149,18 +215,46 @@ impl RaycastingScene {
             return Ok(());
         }
         let scene = builder.finish()?;
-        let accel = Accel::build_with(self.kind, &scene, &self.params);
+        let kind = match self.kind {
+            Some(k) => k,
+            None => crate::accel::auto::choose_built(&scene, AUTO_RAYS, 1, self.params.build)?.0,
+        };
+        let on_device = ctx.is_some() && self.needs_device(kind);
+        let accel = match ctx {
+            Some(ctx) if on_device => Accel::build_on(ctx, kind, &scene, &self.params)?,
+            _ if self.params.build == BuildOn::Gpu => {
+                return Err(Error::Usage(format!(
+                    "{kind} built on the GPU needs the device: cast on it, or build on the CPU"
+                )))
+            }
+            _ => Accel::build_with(kind, &scene, &self.params),
+        };
         // Keep adding to the same scene after a build.
         let mut again = SceneBuilder::new("raycasting scene");
         again.scene = scene.clone();
         self.builder = Some(again);
         self.built = Some((scene, accel));
+        self.built_on_device = on_device;
+        self.built_kind = Some(kind);
         Ok(())
     }
 
     /// Casts `rays` (origin, direction) on the device: the closest hit of each.
     pub fn cast_rays(&mut self, ctx: &Context, rays: &[[f32; 6]]) -> Result<CastResult> {
-        self.cast(rays, |scene, accel, unit| crate::render::integrators::rays::trace_rays(ctx, scene, accel, unit))
+        self.cast_rays_with(ctx, rays, &mut |_| Ok(()))
+    }
+
+    /// [`RaycastingScene::cast_rays`], calling `between` with the rays done after each
+    /// piece (a quarter second, at most [`CAST_PIECE`] rays); an error it returns ends
+    /// the cast.
+    pub fn cast_rays_with(
+        &mut self,
+        ctx: &Context,
+        rays: &[[f32; 6]],
+        between: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<CastResult> {
+        self.ensure_built(Some(ctx))?;
+        self.cast(rays, |scene, accel, unit| trace_pieces(ctx, scene, accel, unit, between))
     }
 
     /// Casts `rays` on the CPU (arbor's reference traversal of the same structure).
@@ -171,17 +265,30 @@ impl RaycastingScene {
     /// Whether anything lies along each ray between `tnear` and `tfar` (in units of the
     /// ray's direction, as `t_hit`), on the device.
     pub fn test_occlusions(&mut self, ctx: &Context, rays: &[[f32; 6]], tnear: f32, tfar: f32) -> Result<Vec<bool>> {
+        self.test_occlusions_with(ctx, rays, tnear, tfar, &mut |_| Ok(()))
+    }
+
+    /// [`RaycastingScene::test_occlusions`] with `between` called as
+    /// [`RaycastingScene::cast_rays_with`] calls it.
+    pub fn test_occlusions_with(
+        &mut self,
+        ctx: &Context,
+        rays: &[[f32; 6]],
+        tnear: f32,
+        tfar: f32,
+        between: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Vec<bool>> {
         if !(tnear.is_finite() && tnear >= 0.0) || tfar.is_nan() || tfar < tnear {
             return Err(Error::Usage(format!(
                 "tnear must be finite and at least 0, and tfar at least tnear; got {tnear} and {tfar}"
             )));
         }
         let unit = unit_rays(rays, tnear, tfar)?;
-        self.ensure_built()?;
+        self.ensure_built(Some(ctx))?;
         let Some((scene, accel)) = self.built.as_ref().filter(|_| !rays.is_empty()) else {
             return Ok(vec![false; rays.len()]);
         };
-        let hits = crate::render::integrators::rays::trace_rays(ctx, scene, accel, &unit)?;
+        let hits = trace_pieces(ctx, scene, accel, &unit, between)?;
         Ok(hits.iter().map(Option::is_some).collect())
     }
 
@@ -191,7 +298,7 @@ impl RaycastingScene {
         trace: impl FnOnce(&Scene, &Accel, &[Ray]) -> Result<Vec<Option<Hit>>>,
     ) -> Result<CastResult> {
         let unit = unit_rays(rays, 0.0, f32::INFINITY)?;
-        self.ensure_built()?;
+        self.ensure_built(None)?;
         let n = rays.len();
         let mut out = CastResult {
             t_hit: vec![f32::INFINITY; n],
@@ -230,6 +337,31 @@ impl RaycastingScene {
         }
         Ok(out)
     }
+}
+
+/// Traces `rays` on the device in pieces through one [`RayTracer`] (one upload of the
+/// scene), calling `between` after each. Pieces are sized to take about
+/// [`PIECE_SECONDS`] each (from 4096 rays up to [`CAST_PIECE`]), so that a caller
+/// polling for Ctrl-C there answers within a second on any device.
+fn trace_pieces(
+    ctx: &Context,
+    scene: &Scene,
+    accel: &Accel,
+    rays: &[Ray],
+    between: &mut dyn FnMut(usize) -> Result<()>,
+) -> Result<Vec<Option<Hit>>> {
+    let tracer = RayTracer::new(ctx, scene, accel, &TraceOptions::default())?;
+    let mut hits = Vec::with_capacity(rays.len());
+    let mut piece = FIRST_PIECE;
+    while hits.len() < rays.len() {
+        let start = std::time::Instant::now();
+        let n = piece.min(rays.len() - hits.len());
+        hits.extend(tracer.trace(&rays[hits.len()..hits.len() + n])?);
+        between(hits.len())?;
+        let rate = n as f64 / start.elapsed().as_secs_f64().max(1e-6);
+        piece = ((rate * PIECE_SECONDS) as usize).clamp(MIN_PIECE, CAST_PIECE);
+    }
+    Ok(hits)
 }
 
 /// Open3D's rays as arbor's: unit directions, `tnear..tfar` scaled by each direction's

@@ -67,6 +67,17 @@ pub enum Cached {
     Ignored(String),
 }
 
+/// The cost model for `auto` on `device`: its calibration file in [`cache_dir`] if
+/// there is a sound one, else the built-in constants; with the reason a foreign or
+/// corrupt file was ignored (a warning for the user).
+pub fn device_costs(device: &DeviceInfo) -> (Costs, Option<String>) {
+    match cache_dir().map(|d| load(&d, device)) {
+        Some(Cached::Costs(c)) => (c, None),
+        Some(Cached::Ignored(why)) => (Costs::builtin(), Some(format!("calibration {why}"))),
+        _ => (Costs::builtin(), None),
+    }
+}
+
 /// The costs cached in `dir` for `device`.
 pub fn load(dir: &Path, device: &DeviceInfo) -> Cached {
     let path = cache_file(dir, device);

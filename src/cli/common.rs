@@ -58,15 +58,11 @@ pub(crate) fn resolve_accel(
 /// there is a sound one (a foreign or corrupt one is named in a warning), else the
 /// built-in constants.
 pub(crate) fn device_costs(ctx: &Context) -> arbor::accel::auto::Costs {
-    use arbor::accel::calibrate::{cache_dir, load, Cached};
-    match cache_dir().map(|d| load(&d, ctx.info())) {
-        Some(Cached::Costs(c)) => c,
-        Some(Cached::Ignored(why)) => {
-            eprintln!("arbor: warning: calibration {why}");
-            arbor::accel::auto::Costs::builtin()
-        }
-        _ => arbor::accel::auto::Costs::builtin(),
+    let (costs, warning) = arbor::accel::calibrate::device_costs(ctx.info());
+    if let Some(w) = warning {
+        eprintln!("arbor: warning: {w}");
     }
+    costs
 }
 
 /// `--size WIDTHxHEIGHT`, each side within the film limit.

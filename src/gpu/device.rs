@@ -12,6 +12,7 @@
 
 use std::ffi::{c_void, CStr, CString};
 use std::ops::Deref;
+use std::path::Path;
 use std::sync::Mutex;
 
 use ash::vk;
@@ -46,9 +47,21 @@ impl Instance {
     /// Loads the system loader and creates an instance, with the Khronos validation
     /// layer where `validation` (an error if it is not installed).
     pub fn new(validation: bool) -> Result<Instance> {
-        // SAFETY: loading the system Vulkan loader; no other loader state exists yet.
-        let entry = unsafe { ash::Entry::load() }
-            .map_err(|e| Error::NoDevice(format!("cannot load the Vulkan loader (libvulkan.so.1): {e}")))?;
+        // The loader is opened now, not linked: a program (the Python module) that
+        // never opens a device runs without one. ARBOR_VULKAN_LOADER names another.
+        let entry = match std::env::var_os("ARBOR_VULKAN_LOADER") {
+            // SAFETY: loading the named Vulkan loader; no other loader state exists yet.
+            Some(path) => unsafe { ash::Entry::load_from(&path) }.map_err(|e| {
+                Error::NoDevice(format!(
+                    "cannot load the Vulkan loader {} (ARBOR_VULKAN_LOADER): {e}",
+                    Path::new(&path).display()
+                ))
+            })?,
+            // SAFETY: loading the system Vulkan loader, as above.
+            None => unsafe { ash::Entry::load() }.map_err(|e| {
+                Error::NoDevice(format!("cannot load the Vulkan loader (libvulkan.so.1; install libvulkan1): {e}"))
+            })?,
+        };
         // SAFETY: plain queries on a loaded entry.
         let exts = unsafe { entry.enumerate_instance_extension_properties(None) }.unwrap_or_default();
         let has_debug =

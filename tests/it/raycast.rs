@@ -123,3 +123,37 @@ fn bad_input_names_the_first_bad_row() {
     let e = s.cast_rays_cpu(&[[0.0, 0.0, 1.0, 0.0, 0.0, -1.0], [f32::INFINITY, 0.0, 0.0, 0.0, 0.0, 1.0]]).unwrap_err();
     assert!(e.to_string().contains("rays row 1"), "{e}");
 }
+
+/// A cast calls back between pieces with the rays done, and an error from the callback
+/// ends it; `auto` builds the cost model's choice and names it.
+#[test]
+fn casts_call_back_between_pieces_and_auto_names_its_choice() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut s = scene(AccelKind::BvhSah);
+    let batch = rays(200_000);
+    let mut done = Vec::new();
+    let out = s
+        .cast_rays_with(&ctx, &batch, &mut |n| {
+            done.push(n);
+            Ok(())
+        })
+        .expect("cast");
+    assert_eq!(out.primitive_ids, s.cast_rays_cpu(&batch).expect("cpu").primitive_ids);
+    assert!(done.len() >= 2, "pieces: {done:?}");
+    assert!(done.windows(2).all(|w| w[0] < w[1]) && done.last() == Some(&batch.len()), "{done:?}");
+    let mut calls = 0;
+    let err = s
+        .cast_rays_with(&ctx, &batch, &mut |_| {
+            calls += 1;
+            Err(arbor::Error::Failed("stop".into()))
+        })
+        .unwrap_err();
+    assert_eq!((calls, err.to_string()), (1, "stop".to_string()));
+
+    let mut auto = RaycastingScene::auto(AccelParams::default());
+    auto.add_sphere([0.0, 0.0, 0.0], 1.0).expect("sphere");
+    assert_eq!(auto.kind(), None);
+    let stats = auto.build().expect("build");
+    let kind = auto.kind().expect("chosen");
+    assert_eq!(stats.kind, kind.name());
+}
