@@ -27,7 +27,7 @@ void main() {
     w1(o, params.light_count); w1(o, params.material_count); w1(o, params.seed); w1(o, params.photon_count);
     f3(o, params.background); f1(o, params.ambient);
     w1(o, params.emitter_table); w1(o, params.texture_table); w1(o, params.env_texel_table); w1(o, params.env_distribution_table);
-    f1(o, params.env_intensity); f1(o, params.env_rotation); f1(o, params.emitter_power); f1(o, params.pad5);
+    f1(o, params.env_intensity); f1(o, params.env_rotation); f1(o, params.emitter_power); w1(o, params.alpha_table);
     // GpuDispatch (the pixel buffer's header)
     w4(o, dispatch_range); w4(o, dispatch_chunk); w4(o, dispatch_window); w4(o, dispatch_limits);
     // GpuVertex[0..2]

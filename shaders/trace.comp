@@ -31,6 +31,7 @@ layout(constant_id = SPEC_EMITTERS) const uint EMITTER_COUNT = 0u;
 layout(constant_id = SPEC_ENV_WIDTH) const uint ENV_WIDTH = 0u;
 layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
+layout(constant_id = SPEC_ALPHA) const bool HAS_ALPHA = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
 layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 255u;
@@ -48,6 +49,7 @@ uint g_rays = 0u;
 bool g_overflow = false;
 
 #include "common/resume.glsl"
+#include "common/alpha.glsl"
 
 #if HAS_TRIANGLES
 bool intersect_triangle(uint i, Ray r, inout Hit h) {
@@ -62,7 +64,8 @@ bool intersect_triangle(uint i, Ray r, inout Hit h) {
     vec3 v2 = vertex_position(tri.z);
     bool hit = INTERSECT_MODE == 0u ? ray_triangle_watertight(rr, v0, v1, v2, t, u, v)
                                     : ray_triangle_fast(rr, v0, v1, v2, t, u, v);
-    if (hit && (t < h.t || i < h.prim)) {
+    // A cut-out or blended pane may let the ray through (SPEC_ALPHA; common/alpha.glsl).
+    if (hit && (t < h.t || i < h.prim) && (!HAS_ALPHA || alpha_meets(tri, i, r, u, v))) {
         h.t = t; h.prim = i; h.u = u; h.v = v;
         return true;
     }

@@ -35,7 +35,10 @@ uint rq_first_triangle(uint e) {
 
 bool rq_trace(Ray r, inout Hit h, bool any_hit) {
     rayQueryEXT q;
-    uint flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+    // With cut-outs or blended panes every triangle is a candidate this loop tests
+    // (common/alpha.glsl) and confirms; otherwise the driver commits them itself.
+    uint flags = (HAS_ALPHA ? gl_RayFlagsNoOpaqueEXT : gl_RayFlagsOpaqueEXT)
+        | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
     rayQueryInitializeEXT(q, tlas, flags, 0xffu, r.origin, r.tmin, r.dir, min(h.t, RQ_TMAX));
     uint rq_steps = 0u;
     bool more = true;
@@ -43,6 +46,14 @@ bool rq_trace(Ray r, inout Hit h, bool any_hit) {
         more = rayQueryProceedEXT(q);
         if (!more) break;
         rq_steps += 1u;
+#if HAS_TRIANGLES
+        if (HAS_ALPHA && rayQueryGetIntersectionTypeEXT(q, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
+            uint e = uint(rayQueryGetIntersectionInstanceCustomIndexEXT(q, false));
+            uint p = rq_first_triangle(e) + uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, false));
+            vec2 b = rayQueryGetIntersectionBarycentricsEXT(q, false);
+            if (alpha_meets(triangle_at(p), p, r, b.x, b.y)) rayQueryConfirmIntersectionEXT(q);
+        }
+#endif
 #if HAS_SPHERES
         if (rayQueryGetIntersectionTypeEXT(q, false) == gl_RayQueryCandidateIntersectionAABBEXT) {
             uint j = rayQueryGetIntersectionPrimitiveIndexEXT(q, false);

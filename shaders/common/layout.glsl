@@ -54,7 +54,7 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     float env_intensity;         // 160
     float env_rotation;          // 164 about +y, radians
     float emitter_power;         // 168 the emitter table's total
-    float pad5;                  // 172
+    uint alpha_table;            // 172 cut-outs and blended panes (common/alpha.glsl)
 } params;
 #if HAS_TRIANGLES
 // Vertices and triangles are uniform texel buffers (RGBA32UI views of the same bytes):

@@ -199,8 +199,7 @@ pub struct GpuRay {
 }
 
 /// The uniform block (std140: a `[f32; 3]` is a vec3, which the scalar after it
-/// completes to 16 bytes). `ParamsBlock` in shaders/common/layout.glsl; `pad5`
-/// is 0.
+/// completes to 16 bytes). `ParamsBlock` in shaders/common/layout.glsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuParams {
@@ -264,7 +263,9 @@ pub struct GpuParams {
     pub env_rotation: f32,
     /// bytes 168..172: the emitter table's total power
     pub emitter_power: f32,
-    pub pad5: f32,
+    /// The alpha section's first shading row (`alpha_table` in shaders/common/alpha.glsl;
+    /// 0 without alpha materials).
+    pub alpha_table: u32,
 }
 
 /// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,

@@ -279,7 +279,7 @@ impl Traverse for TwoLevel {
                     tmin: ray.tmin,
                     tmax: best.t,
                 };
-                let pp = Prims::with_mode(&inst.prototypes[p].geometry, prims.mode);
+                let pp = prims.prototype(&inst.prototypes[p].geometry);
                 self.prototypes[p]
                     .traverse(&pp, &r, &mut h, any)
                     .then(|| own_tris + self.first_drawn[e as usize] + h.prim)

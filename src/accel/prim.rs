@@ -15,17 +15,27 @@ use crate::scene::Scene;
 pub struct Prims<'a> {
     pub scene: &'a Scene,
     pub mode: IntersectMode,
+    /// The scene whose materials and textures the alpha test reads (`scene` itself,
+    /// or for an instance's prototype the scene that holds it), and whether any of
+    /// its materials has alpha (crate::scene::alpha).
+    pub shading: &'a Scene,
+    pub alpha: bool,
 }
 
 impl<'a> Prims<'a> {
     /// The scene's primitives with the watertight ray/triangle test (the default).
     pub fn new(scene: &'a Scene) -> Prims<'a> {
-        Prims { scene, mode: IntersectMode::Watertight }
+        Self::with_mode(scene, IntersectMode::Watertight)
     }
 
     /// The scene's primitives with the ray/triangle test `mode`.
     pub fn with_mode(scene: &'a Scene, mode: IntersectMode) -> Prims<'a> {
-        Prims { scene, mode }
+        Prims { scene, mode, shading: scene, alpha: scene.has_alpha() }
+    }
+
+    /// An instance's prototype `geometry`, shaded (and alpha-tested) as this scene.
+    pub fn prototype(&self, geometry: &'a Scene) -> Prims<'a> {
+        Prims { scene: geometry, ..*self }
     }
 }
 
@@ -39,7 +49,9 @@ pub fn intersect_prim(prims: &Prims, prim: u32, ray: &Ray, best: &mut Hit) -> bo
     if prim < nt {
         let [a, b, c] = scene.triangles[prim as usize].map(|k| scene.positions[k as usize]);
         if let Some((t, u, v)) = ray_triangle(&r, a, b, c, prims.mode) {
-            if best.closer(t, prim) {
+            let meets =
+                || !prims.alpha || crate::scene::alpha::meets(prims.shading, scene, prim, ray.origin, ray.dir, u, v);
+            if best.closer(t, prim) && meets() {
                 *best = Hit { t, prim, u, v };
                 return true;
             }

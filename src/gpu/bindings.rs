@@ -218,6 +218,10 @@ pub const SPEC_ENV_WIDTH: u32 = 13;
 pub const SPEC_ENV_HEIGHT: u32 = 14;
 /// Path integrator: whether any material has a texture.
 pub const SPEC_TEXTURES: u32 = 15;
+/// Whether any material is a cut-out or a blended pane (glTF's alphaMode MASK or
+/// BLEND): the primitive test of every traversal then asks common/alpha.glsl whether
+/// the ray meets the surface where it hits it; other scenes compile the test out.
+pub const SPEC_ALPHA: u32 = 25;
 /// Path integrator: 0 multiple importance sampling, 1 light sampling only, 2 BSDF
 /// sampling only (the last two for tests and the benchmark).
 pub const SPEC_MIS: u32 = 16;
@@ -518,6 +522,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_ENV_WIDTH", SPEC_ENV_WIDTH),
     ("SPEC_ENV_HEIGHT", SPEC_ENV_HEIGHT),
     ("SPEC_TEXTURES", SPEC_TEXTURES),
+    ("SPEC_ALPHA", SPEC_ALPHA),
     ("SPEC_MIS", SPEC_MIS),
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),

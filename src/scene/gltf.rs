@@ -21,8 +21,8 @@
 //!
 //! Not read, and named in the scene's warnings: textures of a texture-coordinate set
 //! other than 0, KHR_materials_specular's textures, texture transforms that differ
-//! between one material's textures, alpha (MASK and BLEND surfaces are opaque) and
-//! vertex colours. The
+//! between one material's textures, and vertex colours. alphaMode MASK (with
+//! alphaCutoff) and BLEND are read: cut-outs and blended panes (crate::scene::alpha). The
 //! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
@@ -40,7 +40,7 @@ use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3};
 
-use super::mesh::{MeshData, Texture, Wrap};
+use super::mesh::{AlphaMode, MeshData, Texture, Wrap, DEFAULT_ALPHA_CUTOFF};
 use super::{Camera, Light, Material, MaterialKind};
 use crate::error::{Error, Result};
 
@@ -175,11 +175,21 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
     // Materials and textures: one arbor material per glTF material, then the default.
     let mut textures = Slots { images: &images, slot: Default::default(), file: name, unread: Vec::new() };
     for m in document.materials() {
-        let mat = material(&m, &mut textures, &mut out.mesh.textures)?;
-        out.mesh.materials.push(mat);
-        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
-            textures.unread.push("alpha (alphaMode MASK or BLEND: those surfaces are opaque)".into());
+        let mut mat = material(&m, &mut textures, &mut out.mesh.textures)?;
+        // alphaMode: cut-outs and blended panes (the alpha is baseColorFactor's times
+        // the base colour texture's).
+        mat.opacity = m.pbr_metallic_roughness().base_color_factor()[3].clamp(0.0, 1.0);
+        mat.alpha_mode = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => {
+                AlphaMode::Mask { cutoff: m.alpha_cutoff().unwrap_or(DEFAULT_ALPHA_CUTOFF).clamp(0.0, 1.0) }
+            }
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        };
+        if mat.alpha_mode == AlphaMode::Opaque {
+            mat.opacity = 1.0;
         }
+        out.mesh.materials.push(mat);
     }
     if document.meshes().flat_map(|m| m.primitives()).any(|p| p.get(&gltf::Semantic::Colors(0)).is_some()) {
         textures.unread.push("vertex colours (COLOR_0)".into());

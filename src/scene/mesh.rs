@@ -82,7 +82,32 @@ pub struct Material {
     /// Metallic-roughness: textures that modulate roughness and metallic, and bend
     /// the shading normal.
     pub maps: Maps,
+    /// How the surface's alpha (`opacity` times the albedo texture's alpha) is read:
+    /// opaque (ignored), a cut-out, or a blended pane (docs/materials.md, "Alpha").
+    pub alpha_mode: AlphaMode,
+    /// The alpha factor (glTF's baseColorFactor alpha), in [0, 1].
+    pub opacity: f32,
 }
+
+/// How a surface's alpha is read (glTF's alphaMode).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum AlphaMode {
+    /// Alpha is ignored (the default).
+    #[default]
+    Opaque,
+    /// The surface is absent wherever its alpha is below `cutoff` (glTF's MASK and
+    /// alphaCutoff, default 0.5).
+    Mask {
+        /// The alpha below which the surface is absent.
+        cutoff: f32,
+    },
+    /// A ray meets the surface with probability alpha (arbor's reading of glTF's BLEND:
+    /// stochastic transparency, which converges to the blended image).
+    Blend,
+}
+
+/// glTF's default alphaCutoff.
+pub const DEFAULT_ALPHA_CUTOFF: f32 = 0.5;
 
 /// The reflectance at normal incidence of a dielectric of index `ior` in air.
 pub fn dielectric_f0(ior: f32) -> f32 {
@@ -129,7 +154,14 @@ impl Material {
             dielectric_f0: Vec3::splat(0.04),
             specular_weight: 1.0,
             maps: Maps::default(),
+            alpha_mode: AlphaMode::Opaque,
+            opacity: 1.0,
         }
+    }
+
+    /// Whether rays may pass through the surface (a cut-out or a blended pane).
+    pub fn has_alpha(&self) -> bool {
+        self.alpha_mode != AlphaMode::Opaque
     }
 
     /// Every texture this material reads: albedo, then its maps.

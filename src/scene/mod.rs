@@ -4,6 +4,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod alpha;
 #[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod builtin;
 #[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
@@ -28,7 +29,9 @@ use glam::{Vec2, Vec3};
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
 pub use instance::{Instance, Instancing, Prototype};
-pub use mesh::{ComplexIor, Environment, Maps, Material, MaterialKind, MeshData, Texture, Wrap};
+pub use mesh::{
+    AlphaMode, ComplexIor, Environment, Maps, Material, MaterialKind, MeshData, Texture, Wrap, DEFAULT_ALPHA_CUTOFF,
+};
 
 use crate::error::{Error, Result};
 use crate::math::Aabb;

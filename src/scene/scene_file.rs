@@ -18,7 +18,7 @@ use toml::Spanned;
 
 use super::images::{load_environment, load_texture};
 use super::limits::{self, FileKind};
-use super::mesh::{ComplexIor, Material, MaterialKind, MeshData};
+use super::mesh::{AlphaMode, ComplexIor, Material, MaterialKind, MeshData, DEFAULT_ALPHA_CUTOFF};
 use super::{load_mesh, Camera, Light, Scene, SceneBuilder, Sphere};
 use crate::error::{Error, Result};
 
@@ -216,6 +216,17 @@ struct MaterialDef {
     eta: Option<[f32; 3]>,
     k: Option<[f32; 3]>,
     metallic: Option<f32>,
+    alpha_mode: Option<AlphaModeDef>,
+    alpha_cutoff: Option<Spanned<f32>>,
+    opacity: Option<Spanned<f32>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq)]
+#[serde(rename_all = "lowercase")]
+enum AlphaModeDef {
+    Opaque,
+    Mask,
+    Blend,
 }
 
 #[derive(Deserialize)]
@@ -234,6 +245,43 @@ struct LightDef {
     radiance: Option<[f32; 3]>,
     position: Option<[f32; 3]>,
     intensity: Option<[f32; 3]>,
+}
+
+/// What is wrong with an alpha key, at the key's span where it has one.
+type KeyError = (Option<std::ops::Range<usize>>, String);
+
+/// A material's `alpha_mode`, `alpha_cutoff` (MASK only, default 0.5) and `opacity`
+/// (default 1), each checked.
+fn alpha_of(d: &MaterialDef) -> std::result::Result<(AlphaMode, f32), KeyError> {
+    let mode = d.alpha_mode.unwrap_or(AlphaModeDef::Opaque);
+    let opacity = match &d.opacity {
+        None => 1.0,
+        Some(o) if mode == AlphaModeDef::Opaque => {
+            return Err((
+                Some(o.span()),
+                "opacity needs alpha_mode = \"mask\" or \"blend\" (an opaque surface ignores it)".into(),
+            ))
+        }
+        Some(o) if !(0.0..=1.0).contains(o.get_ref()) => {
+            return Err((Some(o.span()), format!("opacity must be in [0, 1], got {}", o.get_ref())))
+        }
+        Some(o) => *o.get_ref(),
+    };
+    let cutoff = match &d.alpha_cutoff {
+        None => DEFAULT_ALPHA_CUTOFF,
+        Some(c) if mode != AlphaModeDef::Mask => {
+            return Err((Some(c.span()), "alpha_cutoff needs alpha_mode = \"mask\"".into()))
+        }
+        Some(c) if !(0.0..=1.0).contains(c.get_ref()) => {
+            return Err((Some(c.span()), format!("alpha_cutoff must be in [0, 1], got {}", c.get_ref())))
+        }
+        Some(c) => *c.get_ref(),
+    };
+    Ok(match mode {
+        AlphaModeDef::Opaque => (AlphaMode::Opaque, 1.0),
+        AlphaModeDef::Blend => (AlphaMode::Blend, opacity),
+        AlphaModeDef::Mask => (AlphaMode::Mask { cutoff }, opacity),
+    })
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
@@ -371,6 +419,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             Ok(i)
         };
         mat.texture = d.texture.as_deref().map(|t| load("texture", t)).transpose()?;
+        (mat.alpha_mode, mat.opacity) =
+            alpha_of(d).map_err(|(span, e)| at(span.unwrap_or(m.span()), format!("material '{}': {e}", d.name)))?;
         mat.maps.emission = d.emission_texture.as_deref().map(|t| load("emission_texture", t)).transpose()?;
         let index = b.material(mat);
         names.insert(d.name.clone(), index);

@@ -8,6 +8,7 @@
 
 mod common;
 
+mod alpha;
 mod bad_files;
 mod bad_input;
 mod bad_outputs;

@@ -6,7 +6,7 @@ use crate::accel::{AccelBuffers, GpuImage};
 use crate::error::{Error, Result};
 use crate::gpu::bindings::*;
 use crate::gpu::{BindingDesc, BindingKind, Buffer, Context, Kernel};
-use crate::scene::{ComplexIor, Light, Material, MaterialKind, Scene};
+use crate::scene::{AlphaMode, ComplexIor, Light, Material, MaterialKind, Scene};
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -38,7 +38,8 @@ impl GpuScene {
     }
 }
 
-/// Materials (`MATERIAL_ROWS` rows each) then lights (`LIGHT_ROWS` rows each).
+/// Materials (`MATERIAL_ROWS` rows each), lights (`LIGHT_ROWS` rows each), then with
+/// cut-outs or blended panes the alpha section ([`alpha_rows`]).
 fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     let rows = scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize;
     let mut shading = Vec::with_capacity(rows);
@@ -48,7 +49,68 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     for l in &scene.lights {
         shading.extend(light_record(l).rows());
     }
+    if scene.has_alpha() {
+        debug_assert_eq!(shading.len() as u32, alpha_table_row(scene));
+        shading.extend(alpha_rows(scene, shading.len() as u32));
+    }
     shading
+}
+
+/// The first shading row of the alpha section (`GpuParams::alpha_table`): after the
+/// materials and lights; 0 in a scene without alpha.
+pub fn alpha_table_row(scene: &Scene) -> u32 {
+    if !scene.has_alpha() {
+        return 0;
+    }
+    (scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize) as u32
+}
+
+/// The alpha section from row `base` (its layout: shaders/common/alpha.glsl): a row per
+/// material, a descriptor row per texture whose alpha is read ([`Scene::alpha_textures`]),
+/// then those textures' alphas, four bytes a word. An opaque material's row reads as a
+/// cut-out with cutoff 0, which every alpha passes.
+fn alpha_rows(scene: &Scene, base: u32) -> Vec<[f32; 4]> {
+    let textures = scene.alpha_textures();
+    let descriptors = base + scene.materials.len() as u32;
+    let mut rows = Vec::new();
+    for m in &scene.materials {
+        let cutoff = match m.alpha_mode {
+            AlphaMode::Opaque => 0.0,
+            AlphaMode::Mask { cutoff } => cutoff,
+            AlphaMode::Blend => -1.0,
+        };
+        let opacity = if m.has_alpha() { m.opacity } else { 1.0 };
+        let desc = m
+            .texture
+            .filter(|_| m.has_alpha())
+            .and_then(|t| textures.iter().position(|&x| x == t))
+            .map_or(0, |k| descriptors + k as u32);
+        rows.push([opacity, cutoff, f32::from_bits(desc), 0.0]);
+    }
+    let mut alphas: Vec<[f32; 4]> = Vec::new();
+    for &t in &textures {
+        let tex = &scene.textures[t as usize];
+        let [wu, wv] = tex.wrap.map(|w| w as u32);
+        let first = descriptors + textures.len() as u32 + alphas.len() as u32;
+        let width = tex.width | wu << TEXTURE_WRAP_U_SHIFT | wv << TEXTURE_WRAP_V_SHIFT;
+        rows.push([f32::from_bits(first), f32::from_bits(width), f32::from_bits(tex.height), 0.0]);
+        // The words go up as bits (the shading buffer is read as uint texels), never as
+        // float values: a word that reads as a NaN keeps its bits.
+        let words: Vec<u32> = tex
+            .texels
+            .chunks(4)
+            .map(|c| c.iter().enumerate().fold(0, |w, (k, p)| w | u32::from(p[3]) << (8 * k)))
+            .collect();
+        alphas.extend(words.chunks(4).map(|c| {
+            let mut row = [0f32; 4];
+            for (k, w) in c.iter().enumerate() {
+                row[k] = f32::from_bits(*w);
+            }
+            row
+        }));
+    }
+    rows.extend(alphas);
+    rows
 }
 
 /// A material's record: the words every kind has, then its kind's own (the table at
