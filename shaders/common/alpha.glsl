@@ -38,7 +38,7 @@ bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
     vec4 m = shading_row(params.alpha_table + tri.w);
     float alpha = m.x;
     uint desc = floatBitsToUint(m.z);
-    if (desc != 0u) {
+    if ((ALPHA_BITS & ALPHA_TEXTURES) != 0u && desc != 0u) {
         uvec4 d = floatBitsToUint(shading_row(desc));
         uint w = d.y & ((1u << TEXTURE_WRAP_U_SHIFT) - 1u);
         uint wrap_u = (d.y >> TEXTURE_WRAP_U_SHIFT) & 3u;
@@ -59,7 +59,9 @@ bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
         uint byte = (shading_word(d.x, i >> 2u) >> (8u * (i & 3u))) & 255u;
         alpha *= float(byte) / 255.0;
     }
-    return m.y >= 0.0 ? alpha >= m.y : blend_hash(r, prim) < alpha;
+    // A branch, not a select: the hash runs only where a blended pane was hit.
+    if ((ALPHA_BITS & ALPHA_BLEND) == 0u || m.y >= 0.0) return alpha >= m.y;
+    return blend_hash(r, prim) < alpha;
 }
 #endif
 

@@ -218,10 +218,17 @@ pub const SPEC_ENV_WIDTH: u32 = 13;
 pub const SPEC_ENV_HEIGHT: u32 = 14;
 /// Path integrator: whether any material has a texture.
 pub const SPEC_TEXTURES: u32 = 15;
-/// Whether any material is a cut-out or a blended pane (glTF's alphaMode MASK or
-/// BLEND): the primitive test of every traversal then asks common/alpha.glsl whether
-/// the ray meets the surface where it hits it; other scenes compile the test out.
+/// The scene's cut-outs and blended panes (glTF's alphaMode MASK or BLEND), as
+/// `ALPHA_*` bits: with any, the primitive test of every traversal asks
+/// common/alpha.glsl whether the ray meets the surface where it hits it; other scenes
+/// compile the test out, and the texture read and the blend hash are compiled only
+/// where used (llvmpipe runs both sides of a branch).
 pub const SPEC_ALPHA: u32 = 25;
+/// `SPEC_ALPHA` bits: some material has alpha; some reads a texture's alpha; some is
+/// a blended pane.
+pub const ALPHA_ON: u32 = 1;
+pub const ALPHA_TEXTURES: u32 = 2;
+pub const ALPHA_BLEND: u32 = 4;
 /// Path integrator: 0 multiple importance sampling, 1 light sampling only, 2 BSDF
 /// sampling only (the last two for tests and the benchmark).
 pub const SPEC_MIS: u32 = 16;
@@ -523,6 +530,9 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPEC_ENV_HEIGHT", SPEC_ENV_HEIGHT),
     ("SPEC_TEXTURES", SPEC_TEXTURES),
     ("SPEC_ALPHA", SPEC_ALPHA),
+    ("ALPHA_ON", ALPHA_ON),
+    ("ALPHA_TEXTURES", ALPHA_TEXTURES),
+    ("ALPHA_BLEND", ALPHA_BLEND),
     ("SPEC_MIS", SPEC_MIS),
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),

@@ -152,7 +152,7 @@ fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage) -> Vec<
         (SPEC_SPHERE_COUNT, scene.spheres.len() as u32),
         (SPEC_MATERIAL_KINDS, kernel::material_kinds(scene, settings.kernel)),
         (SPEC_PACKET, kernel::packet_spec(settings.traversal, image)),
-        (SPEC_ALPHA, u32::from(scene.has_alpha())),
+        (SPEC_ALPHA, upload::alpha_spec(scene)),
     ]
 }
 

@@ -56,6 +56,16 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     shading
 }
 
+/// The scene's `SPEC_ALPHA` bits (`ALPHA_*`).
+pub fn alpha_spec(scene: &Scene) -> u32 {
+    if !scene.has_alpha() {
+        return 0;
+    }
+    let textures = if scene.alpha_textures().is_empty() { 0 } else { ALPHA_TEXTURES };
+    let blend = if scene.materials.iter().any(|m| m.alpha_mode == AlphaMode::Blend) { ALPHA_BLEND } else { 0 };
+    ALPHA_ON | textures | blend
+}
+
 /// The first shading row of the alpha section (`GpuParams::alpha_table`): after the
 /// materials and lights; 0 in a scene without alpha.
 pub fn alpha_table_row(scene: &Scene) -> u32 {
