@@ -81,7 +81,8 @@ bool intersect_sphere(uint i, Ray r, inout Hit h) {
     float t;
     Ray rr = r;
     rr.tmax = h.t;
-    if (ray_sphere(rr, s.xyz, s.w, t) && (t < h.t || params.triangle_count + i < h.prim)) {
+    if (ray_sphere(rr, s.xyz, s.w, t) && (t < h.t || params.triangle_count + i < h.prim)
+        && (!HAS_ALPHA || sphere_alpha_meets(i, r))) {
         h.t = t; h.prim = params.triangle_count + i; h.u = 0.0; h.v = 0.0;
         return true;
     }

@@ -62,7 +62,8 @@ bool rq_trace(Ray r, inout Hit h, bool any_hit) {
             rr.tmax = rayQueryGetIntersectionTypeEXT(q, true) == gl_RayQueryCommittedIntersectionNoneEXT
                 ? min(h.t, RQ_TMAX) : rayQueryGetIntersectionTEXT(q, true);
             float t;
-            if (ray_sphere(rr, s.xyz, s.w, t) && t >= r.tmin) rayQueryGenerateIntersectionEXT(q, t);
+            if (ray_sphere(rr, s.xyz, s.w, t) && t >= r.tmin && (!HAS_ALPHA || sphere_alpha_meets(j, r)))
+                rayQueryGenerateIntersectionEXT(q, t);
         }
 #endif
     }

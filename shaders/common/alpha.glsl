@@ -65,4 +65,15 @@ bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
 }
 #endif
 
+#if HAS_SPHERES
+// Whether ray r meets sphere i (primitive params.triangle_count + i): its material's
+// opacity alone decides (a sphere's texture alpha is not read).
+bool sphere_alpha_meets(uint i, Ray r) {
+    uint mat = texelFetch(sphere_texels, int(2u * i + 1u)).x;
+    vec4 m = shading_row(params.alpha_table + mat);
+    if ((ALPHA_BITS & ALPHA_BLEND) == 0u || m.y >= 0.0) return m.x >= m.y;
+    return blend_hash(r, params.triangle_count + i) < m.x;
+}
+#endif
+
 #endif

@@ -59,7 +59,10 @@ pub fn intersect_prim(prims: &Prims, prim: u32, ray: &Ray, best: &mut Hit) -> bo
     } else {
         let s = &scene.spheres[(prim - nt) as usize];
         if let Some(t) = ray_sphere(&r, s.center, s.radius) {
-            if best.closer(t, prim) {
+            let meets = || {
+                !prims.alpha || crate::scene::alpha::meets_sphere(prims.shading, s.material, prim, ray.origin, ray.dir)
+            };
+            if best.closer(t, prim) && meets() {
                 *best = Hit { t, prim, u: 0.0, v: 0.0 };
                 return true;
             }

@@ -9,6 +9,7 @@
 //! - BLEND: the ray meets it with probability alpha, decided by a hash of the ray's
 //!   origin and direction and the primitive: a seed gives one image, and the samples of
 //!   a pixel converge to the blended colour (stochastic transparency).
+//! - A sphere takes its material's opacity alone ([`meets_sphere`]).
 //! - Opaque materials are met everywhere; a scene without alpha compiles the test out
 //!   (`SPEC_ALPHA`).
 
@@ -114,6 +115,18 @@ pub fn meets(shading: &Scene, geometry: &Scene, tri: u32, origin: Vec3, dir: Vec
         AlphaMode::Mask { cutoff } => alpha >= cutoff,
         AlphaMode::Blend => blend_hash(origin, dir, tri) < alpha,
         AlphaMode::Opaque => true,
+    }
+}
+
+/// Whether a ray meets sphere primitive `prim` of material `material`: its opacity
+/// alone decides (a sphere's texture alpha is not read; `sphere_alpha_meets` in
+/// alpha.glsl).
+pub fn meets_sphere(shading: &Scene, material: u32, prim: u32, origin: Vec3, dir: Vec3) -> bool {
+    let m = &shading.materials[material as usize];
+    match m.alpha_mode {
+        AlphaMode::Opaque => true,
+        AlphaMode::Mask { cutoff } => m.opacity >= cutoff,
+        AlphaMode::Blend => blend_hash(origin, dir, prim) < m.opacity,
     }
 }
 

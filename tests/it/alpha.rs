@@ -156,8 +156,8 @@ fn a_masked_quads_shadow_has_the_same_holes() {
     assert!(disagree * 100 <= floor, "{disagree} of {floor} floor pixels lit other than the CPU reference");
 }
 
-/// Rays through a masked quad and a blended pane behind it: the device's hits equal
-/// the CPU reference's in every structure.
+/// Rays through a masked quad and a blended pane behind it, and past a blended and a
+/// masked-out sphere: the device's hits equal the CPU reference's in every structure.
 #[test]
 fn device_equals_cpu_through_masked_and_blended_surfaces() {
     let Some(ctx) = common::gpu() else { return };
@@ -174,9 +174,13 @@ fn device_equals_cpu_through_masked_and_blended_surfaces() {
          [[mesh]]\nfile = \"wall.obj\"\nmaterial = \"wall\"\n\
          [[material]]\nname = \"leaf\"\ntype = \"lambert\"\ntexture = \"checker.png\"\nalpha_mode = \"mask\"\n\
          [[material]]\nname = \"pane\"\ntype = \"lambert\"\nalpha_mode = \"blend\"\nopacity = 0.5\n\
-         [[material]]\nname = \"wall\"\ntype = \"lambert\"\n",
+         [[material]]\nname = \"wall\"\ntype = \"lambert\"\n\
+         [[sphere]]\ncenter = [0.6, 0.6, 0.5]\nradius = 0.35\nmaterial = \"bubble\"\n\
+         [[sphere]]\ncenter = [-0.6, -0.6, 0.5]\nradius = 0.35\nmaterial = \"ghost\"\n\
+         [[material]]\nname = \"bubble\"\ntype = \"lambert\"\nalpha_mode = \"blend\"\nopacity = 0.5\n\
+         [[material]]\nname = \"ghost\"\ntype = \"lambert\"\nalpha_mode = \"mask\"\nopacity = 0.2\n",
     );
-    assert_eq!(scene.materials.iter().map(|m| m.alpha_mode).filter(|m| *m == AlphaMode::Blend).count(), 1);
+    assert_eq!(scene.materials.iter().map(|m| m.alpha_mode).filter(|m| *m == AlphaMode::Blend).count(), 2);
     let mut rng = common::scenes::Rng(0x9e37_79b9_7f4a_7c15);
     let rays: Vec<Ray> = (0..4000)
         .map(|_| {
@@ -189,7 +193,8 @@ fn device_equals_cpu_through_masked_and_blended_surfaces() {
     if ctx.info().ray_query() {
         kinds.push(AccelKind::RayQuery);
     }
-    let mut layers = [0usize; 4];
+    // Hits on the leaf, the pane, the wall, the bubble, the ghost; misses.
+    let mut layers = [0usize; 6];
     for kind in kinds {
         let accel = Accel::build_on(&ctx, kind, &scene, &Default::default()).expect("build");
         let gpu = RayTracer::new(&ctx, &scene, &accel, &TraceOptions::default())
@@ -201,13 +206,15 @@ fn device_equals_cpu_through_masked_and_blended_surfaces() {
             assert_eq!(g.map(|h| h.prim), c.map(|h| h.prim), "{kind}: ray {k}");
         }
         ctx.check_validation().expect("no validation errors");
-        layers = [0; 4];
+        layers = [0; 6];
         for c in &cpu {
-            layers[c.map_or(3, |h| h.prim as usize / 2)] += 1;
+            layers[c.map_or(5, |h| if h.prim < 6 { h.prim as usize / 2 } else { h.prim as usize - 3 })] += 1;
         }
     }
-    // Rays reach every layer: the leaf's squares, the pane half the time, the wall.
-    assert!(layers.iter().take(3).all(|&n| n > 400), "{layers:?}");
+    // Rays reach every layer: the leaf's squares, the pane half the time, the wall,
+    // the bubble half the time; the masked-out ghost never.
+    assert!(layers.iter().take(3).all(|&n| n > 400) && layers[3] > 100, "{layers:?}");
+    assert_eq!(layers[4], 0, "{layers:?}");
 }
 
 /// A blended pane of opacity 0.25 in front of the background converges to 0.25 x its
