@@ -66,6 +66,15 @@ void whitted_main() {
                 out_px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);
                 out_px.albedo_m2.rgb = hit ? m.albedo : vec3(0.0);
             }
+            // A blended pane: its surface weighs alpha, the ray on behind it 1 - alpha
+            // (split as glass is; docs/materials.md, "Alpha").
+            vec3 beta_behind = vec3(0.0);
+            vec3 through = r.dir;
+            if (hit && (ALPHA_BITS & ALPHA_BLEND) != 0u) {
+                float a = blend_weight(mat, uv, h.prim < params.triangle_count);
+                beta_behind = beta * (1.0 - a);
+                beta *= a;
+            }
             bool follow = false;
             if (!hit) {
                 L += beta * params.background;
@@ -121,6 +130,27 @@ void whitted_main() {
                     }
                     r.origin = offset_ray_origin(p, err, gnf, r.dir);
                     follow = true;
+                }
+            }
+            if ((ALPHA_BITS & ALPHA_BLEND) != 0u && (beta_behind.r > 0.0 || beta_behind.g > 0.0 || beta_behind.b > 0.0)
+                && depth + 1u < MAX_DEPTH) {
+                vec3 o = offset_ray_origin(p, err, gn, through);
+                if (!follow) {
+                    // Nothing else follows from this hit: go on behind the pane.
+                    r.origin = o;
+                    r.dir = through;
+                    beta = beta_behind;
+                    follow = true;
+                } else if (splits < WHITTED_SPLIT && n_waiting < WHITTED_SPLIT_MAX) {
+                    Branch b;
+                    b.origin = o;
+                    b.dir = through;
+                    b.depth = depth + 1u;
+                    b.splits = splits + 1u;
+                    b.beta = beta_behind;
+                    waiting[n_waiting] = b;
+                    n_waiting += 1u;
+                    splits += 1u;
                 }
             }
             if (follow) {

@@ -108,7 +108,9 @@ pub fn render_with(
     let mut gs = GpuScene::new(scene);
     let ex = if probe(settings) { Extras::default() } else { extras(scene, gs.shading.len() as u32, false)? };
     gs.shading.extend_from_slice(&ex.rows);
-    let glass = !probe(settings) && scene.materials.iter().any(|m| m.is_smooth_glass());
+    // Glass and blended panes split a ray in two.
+    let glass = !probe(settings)
+        && scene.materials.iter().any(|m| m.is_smooth_glass() || m.alpha_mode == crate::scene::AlphaMode::Blend);
     let (depth, lights, emitters) = (scene.max_depth, scene.lights.len() as u64, ex.emitter_count);
     let request = Request {
         // The probe modes run the lean probe kernel (trace.comp, probe_main).
