@@ -105,11 +105,10 @@ pub fn meets(shading: &Scene, geometry: &Scene, tri: u32, origin: Vec3, dir: Vec
         return true;
     }
     let mut alpha = m.opacity;
+    // A texture whose alpha is 255 everywhere reads as 1, as the kernels' (which skip it).
     if let Some(t) = m.texture.map(|t| &shading.textures[t as usize]) {
-        if t.texels.iter().any(|p| p[3] < 255) {
-            let byte = t.texels[texel_under(t, uv_at(geometry, tri, u, v))][3];
-            alpha *= f32::from(byte) / 255.0;
-        }
+        let byte = t.texels[texel_under(t, uv_at(geometry, tri, u, v))][3];
+        alpha *= f32::from(byte) / 255.0;
     }
     match m.alpha_mode {
         AlphaMode::Mask { cutoff } => alpha >= cutoff,

@@ -178,7 +178,6 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         let mut mat = material(&m, &mut textures, &mut out.mesh.textures)?;
         // alphaMode: cut-outs and blended panes (the alpha is baseColorFactor's times
         // the base colour texture's).
-        mat.opacity = m.pbr_metallic_roughness().base_color_factor()[3].clamp(0.0, 1.0);
         mat.alpha_mode = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => {
@@ -186,8 +185,8 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
             }
             gltf::material::AlphaMode::Blend => AlphaMode::Blend,
         };
-        if mat.alpha_mode == AlphaMode::Opaque {
-            mat.opacity = 1.0;
+        if mat.has_alpha() {
+            mat.opacity = m.pbr_metallic_roughness().base_color_factor()[3].clamp(0.0, 1.0);
         }
         out.mesh.materials.push(mat);
     }

@@ -123,14 +123,7 @@ fn texture_rows(scene: &Scene, base: u32, means: &[f32]) -> Vec<[f32; 4]> {
         rows.push([f32::from_bits(next), f32::from_bits(width), f32::from_bits(t.height), mean]);
         let words: Vec<u32> =
             t.texels.iter().map(|p| u32::from(p[0]) | u32::from(p[1]) << 8 | u32::from(p[2]) << 16).collect();
-        for chunk in words.chunks(4) {
-            let mut row = [0f32; 4];
-            for (k, w) in chunk.iter().enumerate() {
-                // The top byte is zero, so the bits are never a NaN.
-                row[k] = f32::from_bits(*w);
-            }
-            texel_rows.push(row);
-        }
+        texel_rows.extend(word_rows(&words));
         next = base + n + texel_rows.len() as u32;
     }
     rows.extend(texel_rows);
@@ -162,6 +155,21 @@ pub fn env_texels_as_seen(texels: &[[f32; 3]]) -> Vec<[f32; 3]> {
 }
 
 /// Floats packed 4 per row.
+/// Words packed 4 per row as their bits (the shading buffer is read as uint texels:
+/// a word that reads as a NaN keeps its bits).
+pub fn word_rows(words: &[u32]) -> Vec<[f32; 4]> {
+    words
+        .chunks(4)
+        .map(|c| {
+            let mut row = [0f32; 4];
+            for (k, w) in c.iter().enumerate() {
+                row[k] = f32::from_bits(*w);
+            }
+            row
+        })
+        .collect()
+}
+
 fn float_rows(values: &[f32]) -> Vec<[f32; 4]> {
     values
         .chunks(4)

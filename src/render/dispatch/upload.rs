@@ -104,20 +104,12 @@ fn alpha_rows(scene: &Scene, base: u32) -> Vec<[f32; 4]> {
         let first = descriptors + textures.len() as u32 + alphas.len() as u32;
         let width = tex.width | wu << TEXTURE_WRAP_U_SHIFT | wv << TEXTURE_WRAP_V_SHIFT;
         rows.push([f32::from_bits(first), f32::from_bits(width), f32::from_bits(tex.height), 0.0]);
-        // The words go up as bits (the shading buffer is read as uint texels), never as
-        // float values: a word that reads as a NaN keeps its bits.
         let words: Vec<u32> = tex
             .texels
             .chunks(4)
             .map(|c| c.iter().enumerate().fold(0, |w, (k, p)| w | u32::from(p[3]) << (8 * k)))
             .collect();
-        alphas.extend(words.chunks(4).map(|c| {
-            let mut row = [0f32; 4];
-            for (k, w) in c.iter().enumerate() {
-                row[k] = f32::from_bits(*w);
-            }
-            row
-        }));
+        alphas.extend(super::tables::word_rows(&words));
     }
     rows.extend(alphas);
     rows
