@@ -28,6 +28,7 @@ void main() {
     f3(o, params.background); f1(o, params.ambient);
     w1(o, params.emitter_table); w1(o, params.texture_table); w1(o, params.env_texel_table); w1(o, params.env_distribution_table);
     f1(o, params.env_intensity); f1(o, params.env_rotation); f1(o, params.emitter_power); w1(o, params.alpha_table);
+    w1(o, params.vertex_color_table); w1(o, params.spare0); w1(o, params.spare1); w1(o, params.spare2);
     // GpuDispatch (the pixel buffer's header)
     w4(o, dispatch_range); w4(o, dispatch_chunk); w4(o, dispatch_window); w4(o, dispatch_limits);
     // GpuVertex[0..2]

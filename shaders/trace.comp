@@ -33,6 +33,7 @@ layout(constant_id = SPEC_ENV_HEIGHT) const uint ENV_HEIGHT = 1u;
 layout(constant_id = SPEC_TEXTURES) const bool HAS_TEXTURES = false;
 layout(constant_id = SPEC_ALPHA) const uint ALPHA_BITS = 0u;
 const bool HAS_ALPHA = (ALPHA_BITS & ALPHA_ON) != 0u;
+layout(constant_id = SPEC_VERTEX_COLORS) const bool VERTEX_COLORS = false;
 layout(constant_id = SPEC_MIS) const uint MIS_MODE = 0u;
 layout(constant_id = SPEC_RR_DEPTH) const uint RR_DEPTH = 5u;
 layout(constant_id = SPEC_MATERIAL_KINDS) const uint MATERIAL_KINDS = 255u;
@@ -50,6 +51,7 @@ uint g_rays = 0u;
 bool g_overflow = false;
 
 #include "common/resume.glsl"
+#include "common/colors.glsl"
 #include "common/alpha.glsl"
 
 #if HAS_TRIANGLES

@@ -2,7 +2,8 @@
 // triangle where it hits it. Twin of src/scene/alpha.rs (the CPU reference asks the
 // same question the same way); called by every traversal's primitive test when
 // SPEC_ALPHA is set. Needs the shading buffer, params and the vertices
-// (common/layout.glsl) and pcg_hash (common/rng.glsl).
+// (common/layout.glsl), pcg_hash (common/rng.glsl) and the vertex colours
+// (common/colors.glsl), whose alpha multiplies the material's.
 //
 // The section params.alpha_table of the shading buffer (src/render/dispatch/upload.rs,
 // `alpha_rows`): a row per material, x its opacity, y the cutoff (0 for an opaque
@@ -49,7 +50,8 @@ float texture_alpha_at(uint desc, vec2 uv) {
 #if HAS_TRIANGLES
 // Whether ray r meets triangle `prim` (record `tri`, its material tri.w) at
 // barycentrics (u, v): the alpha is the opacity times the alpha of the texel under the
-// hit. Whitted's rays always meet blended panes: its shading splits the ray there.
+// hit, times the vertex colours' alpha there. Whitted's rays always meet blended panes:
+// its shading splits the ray there.
 bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
     vec4 m = shading_row(params.alpha_table + tri.w);
     if (INTEGRATOR == INTEGRATOR_WHITTED && m.y < 0.0) return true;
@@ -66,21 +68,26 @@ bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
         precise vec2 uv = t0 * b0 + t1 * u + t2 * v;
         alpha *= texture_alpha_at(desc, uv);
     }
+    if (VERTEX_COLORS) alpha *= triangle_color(tri, u, v).a;
     // A branch, not a select: the hash runs only where a blended pane was hit.
     if ((ALPHA_BITS & ALPHA_BLEND) == 0u || m.y >= 0.0) return alpha >= m.y;
     return blend_hash(r, prim) < alpha;
 }
 #endif
 
-// Whitted's weight of a blended pane's surface at a hit of material mat with texture
-// coordinates uv (the opacity, times the texel's alpha on a triangle); 1 for any other
-// material. The ray on behind the pane takes 1 minus it.
-float blend_weight(uint mat, vec2 uv, bool triangle) {
+// Whitted's weight of a blended pane's surface at hit h of material mat with texture
+// coordinates uv (the opacity, times the texel's alpha and the vertex colours' alpha on
+// a triangle); 1 for any other material. The ray on behind the pane takes 1 minus it.
+float blend_weight(uint mat, vec2 uv, Hit h) {
     vec4 m = shading_row(params.alpha_table + mat);
     if (m.y >= 0.0) return 1.0;
     uint desc = floatBitsToUint(m.z);
     float alpha = m.x;
+    bool triangle = h.prim < params.triangle_count;
     if ((ALPHA_BITS & ALPHA_TEXTURES) != 0u && triangle && desc != 0u) alpha *= texture_alpha_at(desc, uv);
+#if HAS_TRIANGLES
+    if (VERTEX_COLORS && triangle) alpha *= triangle_color(triangle_at(h.prim), h.u, h.v).a;
+#endif
     return alpha;
 }
 

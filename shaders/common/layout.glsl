@@ -55,6 +55,10 @@ layout(std140, set = 0, binding = BINDING_PARAMS) uniform ParamsBlock {
     float env_rotation;          // 164 about +y, radians
     float emitter_power;         // 168 the emitter table's total
     uint alpha_table;            // 172 cut-outs and blended panes (common/alpha.glsl)
+    uint vertex_color_table;     // 176 vertex colours (common/colors.glsl)
+    uint spare0;                 // 180 unused
+    uint spare1;                 // 184
+    uint spare2;                 // 188
 } params;
 #if HAS_TRIANGLES
 // Vertices and triangles are uniform texel buffers (RGBA32UI views of the same bytes):

@@ -198,12 +198,14 @@ bool sample_emitter(vec3 p, vec3 u, out vec3 wi, out float dist, out vec3 le, ou
     return pdf > 0.0 && (le.r > 0.0 || le.g > 0.0 || le.b > 0.0);
 }
 
-// The material at a hit with texture coordinates uv: its albedo and emission textured
-// and, for metallic-roughness, roughness and metallic times the green and blue
-// channels of its metallic-roughness texture (the normal map bends the frame earlier,
-// in `surface`).
-Material material_hit(uint mat, vec2 uv) {
+// The material at a hit with texture coordinates uv and vertex colour `tint`
+// (`hit_tint`, common/colors.glsl): its albedo times the tint and textured, its
+// emission textured and, for metallic-roughness, roughness and metallic times the
+// green and blue channels of its metallic-roughness texture (the normal map bends the
+// frame earlier, in `surface`).
+Material material_hit(uint mat, vec2 uv, vec3 tint) {
     Material m = material_at(mat);
+    if (VERTEX_COLORS) m.albedo *= tint;
     if (HAS_TEXTURES && (m.flags >> MAT_TEXTURE_SHIFT) != 0u)
         m.albedo *= texture_albedo((m.flags >> MAT_TEXTURE_SHIFT) - 1u, uv);
     if (HAS_TEXTURES && m.emission_map != 0u) m.emission *= texture_rgb(m.emission_map - 1u, uv, true);
@@ -232,7 +234,7 @@ bool path_vertex(Ray r, bool aovs, inout Pixel px, out Hit h, out vec3 p, out ve
     bool hit = trace_closest(r, h);
     uv = vec2(0.0);
     if (hit) surface(h, r, p, err, gn, sn, mat, uv);
-    if (hit) m = material_hit(mat, uv);
+    if (hit) m = material_hit(mat, uv, hit_tint(h));
     if (aovs) {
         px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
         px.prim_cost.xyz = uvec3(hit ? aov_prim(h) : NO_PRIM, g_nodes, g_tests);

@@ -128,6 +128,7 @@ void sppm_camera(PixelJob job, Pixel px) {
                 set_record(slot, SPPM_REC_WO, vec4(wo, uv.y));
                 vec3 kept = diffuse ? beta * (m.albedo * INV_PI) : beta;
                 set_record(slot, SPPM_REC_BETA, vec4(kept, float(depth + 1u)));
+                if (VERTEX_COLORS) set_record(slot, SPPM_REC_TINT, vec4(hit_tint(h), 0.0));
                 point = vec4(p, radius);
                 found = true;
             }
@@ -195,7 +196,8 @@ void photon_visit(uint v, vec3 p) {
         phi = beta.rgb * g_photon_beta / params.photon_unit;
     } else {
         vec4 wo = record_texel(v, SPPM_REC_WO);
-        Material m = material_hit(word & ~(SPPM_FRONT_BIT | SPPM_DIFFUSE_BIT), vec2(n.w, wo.w));
+        vec3 tint = VERTEX_COLORS ? record_texel(v, SPPM_REC_TINT).rgb : vec3(1.0);
+        Material m = material_hit(word & ~(SPPM_FRONT_BIT | SPPM_DIFFUSE_BIT), vec2(n.w, wo.w), tint);
         float pdf;
         vec3 f = bsdf_eval(m, n.xyz, wo.xyz, g_photon_wi, (word & SPPM_FRONT_BIT) != 0u, pdf);
         phi = beta.rgb * f * g_photon_beta / params.photon_unit;
@@ -411,7 +413,7 @@ void sppm_photon(uint k) {
             uint mat;
             vec2 uv;
             surface(h, r, p, err, gn, sn, mat, uv);
-            Material m = material_hit(mat, uv);
+            Material m = material_hit(mat, uv, hit_tint(h));
             if (m.kind == MAT_EMISSIVE) break;
             bool front = dot(gn, r.dir) < 0.0;
             vec3 gnf = front ? gn : -gn;

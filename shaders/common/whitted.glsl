@@ -59,7 +59,7 @@ void whitted_main() {
             Material m;
             if (hit) {
                 surface(h, r, p, err, gn, sn, mat, uv);
-                m = material_hit(mat, uv);
+                m = material_hit(mat, uv, hit_tint(h));
             }
             if (s == 0u && pass == 0u) {
                 out_px.normal_depth = hit ? vec4(sn, h.t) : vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
@@ -71,7 +71,7 @@ void whitted_main() {
             vec3 beta_behind = vec3(0.0);
             vec3 through = r.dir;
             if (hit && (ALPHA_BITS & ALPHA_BLEND) != 0u) {
-                float a = blend_weight(mat, uv, h.prim < params.triangle_count);
+                float a = blend_weight(mat, uv, h);
                 beta_behind = beta * (1.0 - a);
                 beta *= a;
             }

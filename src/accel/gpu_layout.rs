@@ -263,9 +263,16 @@ pub struct GpuParams {
     pub env_rotation: f32,
     /// bytes 168..172: the emitter table's total power
     pub emitter_power: f32,
-    /// The alpha section's first shading row (`alpha_table` in shaders/common/alpha.glsl;
-    /// 0 without alpha materials).
+    /// bytes 172..176: the alpha section's first shading row (`alpha_table` in
+    /// shaders/common/alpha.glsl; 0 without alpha materials)
     pub alpha_table: u32,
+    /// bytes 176..180: the vertex colour section's first shading row
+    /// (shaders/common/colors.glsl; 0 without vertex colours)
+    pub vertex_color_table: u32,
+    /// bytes 180..192: unused (0), the block's last 16-byte row
+    pub spare0: u32,
+    pub spare1: u32,
+    pub spare2: u32,
 }
 
 /// What one trace dispatch covers: the head of the pixel buffer (`dispatch_range`,
@@ -358,7 +365,7 @@ const _: () = assert!(std::mem::size_of::<GpuSphere>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuMaterial>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuPixel>() == 64);
 const _: () = assert!(std::mem::size_of::<GpuRay>() == 32);
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 176);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 192);
 const _: () = assert!(std::mem::size_of::<GpuLight>() == 32);
 /// Push constants of every GPU BVH build kernel (`BuildPush` in
 /// shaders/build/common.glsl; the canonical-node layout is documented there).

@@ -229,6 +229,11 @@ pub const SPEC_ALPHA: u32 = 25;
 pub const ALPHA_ON: u32 = 1;
 pub const ALPHA_TEXTURES: u32 = 2;
 pub const ALPHA_BLEND: u32 = 4;
+/// Whether the scene has vertex colours (glTF's COLOR_0, PLY's red/green/blue): the
+/// kernels then multiply a triangle hit's base colour, and its alpha where a material
+/// has alpha, by the colour interpolated from the section at
+/// `GpuParams::vertex_color_table` (common/colors.glsl).
+pub const SPEC_VERTEX_COLORS: u32 = 26;
 /// Path integrator: 0 multiple importance sampling, 1 light sampling only, 2 BSDF
 /// sampling only (the last two for tests and the benchmark).
 pub const SPEC_MIS: u32 = 16;
@@ -451,7 +456,8 @@ pub const SPPM_PASS_UPDATE: u32 = 2;
 /// A slot's record rows: the visible point (position, material | front flag, or
 /// `SPPM_NO_POINT`), its shading normal + u, direction to the camera + v, path
 /// throughput + the camera path's segments, the sum of its direct light + the radius,
-/// tau (the flux kept, pbrt's) + N (the photons it counts). A Lambert point's
+/// tau (the flux kept, pbrt's) + N (the photons it counts), and the vertex colour at
+/// the point (with `SPEC_VERTEX_COLORS`; its base colour's factor). A Lambert point's
 /// throughput is times its BSDF (`SPPM_DIFFUSE_BIT`).
 pub const SPPM_REC_POINT: u32 = 0;
 pub const SPPM_REC_NORMAL: u32 = 1;
@@ -459,7 +465,8 @@ pub const SPPM_REC_WO: u32 = 2;
 pub const SPPM_REC_BETA: u32 = 3;
 pub const SPPM_REC_DIRECT: u32 = 4;
 pub const SPPM_REC_TAU: u32 = 5;
-pub const SPPM_RECORD_ROWS: u32 = 6;
+pub const SPPM_REC_TINT: u32 = 6;
+pub const SPPM_RECORD_ROWS: u32 = 7;
 /// The record's material word when the pixel has no visible point this iteration, and
 /// the bit of it that says the camera came from the front of the surface.
 pub const SPPM_NO_POINT: u32 = 0xffff_ffff;
@@ -533,6 +540,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("ALPHA_ON", ALPHA_ON),
     ("ALPHA_TEXTURES", ALPHA_TEXTURES),
     ("ALPHA_BLEND", ALPHA_BLEND),
+    ("SPEC_VERTEX_COLORS", SPEC_VERTEX_COLORS),
     ("SPEC_MIS", SPEC_MIS),
     ("SPEC_RR_DEPTH", SPEC_RR_DEPTH),
     ("SPEC_MATERIAL_KINDS", SPEC_MATERIAL_KINDS),
@@ -696,6 +704,7 @@ pub const SHADER_DEFINES: &[(&str, u32)] = &[
     ("SPPM_REC_BETA", SPPM_REC_BETA),
     ("SPPM_REC_DIRECT", SPPM_REC_DIRECT),
     ("SPPM_REC_TAU", SPPM_REC_TAU),
+    ("SPPM_REC_TINT", SPPM_REC_TINT),
     ("SPPM_RECORD_ROWS", SPPM_RECORD_ROWS),
     ("SPPM_NO_POINT", SPPM_NO_POINT),
     ("SPPM_FRONT_BIT", SPPM_FRONT_BIT),

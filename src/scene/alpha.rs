@@ -4,7 +4,8 @@
 //! the CPU reference from `accel::prim::intersect_prim`), so that both answer alike.
 //!
 //! - The alpha is the material's `opacity` times the alpha of the albedo texture's
-//!   texel under the hit (nearest texel, the texture's wrap modes).
+//!   texel under the hit (nearest texel, the texture's wrap modes), times the vertex
+//!   colours' alpha there (crate::scene::colors).
 //! - MASK: the surface is absent where the alpha is below the cutoff.
 //! - BLEND: the ray meets it with probability alpha, decided by a hash of the ray's
 //!   origin and direction and the primitive: a seed gives one image, and the samples of
@@ -109,6 +110,9 @@ pub fn meets(shading: &Scene, geometry: &Scene, tri: u32, origin: Vec3, dir: Vec
     if let Some(t) = m.texture.map(|t| &shading.textures[t as usize]) {
         let byte = t.texels[texel_under(t, uv_at(geometry, tri, u, v))][3];
         alpha *= f32::from(byte) / 255.0;
+    }
+    if shading.has_vertex_colors() {
+        alpha *= geometry.color_at(tri, u, v).w;
     }
     match m.alpha_mode {
         AlphaMode::Mask { cutoff } => alpha >= cutoff,

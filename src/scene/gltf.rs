@@ -21,8 +21,9 @@
 //!
 //! Not read, and named in the scene's warnings: textures of a texture-coordinate set
 //! other than 0, KHR_materials_specular's textures, texture transforms that differ
-//! between one material's textures, and vertex colours. alphaMode MASK (with
-//! alphaCutoff) and BLEND are read: cut-outs and blended panes (crate::scene::alpha). The
+//! between one material's textures. alphaMode MASK (with alphaCutoff) and BLEND are
+//! read: cut-outs and blended panes (crate::scene::alpha); and COLOR_0, vertex colours
+//! that multiply the base colour and its alpha (crate::scene::colors). The
 //! occlusion texture is not read either: a path tracer computes its own occlusion.
 //!
 //! A mesh that two or more nodes draw becomes an instanced mesh, one instance per node
@@ -38,7 +39,7 @@
 
 use std::path::Path;
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 
 use super::mesh::{AlphaMode, MeshData, Texture, Wrap, DEFAULT_ALPHA_CUTOFF};
 use super::{Camera, Light, Material, MaterialKind};
@@ -72,6 +73,8 @@ impl GltfScene {
         let mut normals = out.normals.take().unwrap_or_else(|| vec![Vec3::ZERO; out.positions.len()]);
         let any_uvs = out.uvs.is_some() || self.prototypes.iter().any(|(_, p)| p.uvs.is_some());
         let mut uvs = out.uvs.take().unwrap_or_default();
+        let any_colors = out.colors.is_some() || self.prototypes.iter().any(|(_, p)| p.colors.is_some());
+        let mut colors = out.colors.take().unwrap_or_default();
         let mut any_normals = had_normals;
         for (k, t) in &self.instances {
             let p = &self.prototypes[*k as usize].1;
@@ -91,6 +94,12 @@ impl GltfScene {
                     uvs.extend_from_slice(u);
                 }
             }
+            if any_colors {
+                colors.resize(base as usize, Vec4::ONE);
+                if let Some(c) = &p.colors {
+                    colors.extend_from_slice(c);
+                }
+            }
             let mirrored = t.matrix3.determinant() < 0.0;
             for tri in &p.triangles {
                 let [a, b, c] = tri.map(|i| i + base);
@@ -102,6 +111,10 @@ impl GltfScene {
         if any_uvs {
             uvs.resize(out.positions.len(), Vec2::ZERO);
             out.uvs = Some(uvs);
+        }
+        if any_colors {
+            colors.resize(out.positions.len(), Vec4::ONE);
+            out.colors = Some(colors);
         }
         out
     }
@@ -190,9 +203,6 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         }
         out.mesh.materials.push(mat);
     }
-    if document.meshes().flat_map(|m| m.primitives()).any(|p| p.get(&gltf::Semantic::Colors(0)).is_some()) {
-        textures.unread.push("vertex colours (COLOR_0)".into());
-    }
     if !textures.unread.is_empty() {
         textures.unread.sort();
         textures.unread.dedup();
@@ -213,9 +223,7 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
             document.nodes().filter(|n| !child[n.index()]).collect()
         }
     };
-    let mut uvs: Vec<Vec2> = Vec::new();
-    let mut any_uvs = false;
-    let mut normals: Vec<Vec3> = Vec::new();
+    let mut attrs = Attributes::default();
     let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     let mut visits = 0usize;
     // (mesh, world transform) of every node that draws one, in traversal order.
@@ -275,20 +283,16 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         // A singular transform (a node scaled to nothing, as files hide nodes) has no
         // inverse to move rays with: that copy is drawn flat, degenerate as it is.
         if !instanced[mesh.index()] || !super::instance::invertible(&glam::Affine3A::from_mat4(*world)) {
-            add_mesh(mesh, world, &buffers, default_material, &mut out.mesh, &mut normals, &mut uvs, &mut any_uvs)?;
+            add_mesh(mesh, world, &buffers, default_material, &mut out.mesh, &mut attrs)?;
             continue;
         }
         let k = match proto_of[mesh.index()] {
             Some(k) => k,
             None => {
                 let mut p = MeshData::default();
-                let (mut pn, mut pu, mut pany) = (Vec::new(), Vec::new(), false);
-                add_mesh(mesh, &Mat4::IDENTITY, &buffers, default_material, &mut p, &mut pn, &mut pu, &mut pany)?;
-                p.normals = (pn.iter().any(|n| *n != Vec3::ZERO)).then_some(pn);
-                if pany {
-                    pu.resize(p.positions.len(), Vec2::ZERO);
-                    p.uvs = Some(pu);
-                }
+                let mut pattrs = Attributes::default();
+                add_mesh(mesh, &Mat4::IDENTITY, &buffers, default_material, &mut p, &mut pattrs)?;
+                pattrs.finish(&mut p);
                 let name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), str::to_string);
                 out.prototypes.push((name, p));
                 let k = (out.prototypes.len() - 1) as u32;
@@ -298,26 +302,47 @@ fn load_bytes(bytes: &[u8], base: &Path, name: &str) -> std::result::Result<Gltf
         };
         out.instances.push((k, glam::Affine3A::from_mat4(*world)));
     }
-    out.mesh.normals =
-        (normals.len() == out.mesh.positions.len() && normals.iter().any(|n| *n != Vec3::ZERO)).then_some(normals);
-    if any_uvs {
-        uvs.resize(out.mesh.positions.len(), Vec2::ZERO);
-        out.mesh.uvs = Some(uvs);
-    }
+    attrs.finish(&mut out.mesh);
     Ok(out)
 }
 
+/// The per-vertex attributes of the primitives added so far, gathered beside the
+/// positions: normals (zero where a primitive has none), and UVs and colours once a
+/// primitive has them (zero UVs, white, for the vertices of those without).
+#[derive(Default)]
+struct Attributes {
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    any_uvs: bool,
+    colors: Vec<Vec4>,
+    any_colors: bool,
+}
+
+impl Attributes {
+    /// Into `out`, whose positions they describe.
+    fn finish(mut self, out: &mut MeshData) {
+        let n = out.positions.len();
+        out.normals =
+            (self.normals.len() == n && self.normals.iter().any(|v| *v != Vec3::ZERO)).then_some(self.normals);
+        if self.any_uvs {
+            self.uvs.resize(n, Vec2::ZERO);
+            out.uvs = Some(self.uvs);
+        }
+        if self.any_colors {
+            self.colors.resize(n, Vec4::ONE);
+            out.colors = Some(self.colors);
+        }
+    }
+}
+
 /// Appends every primitive of `mesh`, transformed by `world`.
-#[allow(clippy::too_many_arguments)]
 fn add_mesh(
     mesh: &gltf::Mesh,
     world: &Mat4,
     buffers: &[gltf::buffer::Data],
     default_material: u32,
     out: &mut MeshData,
-    normals: &mut Vec<Vec3>,
-    uvs: &mut Vec<Vec2>,
-    any_uvs: &mut bool,
+    attrs: &mut Attributes,
 ) -> std::result::Result<(), String> {
     use gltf::mesh::Mode;
     let what = || match mesh.name() {
@@ -352,9 +377,9 @@ fn add_mesh(
                         ns.len()
                     ));
                 }
-                normals.extend(ns.iter().map(|v| (normal_matrix * *v).try_normalize().unwrap_or(Vec3::ZERO)));
+                attrs.normals.extend(ns.iter().map(|v| (normal_matrix * *v).try_normalize().unwrap_or(Vec3::ZERO)));
             }
-            None => normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
+            None => attrs.normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
         }
         if let Some(tc) = reader.read_tex_coords(0) {
             // In glTF's UV space (v down), then arbor's (v up).
@@ -369,9 +394,24 @@ fn add_mesh(
             if tc.len() != positions.len() {
                 return Err(format!("{}: primitive {} has {} UVs for {n} positions", what(), prim.index(), tc.len()));
             }
-            uvs.resize(base as usize, Vec2::ZERO);
-            uvs.extend(tc);
-            *any_uvs = true;
+            attrs.uvs.resize(base as usize, Vec2::ZERO);
+            attrs.uvs.extend(tc);
+            attrs.any_uvs = true;
+        }
+        // COLOR_0: float, or normalized unsigned byte or short; RGB or RGBA; linear.
+        if let Some(cs) = reader.read_colors(0) {
+            let cs: Vec<Vec4> = cs.into_rgba_f32().map(Vec4::from).collect();
+            if cs.len() != positions.len() {
+                return Err(format!(
+                    "{}: primitive {} has {} colours for {n} positions",
+                    what(),
+                    prim.index(),
+                    cs.len()
+                ));
+            }
+            attrs.colors.resize(base as usize, Vec4::ONE);
+            attrs.colors.extend(cs);
+            attrs.any_colors = true;
         }
         let indices: Vec<u32> = match reader.read_indices() {
             Some(i) => i.into_u32().collect(),

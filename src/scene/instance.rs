@@ -8,7 +8,7 @@
 //! of its flattened copy: the scene's own triangles, then each instance's copy of its
 //! prototype's triangles in instance order, then the spheres.
 
-use glam::{Affine3A, Vec2, Vec3};
+use glam::{Affine3A, Vec2, Vec3, Vec4};
 
 use super::{MeshData, Scene, SceneBuilder};
 use crate::error::{Error, Result};
@@ -104,6 +104,7 @@ impl SceneBuilder {
             std::mem::take(&mut s.uvs),
             std::mem::take(&mut s.triangles),
             std::mem::take(&mut s.tri_material),
+            std::mem::take(&mut s.colors),
         );
         self.mesh_transformed(mesh, pre, material);
         let s = &mut self.scene;
@@ -113,6 +114,7 @@ impl SceneBuilder {
         geometry.uvs = std::mem::replace(&mut s.uvs, saved.2);
         geometry.triangles = std::mem::replace(&mut s.triangles, saved.3);
         geometry.tri_material = std::mem::replace(&mut s.tri_material, saved.4);
+        geometry.colors = std::mem::replace(&mut s.colors, saved.5);
         // The scene's UVs stay one per position or none: a prototype with UVs makes
         // the scene's own vertices have (zero) ones, as a mesh with UVs would.
         if !geometry.uvs.is_empty() && s.uvs.is_empty() && !s.positions.is_empty() {
@@ -171,6 +173,10 @@ impl Scene {
         if any_uvs {
             s.uvs.resize(s.positions.len(), Vec2::ZERO);
         }
+        let any_colors = !s.colors.is_empty() || inst.prototypes.iter().any(|p| !p.geometry.colors.is_empty());
+        if any_colors {
+            s.colors.resize(s.positions.len(), Vec4::ONE);
+        }
         for i in &inst.instances {
             let g = &inst.prototypes[i.prototype as usize].geometry;
             let base = s.positions.len() as u32;
@@ -189,6 +195,13 @@ impl Scene {
                     s.uvs.resize(s.positions.len(), Vec2::ZERO);
                 } else {
                     s.uvs.extend_from_slice(&g.uvs);
+                }
+            }
+            if any_colors {
+                if g.colors.is_empty() {
+                    s.colors.resize(s.positions.len(), Vec4::ONE);
+                } else {
+                    s.colors.extend_from_slice(&g.colors);
                 }
             }
             let mirrored = t.matrix3.determinant() < 0.0;
@@ -243,6 +256,14 @@ pub fn validate(s: &mut Scene) -> std::result::Result<(), String> {
                 *uv = Vec2::ZERO;
             }
         }
+        if !g.colors.is_empty() && g.colors.len() != g.positions.len() {
+            return Err(format!(
+                "instanced mesh '{name}': {} vertex colours for {} vertices",
+                g.colors.len(),
+                g.positions.len()
+            ));
+        }
+        super::colors::clamp_colors(&mut g.colors);
         let nv = g.positions.len() as u32;
         if let Some((k, _)) = g.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i >= nv)) {
             return Err(format!("instanced mesh '{name}': triangle {k} references a vertex out of range"));

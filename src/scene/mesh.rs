@@ -242,6 +242,10 @@ pub struct MeshData {
     /// Per-vertex texture coordinates, the same length as `positions`, when the file
     /// has them.
     pub uvs: Option<Vec<glam::Vec2>>,
+    /// Per-vertex colours (linear RGBA, each in [0, 1]), the same length as
+    /// `positions`, when the file has them (glTF's COLOR_0, PLY's red/green/blue): they
+    /// multiply the base colour and the alpha.
+    pub colors: Option<Vec<glam::Vec4>>,
     /// Texture images the materials name (`Material::texture` indexes this).
     pub textures: Vec<Texture>,
     /// What the file has that arbor does not read, for a warning (glTF extensions).

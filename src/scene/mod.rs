@@ -9,6 +9,7 @@ pub mod alpha;
 pub mod builtin;
 #[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
 pub mod camera;
+pub mod colors;
 pub mod gltf;
 pub mod images;
 #[allow(missing_docs)] // scene parts with their fields explained in docs/ and the README; not the stable API
@@ -24,7 +25,9 @@ pub mod scene_file;
 
 use std::path::Path;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
+
+use colors::clamp_colors;
 
 pub use camera::{Camera, CameraBasis};
 pub use images::{load_environment, load_texture};
@@ -92,6 +95,9 @@ pub struct Scene {
     /// Per-vertex texture coordinates: empty, or one per position (`Vec2::ZERO` where
     /// a vertex has none).
     pub uvs: Vec<glam::Vec2>,
+    /// Per-vertex colours (linear RGBA in [0, 1]) that multiply the base colour and
+    /// the alpha: empty, or one per position (white where a vertex has none).
+    pub colors: Vec<glam::Vec4>,
     /// Per-triangle material index.
     pub tri_material: Vec<u32>,
     /// Spheres; sphere `k` is primitive `triangles.len() + k`.
@@ -143,6 +149,7 @@ impl SceneBuilder {
                 positions: Vec::new(),
                 normals: Vec::new(),
                 uvs: Vec::new(),
+                colors: Vec::new(),
                 triangles: Vec::new(),
                 tri_material: Vec::new(),
                 spheres: Vec::new(),
@@ -180,7 +187,8 @@ impl SceneBuilder {
     ///
     /// Texture coordinates: `scene.uvs` stays empty until a mesh with UVs arrives, and
     /// from then on holds one per position (`Vec2::ZERO` for vertices of meshes without
-    /// them, earlier ones included). The mesh's textures join `scene.textures` (one with
+    /// them, earlier ones included). Vertex colours likewise (white where a mesh has
+    /// none). The mesh's textures join `scene.textures` (one with
     /// the same name and wrap modes as a texture already there is that texture) and its
     /// materials' texture indices are remapped.
     pub fn mesh(&mut self, mesh: &MeshData, scale: f32, translate: Vec3, material: Option<u32>) {
@@ -214,6 +222,14 @@ impl SceneBuilder {
                 s.uvs.extend_from_slice(uv);
             }
             _ if !s.uvs.is_empty() => s.uvs.resize(s.positions.len(), Vec2::ZERO),
+            _ => {}
+        }
+        match &mesh.colors {
+            Some(c) if c.len() == mesh.positions.len() => {
+                s.colors.resize(base as usize, Vec4::ONE);
+                s.colors.extend_from_slice(c);
+            }
+            _ if !s.colors.is_empty() => s.colors.resize(s.positions.len(), Vec4::ONE),
             _ => {}
         }
         let mat_base = s.materials.len() as u32;
@@ -343,6 +359,14 @@ impl SceneBuilder {
                 *uv = Vec2::ZERO;
             }
         }
+        if !s.colors.is_empty() && s.colors.len() != s.positions.len() {
+            return Err(err(format!(
+                "{} vertex colours for {} vertices: there must be none or one per vertex",
+                s.colors.len(),
+                s.positions.len()
+            )));
+        }
+        clamp_colors(&mut s.colors);
         if let Some(env) = &s.environment {
             let size = limits::image_size_error(env.width, env.height, limits::MAX_ENVIRONMENT_TEXELS);
             let bad = size.or_else(|| {

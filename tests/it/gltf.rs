@@ -324,8 +324,8 @@ fn metals_and_transmission_map_to_microfacet_materials() {
 
 /// The metallic-roughness texture, the normal texture (a 16-bit PNG) with its scale,
 /// the emissive texture and KHR_materials_specular come through to the material; what
-/// is not read (a texture of coordinate set 1, a specular texture, vertex colours) is
-/// named in one warning, alphaMode MASK and its default cutoff are read; a file whose textures need UVs it lacks is an error naming the material.
+/// is not read (a texture of coordinate set 1, a specular texture) is named in one
+/// warning, vertex colours are read, alphaMode MASK and its default cutoff are read; a file whose textures need UVs it lacks is an error naming the material.
 #[test]
 fn metallic_roughness_maps_and_specular_come_through() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -376,9 +376,13 @@ fn metallic_roughness_maps_and_specular_come_through() {
     let e = m.maps.emission.expect("emissive texture");
     assert_eq!((m.emission, s.textures[e as usize].texels[0]), (glam::Vec3::ONE, [255, 0, 0, 255]));
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-    for what in ["texture-coordinate set 1", "KHR_materials_specular textures", "vertex colours (COLOR_0)"] {
+    for what in ["texture-coordinate set 1", "KHR_materials_specular textures"] {
         assert!(s.warnings[0].contains(what), "{what}: {:?}", s.warnings);
     }
+    // COLOR_0 (here the positions' accessor, floats) is read, not warned about.
+    assert!(!s.warnings[0].contains("COLOR_0"), "{:?}", s.warnings);
+    let corners = [[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]];
+    assert_eq!(s.colors, corners.map(glam::Vec4::from).to_vec());
     assert!(!s.warnings[0].contains("alpha"), "{:?}", s.warnings);
     assert_eq!((m.alpha_mode, m.opacity), (arbor::scene::AlphaMode::Mask { cutoff: 0.5 }, 1.0));
     assert!(!s.warnings[0].contains("emissive"), "{:?}", s.warnings);

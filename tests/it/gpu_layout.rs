@@ -25,7 +25,7 @@ fn rust_and_glsl_layouts_agree_on_the_device() {
             })
             .collect()
     };
-    let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(44)));
+    let params: GpuParams = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(48)));
     let dispatch: GpuDispatch = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(16)));
     let vertices: Vec<GpuVertex> =
         (0..2).map(|_| bytemuck::pod_read_unaligned(bytemuck::cast_slice(&fill(8)))).collect();

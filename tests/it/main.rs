@@ -48,4 +48,5 @@ mod surface;
 mod timeline;
 mod trace_rays_example;
 mod transforms;
+mod vertex_colors;
 mod whitted;

@@ -327,6 +327,7 @@ pub fn base_params(scene: &Scene, film: Film, accel: &crate::accel::Accel) -> cr
         sphere_count: scene.spheres.len() as u32,
         material_count: scene.materials.len() as u32,
         alpha_table: super::upload::alpha_table_row(scene),
+        vertex_color_table: super::upload::vertex_color_table_row(scene),
         seed,
         background: scene.background.to_array(),
         ..Default::default()

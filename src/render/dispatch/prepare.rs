@@ -153,6 +153,7 @@ fn shared_spec(scene: &Scene, settings: &LoopSettings, image: &GpuImage) -> Vec<
         (SPEC_MATERIAL_KINDS, kernel::material_kinds(scene, settings.kernel)),
         (SPEC_PACKET, kernel::packet_spec(settings.traversal, image)),
         (SPEC_ALPHA, upload::alpha_spec(scene)),
+        (SPEC_VERTEX_COLORS, u32::from(scene.has_vertex_colors())),
     ]
 }
 

@@ -34,12 +34,18 @@ impl GpuScene {
             triangles.extend(gpu_triangles(g, base));
         }
         let spheres = gpu_spheres(scene);
-        GpuScene { vertices, triangles, spheres, shading: shading_rows(scene) }
+        let mut shading = shading_rows(scene);
+        if scene.has_vertex_colors() {
+            debug_assert_eq!(shading.len() as u32, vertex_color_table_row(scene));
+            shading.extend(vertex_color_rows(scene));
+        }
+        GpuScene { vertices, triangles, spheres, shading }
     }
 }
 
 /// Materials (`MATERIAL_ROWS` rows each), lights (`LIGHT_ROWS` rows each), then with
-/// cut-outs or blended panes the alpha section ([`alpha_rows`]).
+/// cut-outs or blended panes the alpha section ([`alpha_rows`]). The vertex colour
+/// section follows ([`vertex_color_rows`]).
 fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     let rows = scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize;
     let mut shading = Vec::with_capacity(rows);
@@ -51,7 +57,9 @@ fn shading_rows(scene: &Scene) -> Vec<[f32; 4]> {
     }
     if scene.has_alpha() {
         debug_assert_eq!(shading.len() as u32, alpha_table_row(scene));
-        shading.extend(alpha_rows(scene, shading.len() as u32));
+        let base = shading.len() as u32;
+        shading.extend(alpha_rows(scene, base));
+        debug_assert_eq!(shading.len() as u32 - base, alpha_section_rows(scene));
     }
     shading
 }
@@ -73,6 +81,37 @@ pub fn alpha_table_row(scene: &Scene) -> u32 {
         return 0;
     }
     (scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize) as u32
+}
+
+/// The rows of the alpha section ([`alpha_rows`]) of a scene with alpha.
+fn alpha_section_rows(scene: &Scene) -> u32 {
+    let textures = scene.alpha_textures();
+    let alphas: usize = textures.iter().map(|&t| scene.textures[t as usize].texels.len().div_ceil(4).div_ceil(4)).sum();
+    (scene.materials.len() + textures.len() + alphas) as u32
+}
+
+/// The first shading row of the vertex colour section (`GpuParams::vertex_color_table`):
+/// after the materials, the lights and the alpha section; 0 without vertex colours.
+pub fn vertex_color_table_row(scene: &Scene) -> u32 {
+    if !scene.has_vertex_colors() {
+        return 0;
+    }
+    let alpha = if scene.has_alpha() { alpha_section_rows(scene) } else { 0 };
+    (scene.materials.len() * MATERIAL_ROWS as usize + scene.lights.len() * LIGHT_ROWS as usize) as u32 + alpha
+}
+
+/// The vertex colour section (its layout: shaders/common/colors.glsl): every stored
+/// vertex's colour in the vertex buffer's order (prototypes first, then the scene's
+/// own), two words each ([`crate::scene::colors::color_words`]); white for a mesh
+/// without colours.
+fn vertex_color_rows(scene: &Scene) -> Vec<[f32; 4]> {
+    let protos = scene.instancing.iter().flat_map(|i| i.prototypes.iter().map(|p| &p.geometry));
+    let mut words = Vec::new();
+    for g in protos.chain(std::iter::once(scene)) {
+        let color = |k: usize| g.colors.get(k).copied().unwrap_or(glam::Vec4::ONE);
+        words.extend((0..g.positions.len()).flat_map(|k| crate::scene::colors::color_words(color(k))));
+    }
+    super::tables::word_rows(&words)
 }
 
 /// The alpha section from row `base` (its layout: shaders/common/alpha.glsl): a row per

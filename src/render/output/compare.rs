@@ -120,14 +120,7 @@ pub fn error_png(width: u32, height: u32, test: &[[f32; 3]], reference: &[[f32; 
     Ok(out.into_inner())
 }
 
-/// sRGB-encoded [0, 1] to linear.
-pub fn srgb_to_linear(s: f32) -> f32 {
-    if s <= 0.04045 {
-        s / 12.92
-    } else {
-        ((s + 0.055) / 1.055).powf(2.4)
-    }
-}
+pub use crate::scene::colors::srgb_to_linear;
 
 /// Reads an image as linear RGB, row 0 at the top: `(width, height, pixels)`. The
 /// extension picks the format: .exr, .pfm, .hdr (linear as stored), .png, .jpg/.jpeg

@@ -132,7 +132,7 @@ impl Fnv {
     }
 }
 
-/// A scene's (or a prototype's) triangle geometry: positions, normals, UVs, triangles
+/// A scene's (or a prototype's) triangle geometry: positions, normals, UVs, colours, triangles
 /// and their materials, each list after its length.
 fn hash_geometry(h: &mut Fnv, g: &Scene) {
     h.u32(g.positions.len() as u32);
@@ -144,6 +144,8 @@ fn hash_geometry(h: &mut Fnv, g: &Scene) {
         h.f32(uv.x);
         h.f32(uv.y)
     });
+    h.u32(g.colors.len() as u32);
+    g.colors.iter().for_each(|c| c.to_array().iter().for_each(|&x| h.f32(x)));
     h.u32(g.triangles.len() as u32);
     g.triangles.iter().flatten().for_each(|&i| h.u32(i));
     g.tri_material.iter().for_each(|&m| h.u32(m));

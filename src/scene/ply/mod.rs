@@ -24,7 +24,11 @@
 //! * Element `vertex`: `x`, `y`, `z` (required, any numeric type), `nx`, `ny`, `nz`
 //!   (normals, used only when all three are present) and texture coordinates: the first
 //!   pair present of `u`/`v`, `s`/`t`, `texture_u`/`texture_v`, `texture_s`/`texture_t`
-//!   (any numeric type; v = 0 at the bottom of the image, as in OBJ).
+//!   (any numeric type; v = 0 at the bottom of the image, as in OBJ); vertex colours
+//!   `red`, `green`, `blue` and optionally `alpha` (or the `diffuse_` names), which
+//!   multiply the base colour: an integer type is sRGB-encoded over its range (255
+//!   for `uchar`), as 8-bit PNG textures are; a float is linear in [0, 1]. Alpha is
+//!   linear.
 //! * Element `face`: the list property `vertex_indices` (or `vertex_index`), any count and
 //!   index types. Polygons are triangulated as fans `(i0, ik, ik+1)`; faces with fewer than
 //!   three vertices are skipped.
@@ -45,14 +49,14 @@ mod header;
 use std::borrow::Cow;
 use std::path::Path;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 use crate::error::{Error, Result};
 use crate::scene::limits::{self, FileKind};
 use crate::scene::mesh::{normalize_all, push_fan, MeshData};
 
 use body::Body;
-use header::{parse_header, Element, Format, PropKind};
+use header::{parse_header, Element, Format, PropKind, Scalar};
 
 /// Upper bound on what a header count may pre-allocate; larger counts grow as data arrives.
 const MAX_PREALLOC: usize = 1 << 20;
@@ -70,7 +74,29 @@ enum VertexSlot {
     Coord(usize),
     Normal(usize),
     Uv(usize),
+    Color(usize),
     Ignore,
+}
+
+/// Names of the vertex colour channels, tried in this order (alpha optional).
+const COLOR_NAMES: [[&str; 4]; 2] =
+    [["red", "green", "blue", "alpha"], ["diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"]];
+
+/// A colour channel of type `ty` read as `v` into linear [0, 1]: an integer over its
+/// type's range, sRGB-decoded unless it is alpha (`k` 3); a float as it is.
+fn color_channel(ty: Scalar, v: f64, k: usize) -> f32 {
+    let range = match ty {
+        Scalar::U8 | Scalar::I8 => 255.0,
+        Scalar::U16 | Scalar::I16 => 65535.0,
+        Scalar::U32 | Scalar::I32 => 4_294_967_295.0,
+        Scalar::F32 | Scalar::F64 => return v as f32,
+    };
+    let x = (v / range).clamp(0.0, 1.0) as f32;
+    if k == 3 {
+        x
+    } else {
+        crate::scene::colors::srgb_to_linear(x)
+    }
 }
 
 /// Names of the texture coordinate pair on the vertex element, tried in this order.
@@ -121,6 +147,8 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     let mut has_normals = false;
     let mut uvs: Vec<Vec2> = Vec::new();
     let mut has_uvs = false;
+    let mut colors: Vec<Vec4> = Vec::new();
+    let mut has_colors = false;
 
     for el in &header.elements {
         if el.count == 0 {
@@ -175,6 +203,22 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                     break;
                 }
             }
+            for names in COLOR_NAMES {
+                let [r, g, b, a] = names;
+                if let (Some(r), Some(g), Some(b)) =
+                    (find_scalar(path, el, r)?, find_scalar(path, el, g)?, find_scalar(path, el, b)?)
+                {
+                    has_colors = true;
+                    let alpha = find_scalar(path, el, a)?;
+                    for (k, i) in [Some(r), Some(g), Some(b), alpha].into_iter().enumerate() {
+                        if let Some(s) = i.and_then(|i| slots.get_mut(i)) {
+                            *s = VertexSlot::Color(k);
+                        }
+                    }
+                    colors.reserve(cap);
+                    break;
+                }
+            }
             mesh.positions.reserve(cap);
         } else if is_face {
             let i = el.props.iter().position(|p| p.name == "vertex_indices" || p.name == "vertex_index").ok_or_else(
@@ -205,6 +249,7 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
             let mut coord = [0f64; 3];
             let mut normal = [0f64; 3];
             let mut uv = [0f64; 2];
+            let mut color = [1f32; 4];
             for (pi, prop) in el.props.iter().enumerate() {
                 match prop.kind {
                     PropKind::Scalar(ty) => {
@@ -223,6 +268,11 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                             Some(VertexSlot::Uv(k)) => {
                                 if let Some(c) = uv.get_mut(*k) {
                                     *c = v;
+                                }
+                            }
+                            Some(VertexSlot::Color(k)) => {
+                                if let Some(c) = color.get_mut(*k) {
+                                    *c = color_channel(ty, v, *k);
                                 }
                             }
                             _ => {}
@@ -279,6 +329,9 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
                 if has_uvs {
                     uvs.push(Vec2::new(uv[0] as f32, uv[1] as f32));
                 }
+                if has_colors {
+                    colors.push(Vec4::from_array(color));
+                }
             } else if face_list.is_some() {
                 push_fan(&mut mesh.triangles, &indices);
                 if mesh.triangles.len() as u64 > limits::MAX_TRIANGLES {
@@ -300,6 +353,10 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData> {
     }
     if has_uvs && uvs.len() == mesh.positions.len() {
         mesh.uvs = Some(uvs);
+    }
+    if has_colors && colors.len() == mesh.positions.len() {
+        crate::scene::colors::clamp_colors(&mut colors);
+        mesh.colors = Some(colors);
     }
     Ok(mesh)
 }
