@@ -6,7 +6,7 @@
 use crate::common;
 
 use arbor::accel::{Accel, AccelKind, Traverse};
-use arbor::math::Ray;
+use arbor::math::{Hit, Ray};
 use arbor::render::{gpu, Frame, Integrator, RenderSettings};
 use arbor::scene::{AlphaMode, Scene};
 use arbor::{RayTracer, TraceOptions};
@@ -189,32 +189,35 @@ fn device_equals_cpu_through_masked_and_blended_surfaces() {
             Ray { origin: o, dir: (t - o).normalize(), tmin: 0.0, tmax: f32::INFINITY }
         })
         .collect();
-    let mut kinds = AccelKind::ALL.to_vec();
-    if ctx.info().ray_query() {
-        kinds.push(AccelKind::RayQuery);
-    }
+    let cpu = Accel::build(AccelKind::BvhSah, &scene).trace_cpu(&scene, &rays);
+    every_kind_hits_as_the_cpu(&ctx, &scene, &rays, &cpu);
     // Hits on the leaf, the pane, the wall, the bubble, the ghost; misses.
     let mut layers = [0usize; 6];
-    for kind in kinds {
-        let accel = Accel::build_on(&ctx, kind, &scene, &Default::default()).expect("build");
-        let gpu = RayTracer::new(&ctx, &scene, &accel, &TraceOptions::default())
-            .expect("tracer")
-            .trace(&rays)
-            .expect("trace");
-        let cpu = Accel::build(AccelKind::BvhSah, &scene).trace_cpu(&scene, &rays);
-        for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
-            assert_eq!(g.map(|h| h.prim), c.map(|h| h.prim), "{kind}: ray {k}");
-        }
-        ctx.check_validation().expect("no validation errors");
-        layers = [0; 6];
-        for c in &cpu {
-            layers[c.map_or(5, |h| if h.prim < 6 { h.prim as usize / 2 } else { h.prim as usize - 3 })] += 1;
-        }
+    for c in &cpu {
+        layers[c.map_or(5, |h| if h.prim < 6 { h.prim as usize / 2 } else { h.prim as usize - 3 })] += 1;
     }
     // Rays reach every layer: the leaf's squares, the pane half the time, the wall,
     // the bubble half the time; the masked-out ghost never.
     assert!(layers.iter().take(3).all(|&n| n > 400) && layers[3] > 100, "{layers:?}");
     assert_eq!(layers[4], 0, "{layers:?}");
+}
+
+/// Every `--accel` kind (and `rayquery` where the device has it) traces `rays` on the
+/// device to the primitives of `cpu`, the CPU reference's hits.
+pub(crate) fn every_kind_hits_as_the_cpu(ctx: &arbor::gpu::Context, scene: &Scene, rays: &[Ray], cpu: &[Option<Hit>]) {
+    let mut kinds = AccelKind::ALL.to_vec();
+    if ctx.info().ray_query() {
+        kinds.push(AccelKind::RayQuery);
+    }
+    for kind in kinds {
+        let accel = Accel::build_on(ctx, kind, scene, &Default::default()).expect("build");
+        let gpu =
+            RayTracer::new(ctx, scene, &accel, &TraceOptions::default()).expect("tracer").trace(rays).expect("trace");
+        for (k, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+            assert_eq!(g.map(|h| h.prim), c.map(|h| h.prim), "{kind}: ray {k}");
+        }
+        ctx.check_validation().expect("no validation errors");
+    }
 }
 
 /// A blended pane of opacity 0.25 in front of the background converges to 0.25 x its

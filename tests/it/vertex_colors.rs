@@ -11,7 +11,6 @@ use arbor::math::Ray;
 use arbor::render::integrators::sppm::{PhotonMap, SppmSettings};
 use arbor::render::{gpu, Frame, Integrator, RenderSettings};
 use arbor::scene::{load_mesh, Scene};
-use arbor::{RayTracer, TraceOptions};
 use glam::{Vec3, Vec4};
 
 /// An ASCII PLY of `positions` with float colours `colors` (RGBA, linear) or none, and
@@ -221,21 +220,7 @@ fn a_vertex_alpha_cuts_a_masked_quad_on_the_device_as_on_the_cpu() {
         }
     }
     assert!(met > 500 && passed > 500, "{met} met, {passed} passed");
-    let mut kinds = AccelKind::ALL.to_vec();
-    if ctx.info().ray_query() {
-        kinds.push(AccelKind::RayQuery);
-    }
-    for kind in kinds {
-        let accel = Accel::build_on(&ctx, kind, &scene, &Default::default()).expect("build");
-        let gpu = RayTracer::new(&ctx, &scene, &accel, &TraceOptions::default())
-            .expect("tracer")
-            .trace(&rays)
-            .expect("trace");
-        for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
-            assert_eq!(g.map(|h| h.prim), c.map(|h| h.prim), "{kind}: ray {k}");
-        }
-        ctx.check_validation().expect("no validation errors");
-    }
+    crate::alpha::every_kind_hits_as_the_cpu(&ctx, &scene, &rays, &cpu);
 }
 
 /// PLY colours: 8-bit channels are sRGB over 255 (alpha linear), floats linear; a
