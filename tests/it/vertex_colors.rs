@@ -261,6 +261,33 @@ fn ply_colours_are_read_in_each_encoding() {
     }
 }
 
+/// OBJ's `v x y z r g b`: the colours are read when every vertex has one (linear,
+/// alpha 1, clamped) and dropped, without an error, when only some have one.
+#[test]
+fn obj_colours_are_read_when_every_vertex_has_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let all = dir.path().join("all.obj");
+    std::fs::write(&all, "v 0 0 0 1 0 0\nv 1 0 0 0 0.5 0\nv 0 1 0 0 0 2\nv 1 1 0 0.25 0.25 0.25\nf 1 2 4 3\n")
+        .expect("obj");
+    let mesh = load_mesh(&all).expect("loads");
+    let colors = mesh.colors.expect("colours");
+    // tobj numbers the vertices in the order the faces use them: compare by position.
+    let want = |p: Vec3| match [p.x, p.y] {
+        [0.0, 0.0] => Vec4::new(1.0, 0.0, 0.0, 1.0),
+        [1.0, 0.0] => Vec4::new(0.0, 0.5, 0.0, 1.0),
+        [0.0, 1.0] => Vec4::new(0.0, 0.0, 1.0, 1.0),
+        _ => Vec4::new(0.25, 0.25, 0.25, 1.0),
+    };
+    assert_eq!(colors.len(), 4);
+    for (p, c) in mesh.positions.iter().zip(&colors) {
+        assert_eq!(*c, want(*p), "vertex at {p}");
+    }
+    let some = dir.path().join("some.obj");
+    std::fs::write(&some, "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0 0 0 1\nf 1 2 3\n").expect("obj");
+    let mesh = load_mesh(&some).expect("loads");
+    assert_eq!((mesh.colors, mesh.triangles.len()), (None, 1));
+}
+
 /// glTF's COLOR_0 as normalized bytes (RGBA), normalized shorts (RGB, strided) and
 /// floats (RGBA), one primitive each, all linear; a primitive without COLOR_0 in a mesh
 /// with them is white.

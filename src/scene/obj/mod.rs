@@ -8,8 +8,10 @@
 //!    `tobj` either does not check or reports without a location, and rewrites what it
 //!    mishandles:
 //!    * `v x y z [w | r g b ...]`: coordinates must be numbers, `w` non-zero, the result
-//!      finite; the line is rewritten as `v x/w y/w z/w` (colours dropped, so vertices with
-//!      and without colours can mix).
+//!      finite; the line is rewritten as `v x/w y/w z/w`. Colours `r g b` are kept when
+//!      every vertex of the file has them (then they are the mesh's vertex colours,
+//!      linear like glTF's, alpha 1; crate::scene::colors); otherwise they are dropped,
+//!      so that vertices with and without colours can mix.
 //!    * `vt u`: the missing second texture coordinate is written as 0.
 //!    * `f`: every `v[/vt[/vn]]` reference must be a non-zero integer inside the file's
 //!      vertex / texture / normal lists (negative = relative to the entries so far). `vt` and
@@ -160,6 +162,7 @@ fn assemble(
     let mut uvs: Vec<Vec2> = Vec::new();
     let mut all_have_uvs = true;
     let mut default_index = None;
+    let mut colors: Vec<glam::Vec4> = Vec::new();
 
     for model in models {
         let m = &model.mesh;
@@ -187,6 +190,11 @@ fn assemble(
             }));
         } else {
             all_have_uvs = false;
+        }
+        // Colours: tobj has them when every vertex of the file had one (the pre-pass
+        // keeps them only then).
+        if m.vertex_color.len() == m.positions.len() {
+            colors.extend(m.vertex_color.chunks_exact(3).map(|c| glam::Vec4::new(c[0], c[1], c[2], 1.0)));
         }
 
         let material = if uses_materials {
@@ -236,6 +244,10 @@ fn assemble(
     }
     if all_have_uvs && !mesh.positions.is_empty() && uvs.len() == mesh.positions.len() {
         mesh.uvs = Some(uvs);
+    }
+    if !mesh.positions.is_empty() && colors.len() == mesh.positions.len() {
+        crate::scene::colors::clamp_colors(&mut colors);
+        mesh.colors = Some(colors);
     }
     if uses_materials {
         mesh.materials = materials;

@@ -40,9 +40,15 @@ pub(super) fn prepass_in(path: &Path, dir: &Path, text: &str) -> Result<Prepass>
     let keyword = |line: &str| line.split_whitespace().next().unwrap_or_default().to_string();
     // Totals of v, vt, vn: positive face references may point forward.
     let mut totals = [0u64; 3];
+    // Vertices with a colour (three values after the coordinates): kept only when every
+    // vertex has one, which is what `tobj` can read.
+    let mut colored = 0u64;
     for line in text.split('\n') {
         match keyword(line).as_str() {
-            "v" => totals[0] += 1,
+            "v" => {
+                totals[0] += 1;
+                colored += u64::from(line.split_whitespace().count() == 7);
+            }
             "vt" => totals[1] += 1,
             "vn" => totals[2] += 1,
             _ => {}
@@ -56,6 +62,7 @@ pub(super) fn prepass_in(path: &Path, dir: &Path, text: &str) -> Result<Prepass>
         ));
     }
 
+    let colors = colored > 0 && colored == totals[0];
     let mut out = String::with_capacity(text.len());
     let mut so_far = [0u64; 3];
     let mut triangles = 0u64;
@@ -71,8 +78,11 @@ pub(super) fn prepass_in(path: &Path, dir: &Path, text: &str) -> Result<Prepass>
         match words.next() {
             Some("v") => {
                 so_far[0] += 1;
-                let p = parse_vertex(path, line_no, so_far[0], words)?;
+                let (p, rgb) = parse_vertex(path, line_no, so_far[0], words)?;
                 let _ = write!(out, "v {} {} {}", p.x, p.y, p.z);
+                if let Some(c) = rgb.filter(|_| colors) {
+                    let _ = write!(out, " {} {} {}", c.x, c.y, c.z);
+                }
             }
             Some("vt") => {
                 so_far[1] += 1;
@@ -183,8 +193,14 @@ pub(super) fn find_late_reference(text: &str, flush_line: usize) -> Option<(usiz
     None
 }
 
-/// Parses the values after `v`: `x y z`, optionally `w` (4 values) or colours (more).
-fn parse_vertex<'a>(path: &Path, line: usize, number: u64, words: impl Iterator<Item = &'a str>) -> Result<Vec3> {
+/// Parses the values after `v`: `x y z`, optionally `w` (4 values) or colours (more);
+/// the position, and the colour `r g b` when there are exactly six values.
+fn parse_vertex<'a>(
+    path: &Path,
+    line: usize,
+    number: u64,
+    words: impl Iterator<Item = &'a str>,
+) -> Result<(Vec3, Option<Vec3>)> {
     let vals: Vec<&str> = words.collect();
     let num = |tok: &str| {
         tok.parse::<f32>().map_err(|_| Error::parse(path, line, format!("vertex {number}: '{tok}' is not a number")))
@@ -206,7 +222,11 @@ fn parse_vertex<'a>(path: &Path, line: usize, number: u64, words: impl Iterator<
     if !p.is_finite() {
         return Err(Error::parse(path, line, format!("vertex {number} has a non-finite coordinate")));
     }
-    Ok(p)
+    let rgb = match vals[..] {
+        [_, _, _, r, g, b] => Some(Vec3::new(num(r)?, num(g)?, num(b)?)),
+        _ => None,
+    };
+    Ok((p, rgb))
 }
 
 /// Checks one face reference `v`, `v/vt`, `v//vn` or `v/vt/vn` against the entries
