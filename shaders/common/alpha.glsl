@@ -68,7 +68,8 @@ bool alpha_meets(uvec4 tri, uint prim, Ray r, float u, float v) {
         precise vec2 uv = t0 * b0 + t1 * u + t2 * v;
         alpha *= texture_alpha_at(desc, uv);
     }
-    if (VERTEX_COLORS) alpha *= triangle_color(tri, u, v).a;
+    // An opaque material's row (cutoff 0) passes whatever the vertex alpha: no reads.
+    if (VERTEX_COLORS && m.y != 0.0) alpha *= triangle_color(tri, u, v).a;
     // A branch, not a select: the hash runs only where a blended pane was hit.
     if ((ALPHA_BITS & ALPHA_BLEND) == 0u || m.y >= 0.0) return alpha >= m.y;
     return blend_hash(r, prim) < alpha;

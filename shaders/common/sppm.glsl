@@ -128,7 +128,8 @@ void sppm_camera(PixelJob job, Pixel px) {
                 set_record(slot, SPPM_REC_WO, vec4(wo, uv.y));
                 vec3 kept = diffuse ? beta * (m.albedo * INV_PI) : beta;
                 set_record(slot, SPPM_REC_BETA, vec4(kept, float(depth + 1u)));
-                if (VERTEX_COLORS) set_record(slot, SPPM_REC_TINT, vec4(hit_tint(h), 0.0));
+                // A Lambert point's colour is in its throughput already.
+                if (VERTEX_COLORS && !diffuse) set_record(slot, SPPM_REC_TINT, vec4(hit_tint(h), 0.0));
                 point = vec4(p, radius);
                 found = true;
             }

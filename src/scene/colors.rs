@@ -25,7 +25,8 @@ pub fn clamp_colors(colors: &mut [Vec4]) {
 }
 
 /// A colour as the kernels store it: four 16-bit unorm channels, red and green in the
-/// first word (red in the low half), blue and alpha in the second (`unpackUnorm2x16`).
+/// first word (red in the low half), blue and alpha in the second (`vertex_color` in
+/// colors.glsl decodes each channel by a division, as [`stored_color`] does).
 pub fn color_words(c: Vec4) -> [u32; 2] {
     let q = |x: f32| (x.clamp(0.0, 1.0) * 65535.0).round() as u32;
     [q(c.x) | q(c.y) << 16, q(c.z) | q(c.w) << 16]

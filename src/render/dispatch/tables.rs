@@ -135,16 +135,7 @@ fn texture_rows(scene: &Scene, base: u32, means: &[f32]) -> Vec<[f32; 4]> {
 fn env_texel_rows(texels: &[[f32; 3]]) -> Vec<[f32; 4]> {
     let h = |x: f32| u32::from(half::f16::from_f32(x.min(65504.0)).to_bits());
     let words: Vec<u32> = texels.iter().flat_map(|t| [h(t[0]) | h(t[1]) << 16, h(t[2])]).collect();
-    words
-        .chunks(4)
-        .map(|c| {
-            let mut row = [0f32; 4];
-            for (k, w) in c.iter().enumerate() {
-                row[k] = f32::from_bits(*w);
-            }
-            row
-        })
-        .collect()
+    word_rows(&words)
 }
 
 /// Environment texels as the kernel sees them (half precision), for building the
@@ -154,7 +145,6 @@ pub fn env_texels_as_seen(texels: &[[f32; 3]]) -> Vec<[f32; 3]> {
     texels.iter().map(|t| [h(t[0]), h(t[1]), h(t[2])]).collect()
 }
 
-/// Floats packed 4 per row.
 /// Words packed 4 per row as their bits (the shading buffer is read as uint texels:
 /// a word that reads as a NaN keeps its bits).
 pub fn word_rows(words: &[u32]) -> Vec<[f32; 4]> {
@@ -170,6 +160,7 @@ pub fn word_rows(words: &[u32]) -> Vec<[f32; 4]> {
         .collect()
 }
 
+/// Floats packed 4 per row.
 fn float_rows(values: &[f32]) -> Vec<[f32; 4]> {
     values
         .chunks(4)
